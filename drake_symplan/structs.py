@@ -1,0 +1,129 @@
+"""Plain data shared by every layer: actions, their per-object encoding, effect layout.
+
+No Drake and no torch here, so `learning` and `symbolic` can import it freely.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# The paper's single action has four discrete parameters: pick `source` at a grasp
+# offset, release it above `target` at a release offset. Offsets run along world y,
+# the long blocks' long axis, as in the authors' setup.
+OFFSETS: tuple[str, ...] = ("left", "center", "right")
+OFFSET_METRES: dict[str, float] = {"left": -0.075, "center": 0.0, "right": 0.075}
+
+# Per-object action encoding (one-hot, ACTION_DIM = 8):
+#   [is_source, grasp=left, grasp=center, grasp=right,
+#    is_target, release=left, release=center, release=right]
+# A non-argument object is all zeros; the grasp bits are set only on the source and
+# the release bits only on the target.
+ACTION_DIM = 8
+
+# Per-object effect (EFFECT_DIM = 6, metres): [dp at lift (3); dp after release
+# relative to where the carry put it (3)]. The second half has the arm's lateral
+# carry (source's lifted xy -> release xy) subtracted, so symbols need no global
+# position (paper, Experiment Setup).
+EFFECT_DIM = 6
+
+
+@dataclass(frozen=True)
+class Action:
+    """pick(source, grasp) then place on target with release offset."""
+
+    source: str
+    grasp: str
+    target: str
+    release: str
+
+    def __post_init__(self):
+        if self.grasp not in OFFSETS:
+            raise ValueError(f"unknown grasp offset {self.grasp!r}; expected one of {OFFSETS}")
+        if self.release not in OFFSETS:
+            raise ValueError(
+                f"unknown release offset {self.release!r}; expected one of {OFFSETS}"
+            )
+        if self.source == self.target:
+            raise ValueError(f"source and target are the same object {self.source!r}")
+
+    @classmethod
+    def parse(cls, pick: str, place: str) -> Action:
+        """From CLI strings 'o1:center' and 'o2:left'."""
+        try:
+            source, grasp = pick.split(":")
+            target, release = place.split(":")
+        except ValueError as e:
+            raise ValueError(
+                f"expected NAME:OFFSET for --pick and --place, got {pick!r} and {place!r}"
+            ) from e
+        return cls(source, grasp, target, release)
+
+    def __str__(self) -> str:
+        return f"pick({self.source}:{self.grasp}) place({self.target}:{self.release})"
+
+
+def encode_action(action: Action, names: list[str]) -> np.ndarray:
+    """The per-object action encoding [len(names), ACTION_DIM] for objects `names`."""
+    if action.source not in names:
+        raise ValueError(f"action source {action.source!r} is not among objects {names}")
+    if action.target not in names:
+        raise ValueError(f"action target {action.target!r} is not among objects {names}")
+    a = np.zeros((len(names), ACTION_DIM), dtype=np.float32)
+    s, t = names.index(action.source), names.index(action.target)
+    a[s, 0] = 1.0
+    a[s, 1 + OFFSETS.index(action.grasp)] = 1.0
+    a[t, 4] = 1.0
+    a[t, 5 + OFFSETS.index(action.release)] = 1.0
+    return a
+
+
+def decode_action(encoded: np.ndarray, names: list[str]) -> Action:
+    """Inverse of `encode_action`."""
+    s = int(np.argmax(encoded[:, 0]))
+    t = int(np.argmax(encoded[:, 4]))
+    if encoded[s, 0] != 1.0 or encoded[t, 4] != 1.0:
+        raise ValueError("encoded action has no source or no target")
+    grasp = OFFSETS[int(np.argmax(encoded[s, 1:4]))]
+    release = OFFSETS[int(np.argmax(encoded[t, 5:8]))]
+    return Action(names[s], grasp, names[t], release)
+
+
+@dataclass
+class TransitionArrays:
+    """A padded batch of transitions: what `data` stores and `learning` trains on.
+
+    T transitions, each with up to N relevant objects (action arguments plus the
+    objects in contact with them), padded to N with `mask` False. Object order inside
+    a transition carries no meaning (the models are permutation-equivariant), except
+    for the DeepSym baseline, which reorders by the action roles itself.
+    """
+
+    state: np.ndarray  # [T, N, d_o] float32, perceived features before the action
+    action: np.ndarray  # [T, N, ACTION_DIM] float32, see encode_action
+    effect: np.ndarray  # [T, N, EFFECT_DIM] float32, metres
+    mask: np.ndarray  # [T, N] bool, True for real objects
+    episode: np.ndarray  # [T] int64, episode id (splits are by episode)
+    next_state: np.ndarray | None = None  # [T, N, d_o] float32, perceived after
+
+    def __post_init__(self):
+        t, n = self.mask.shape
+        for key in ("state", "action", "effect", "next_state"):
+            arr = getattr(self, key)
+            if arr is not None and arr.shape[:2] != (t, n):
+                raise ValueError(f"{key} has shape {arr.shape}, expected ({t}, {n}, ...)")
+        if self.action.shape[2] != ACTION_DIM or self.effect.shape[2] != EFFECT_DIM:
+            raise ValueError("action/effect width does not match ACTION_DIM/EFFECT_DIM")
+        if self.episode.shape != (t,):
+            raise ValueError(f"episode has shape {self.episode.shape}, expected ({t},)")
+
+    def __len__(self) -> int:
+        return self.mask.shape[0]
+
+    def subset(self, index: np.ndarray) -> TransitionArrays:
+        ns = None if self.next_state is None else self.next_state[index]
+        return TransitionArrays(
+            self.state[index], self.action[index], self.effect[index],
+            self.mask[index], self.episode[index], ns,
+        )
