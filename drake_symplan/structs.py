@@ -127,3 +127,14 @@ class TransitionArrays:
             self.state[index], self.action[index], self.effect[index],
             self.mask[index], self.episode[index], ns,
         )
+
+
+@dataclass
+class ObjectState:
+    """What the skills need to know of an object: from a scene file or from perception."""
+
+    name: str
+    type: str  # "cube" | "long"
+    position: np.ndarray  # box centre, world frame, metres
+    yaw: float = 0.0  # radians about world z
+    tilt: float = 0.0  # radians between the box's local z and world z

@@ -1,0 +1,128 @@
+"""`symplan train`, `symplan eval effects`, `symplan symbols`: the learning commands.
+
+torch is imported inside the command functions, so that building the parser (which
+loads every command module) stays cheap.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from drake_symplan.cli.main import CommandError
+
+MODEL_NAMES = ("relational", "attentive", "deepsym")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("train", help="train an effect model on a data set")
+    p.add_argument("--model", required=True, choices=MODEL_NAMES)
+    p.add_argument("--data", required=True, help="data set directory (shards + manifest.json)")
+    p.add_argument("--out", required=True, help="run directory to create (or resume)")
+    p.add_argument("--epochs", type=int, default=200)
+    p.add_argument("--batch-size", type=int, default=128)
+    p.add_argument("--lr", type=float, default=1e-4)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--patience", type=int, default=20,
+                   help="stop after this many epochs without a better validation loss")
+    p.add_argument("--threads", type=int, default=None, help="torch.set_num_threads")
+    p.add_argument("--temperature", type=float, default=1.0, help="Gumbel-sigmoid temperature")
+    p.add_argument("--soft", action="store_true",
+                   help="soft Gumbel-sigmoid samples (default: straight-through hard bits)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_train)
+
+    p = subparsers.add_parser("eval", help="evaluate trained runs")
+    eval_sub = p.add_subparsers(dest="eval_command", required=True)
+    p = eval_sub.add_parser("effects", help="test-set effect error (cm) of runs, per model")
+    p.add_argument("runs", nargs="+", help="run directories")
+    p.add_argument("--data", default=None,
+                   help="data set directory if it moved (must have the run's fingerprint)")
+    p.add_argument("--plot", default=None, help="write a bar chart to this PNG")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_eval_effects)
+
+    p = subparsers.add_parser("symbols", help="read unary and relational symbols of a data set")
+    p.add_argument("run", help="run directory")
+    p.add_argument("--data", required=True, help="data set directory")
+    p.add_argument("--out", required=True, help="output .npz file")
+    p.add_argument("--margin", type=float, default=None,
+                   help="a bit is uncertain when |logit| < margin (default 3.0)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_symbols)
+
+
+def cmd_train(args: argparse.Namespace) -> dict:
+    from drake_symplan.learning.trainer import TrainConfig, train
+
+    if args.threads is not None and args.threads < 1:
+        raise CommandError(f"--threads must be at least 1, got {args.threads}")
+    cfg = TrainConfig(
+        model=args.model, data=args.data, out=args.out, epochs=args.epochs,
+        batch_size=args.batch_size, lr=args.lr, seed=args.seed, patience=args.patience,
+        threads=args.threads, temperature=args.temperature, hard=not args.soft,
+        progress=not args.no_progress,
+    )
+    return train(cfg, resume=args.resume)
+
+
+def evaluate_runs(runs: list[str], data_dir: str | None = None) -> dict:
+    """Test-set effect metrics of every run and their mean +- std per model."""
+    from drake_symplan.data.storage import fingerprint, load_transitions
+    from drake_symplan.learning.checkpoint import load_run
+    from drake_symplan.learning.dataset import TensorSet, split_by_episode
+    from drake_symplan.learning.evaluate import aggregate_runs, effect_metrics
+
+    cache: dict[str, tuple] = {}
+    per_run = []
+    for run in runs:
+        model, config = load_run(run)
+        train_cfg = config["train_config"]
+        data = str(Path(data_dir or train_cfg["data"]).resolve())
+        if data not in cache:
+            cache[data] = (load_transitions(data), fingerprint(data))
+        arrays, fp = cache[data]
+        if fp != config["data_fingerprint"]:
+            raise CommandError(f"run {run} was trained on other data than {data} "
+                               "(fingerprints differ)")
+        test = split_by_episode(arrays.episode, train_cfg["seed"])["test"]
+        metrics = effect_metrics(model, TensorSet.from_arrays(arrays, test))
+        per_run.append({"run": str(run), "model": config["model"], "epoch": config["epoch"],
+                        **metrics})
+    return {"runs": per_run, "models": aggregate_runs(per_run)}
+
+
+def cmd_eval_effects(args: argparse.Namespace) -> dict:
+    from drake_symplan.learning.evaluate import plot_errors
+
+    result = evaluate_runs(args.runs, args.data)
+    if args.plot:
+        result["plot"] = str(plot_errors(result["models"], args.plot))
+    if not args.json:
+        for name, stats in result["models"].items():
+            e = stats["error_cm"]
+            print(f"{name}: {e['mean']:.2f} +- {e['std']:.2f} cm over {e['runs']} run(s)")
+    return result
+
+
+def cmd_symbols(args: argparse.Namespace) -> dict:
+    import numpy as np
+
+    from drake_symplan.learning.gumbel import DEFAULT_MARGIN
+    from drake_symplan.learning.readout import readout_dataset, uncertainty_counts
+
+    margin = DEFAULT_MARGIN if args.margin is None else args.margin
+    symbols = readout_dataset(args.run, args.data, margin=margin)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "wb") as f:  # exactly this name (savez would append .npz)
+        np.savez_compressed(f, **symbols)
+    t, k, n, _ = symbols["relational"].shape
+    result = {"out": str(out), "transitions": t, "objects": n,
+              "unary_dim": int(symbols["unary"].shape[-1]), "relations": k, "margin": margin,
+              **uncertainty_counts(symbols)}
+    if not args.json:
+        print(f"wrote {out}: {t} transitions, {result['unary_dim']} unary bits, {k} relations")
+    return result

@@ -1,0 +1,90 @@
+"""Run directories: checkpoints that rebuild their model, and `load_run`.
+
+A run directory holds
+
+- `best.pt`, `last.pt`: {"model", "model_config", "model_state", "optimizer_state",
+  "epoch", "train_config", "data_fingerprint", "metrics", "progress", "rng"};
+  best is the lowest validation loss, last the end of the latest epoch;
+- `config.json`: the training config, model config, data fingerprint and package
+  versions, readable without torch;
+- `log.csv`: one row per epoch; `metrics.json`: the final result of training.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from drake_symplan.learning.models import EffectModel, build_model
+
+BEST = "best.pt"
+LAST = "last.pt"
+CONFIG = "config.json"
+LOG = "log.csv"
+METRICS = "metrics.json"
+
+
+def versions() -> dict:
+    import drake_symplan
+
+    return {
+        "python": platform.python_version(),
+        "torch": torch.__version__,
+        "numpy": np.__version__,
+        "drake_symplan": getattr(drake_symplan, "__version__", "unknown"),
+    }
+
+
+def save_checkpoint(path: str | Path, payload: dict) -> Path:
+    """torch.save `payload` to `path` atomically (temporary file, then os.replace)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def write_json(path: str | Path, obj: dict) -> Path:
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(json.dumps(obj, indent=2))
+    os.replace(tmp, path)
+    return path
+
+
+def read_checkpoint(path: str | Path) -> dict:
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint {path} does not exist")
+    try:
+        return torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as e:  # a truncated or foreign file: say which one
+        raise ValueError(f"cannot read checkpoint {path}: {e}") from e
+
+
+def model_from_checkpoint(ckpt: dict) -> EffectModel:
+    model = build_model(ckpt["model"], **ckpt["model_config"])
+    model.load_state_dict(ckpt["model_state"])
+    return model
+
+
+def load_run(run_dir: str | Path, which: str = BEST) -> tuple[EffectModel, dict]:
+    """(model in eval mode, config) from the `best.pt` checkpoint of `run_dir`.
+
+    config has "model", "model_config", "train_config", "data_fingerprint",
+    "metrics" and "epoch" of the checkpoint.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise FileNotFoundError(f"run directory {run_dir} does not exist")
+    ckpt = read_checkpoint(run_dir / which)
+    model = model_from_checkpoint(ckpt)
+    model.eval()
+    config = {key: ckpt.get(key) for key in
+              ("model", "model_config", "train_config", "data_fingerprint", "metrics", "epoch")}
+    return model, config

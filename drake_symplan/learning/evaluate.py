@@ -1,0 +1,136 @@
+"""Effect-prediction error: the loss, the per-object error in cm, Table I aggregation.
+
+The error of one real object is the mean absolute error over its EFFECT_DIM effect
+components, in centimetres; padded slots are excluded everywhere (the peer
+implementation averaged over them, which flatters scenes with few objects). A run's
+error is the mean over all real objects of its test split; by object count groups
+transitions by their number of real objects. Across runs of one model we report
+mean +- sample standard deviation (0 for a single run).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from drake_symplan.learning.dataset import TensorSet
+
+CM_PER_M = 100.0
+
+
+def effect_loss(pred: torch.Tensor, effect: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Squared error summed over effect components and real objects, mean over the batch."""
+    return (((pred - effect) ** 2).sum(-1) * mask).sum(-1).mean()
+
+
+@torch.no_grad()
+def predict(model: torch.nn.Module, data: TensorSet, batch_size: int = 4096) -> torch.Tensor:
+    """Eval-mode (deterministic) effect predictions [T, N, EFFECT_DIM] for `data`."""
+    was_training = model.training
+    model.eval()
+    try:
+        out = [model(s, a, m) for s, a, _, m in data.batches(batch_size)]
+    finally:
+        model.train(was_training)
+    if not out:
+        return data.effect.new_zeros(data.effect.shape)
+    return torch.cat(out)
+
+
+def object_errors_cm(pred: torch.Tensor, effect: torch.Tensor, mask: torch.Tensor) -> np.ndarray:
+    """[T, N] mean absolute effect error of every slot in cm, NaN on padded slots."""
+    err = (pred - effect).abs().mean(-1) * CM_PER_M
+    return torch.where(mask, err, torch.full_like(err, float("nan"))).numpy()
+
+
+@torch.no_grad()
+def evaluate_loss(model: torch.nn.Module, data: TensorSet, batch_size: int = 4096) -> float:
+    """Eval-mode `effect_loss` over the whole set (mean over transitions)."""
+    pred = predict(model, data, batch_size)
+    return float(effect_loss(pred, data.effect, data.mask.to(pred.dtype)))
+
+
+def summarize_errors(errors: np.ndarray) -> dict:
+    """Mean error over real objects, overall and by the transition's object count."""
+    real = ~np.isnan(errors)
+    counts = real.sum(axis=1)
+    by_count = {}
+    for n in np.unique(counts):
+        rows = counts == n
+        by_count[str(int(n))] = {
+            "error_cm": float(np.nanmean(errors[rows])),
+            "transitions": int(rows.sum()),
+        }
+    return {
+        "error_cm": float(np.nanmean(errors)) if real.any() else float("nan"),
+        "transitions": int(len(errors)),
+        "objects": int(real.sum()),
+        "by_count": by_count,
+    }
+
+
+def effect_metrics(model: torch.nn.Module, data: TensorSet, batch_size: int = 4096) -> dict:
+    """`summarize_errors` of the eval-mode predictions on `data`, plus its loss."""
+    pred = predict(model, data, batch_size)
+    summary = summarize_errors(object_errors_cm(pred, data.effect, data.mask))
+    summary["loss"] = float(effect_loss(pred, data.effect, data.mask.to(pred.dtype)))
+    return summary
+
+
+def _mean_std(values: list[float]) -> dict:
+    arr = np.asarray(values, dtype=np.float64)
+    std = float(arr.std(ddof=1)) if len(arr) > 1 else 0.0
+    return {"mean": float(arr.mean()), "std": std, "runs": len(arr)}
+
+
+def aggregate_runs(per_run: list[dict]) -> dict:
+    """Group run results {"run", "model", "error_cm", "by_count"} by model: mean +- std."""
+    groups: dict[str, list[dict]] = defaultdict(list)
+    for result in per_run:
+        groups[result["model"]].append(result)
+    models = {}
+    for name, results in sorted(groups.items()):
+        counts = sorted({c for r in results for c in r["by_count"]}, key=int)
+        models[name] = {
+            "error_cm": _mean_std([r["error_cm"] for r in results]),
+            "by_count": {
+                c: _mean_std([r["by_count"][c]["error_cm"] for r in results if c in r["by_count"]])
+                for c in counts
+            },
+            "runs": [r["run"] for r in results],
+        }
+    return models
+
+
+def plot_errors(models: dict, out: str | Path) -> Path:
+    """Bar chart of the error (mean +- std over runs) per model and object count."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(models)
+    counts = sorted({c for m in models.values() for c in m["by_count"]}, key=int)
+    groups = ["all", *counts]
+    width = 0.8 / max(1, len(names))
+    fig, ax = plt.subplots(figsize=(1.6 + 1.2 * len(groups), 3.2))
+    for k, name in enumerate(names):
+        stats = [models[name]["error_cm"]] + [
+            models[name]["by_count"].get(c, {"mean": np.nan, "std": 0.0}) for c in counts
+        ]
+        x = np.arange(len(groups)) + (k - (len(names) - 1) / 2) * width
+        ax.bar(x, [s["mean"] for s in stats], width, yerr=[s["std"] for s in stats],
+               capsize=3, label=name)
+    ax.set_xticks(np.arange(len(groups)))
+    ax.set_xticklabels(["all"] + [f"{c} objects" for c in counts])
+    ax.set_ylabel("effect error (cm, MAE per object)")
+    ax.legend()
+    fig.tight_layout()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out

@@ -1,0 +1,234 @@
+"""The three effect predictors of the paper's Table I.
+
+Every model maps a padded batch (state [B, N, d_o], action [B, N, ACTION_DIM],
+mask [B, N]) to per-object effects [B, N, EFFECT_DIM] in metres (zero on padded
+slots), through a binary bottleneck that can be read out as symbols:
+
+- `RelationalDeepSym` (the paper's model): unary bits per object from an encoder, K
+  relation types from a value-less self-attention with Gumbel-sigmoid weights
+  alpha^k_ij = GS(q^k_i . k^k_j), messages h^k_i = sum_j alpha^k_ij z_j with
+  z_j = MLP([unary_j; action_j]), decoder on [h^1_i; ...; h^K_i].
+  Permutation-equivariant; padded objects take part in no relation.
+- `DeepSym` (Ahmetoglu et al. 2022): unary bits per object, laid out in a fixed-size
+  vector ordered [source, target, the other objects, padding]; one decoder predicts
+  every slot's effect, which is put back in the caller's object order.
+- `AttentiveDeepSym` (Ahmetoglu et al. 2022, attentive): unary bits per object, then
+  transformer encoder layers over the objects, then a per-object decoder.
+
+Features are standardised and effects de-standardised with training-set statistics
+held in buffers (`set_normalization`), so checkpoints are self-contained.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE, GumbelSigmoid
+from drake_symplan.learning.layers import MLP, NormedLinear, scale_to_norm
+from drake_symplan.structs import ACTION_DIM, EFFECT_DIM
+
+
+class EffectModel(nn.Module):
+    """Shared parts: normalisation buffers, the unary encoder, the constructor config."""
+
+    n_relations = 0
+
+    def __init__(
+        self,
+        state_dim: int,
+        n_unary: int,
+        hidden: int = 128,
+        layers: int = 2,
+        temperature: float = DEFAULT_TEMPERATURE,
+        hard: bool = DEFAULT_HARD,
+    ):
+        super().__init__()
+        self.state_dim = state_dim
+        self.n_unary = n_unary
+        self._config = {
+            "state_dim": state_dim, "n_unary": n_unary, "hidden": hidden, "layers": layers,
+            "temperature": temperature, "hard": hard,
+        }
+        self.register_buffer("state_mean", torch.zeros(state_dim))
+        self.register_buffer("state_std", torch.ones(state_dim))
+        self.register_buffer("effect_mean", torch.zeros(EFFECT_DIM))
+        self.register_buffer("effect_std", torch.ones(EFFECT_DIM))
+        self.encoder = MLP(state_dim, [hidden] * layers)
+        self.unary_head = NormedLinear(hidden, n_unary)
+        self.gs = GumbelSigmoid(temperature, hard)
+
+    def config(self) -> dict:
+        """Keyword arguments that rebuild this model (see `build_model`)."""
+        return dict(self._config)
+
+    @torch.no_grad()
+    def set_normalization(
+        self,
+        state_mean: torch.Tensor,
+        state_std: torch.Tensor,
+        effect_mean: torch.Tensor,
+        effect_std: torch.Tensor,
+    ) -> None:
+        self.state_mean.copy_(state_mean)
+        self.state_std.copy_(state_std)
+        self.effect_mean.copy_(effect_mean)
+        self.effect_std.copy_(effect_std)
+
+    def _features(self, state: torch.Tensor) -> torch.Tensor:
+        return (state - self.state_mean) / self.state_std
+
+    def _effects(self, out: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        return (out * self.effect_std + self.effect_mean) * mask.unsqueeze(-1)
+
+    def unary_logits(self, state: torch.Tensor) -> torch.Tensor:
+        """[B, N, n_unary] logits of the unary symbols."""
+        return self.unary_head(self.encoder(self._features(state)))
+
+    def relation_logits(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor | None:
+        """[B, K, N, N] logits of r_k(o_i, o_j), or None for a model without relations."""
+        return None
+
+    def _unary_bits(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        return self.gs(self.unary_logits(state)) * mask.unsqueeze(-1)
+
+
+class RelationalDeepSym(EffectModel):
+    """Unary symbols + K relation types from value-less sigmoid self-attention."""
+
+    def __init__(
+        self,
+        state_dim: int,
+        n_unary: int = 1,
+        n_relations: int = 3,
+        key_dim: int = 16,
+        z_dim: int = 64,
+        hidden: int = 128,
+        layers: int = 2,
+        temperature: float = DEFAULT_TEMPERATURE,
+        hard: bool = DEFAULT_HARD,
+    ):
+        super().__init__(state_dim, n_unary, hidden, layers, temperature, hard)
+        self._config.update(n_relations=n_relations, key_dim=key_dim, z_dim=z_dim)
+        self.n_relations = n_relations
+        self.key_dim = key_dim
+        self.attention = MLP(state_dim, [hidden] * layers, 2 * n_relations * key_dim)
+        self.message = MLP(n_unary + ACTION_DIM, [hidden] * layers, z_dim)
+        self.decoder = MLP(n_relations * z_dim, [hidden] * layers, EFFECT_DIM)
+
+    def relation_logits(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        b, n, _ = state.shape
+        qk = self.attention(self._features(state)).view(b, n, 2, self.n_relations, self.key_dim)
+        qk = scale_to_norm(qk).permute(2, 0, 3, 1, 4)  # [2, B, K, N, key_dim]
+        return qk[0] @ qk[1].transpose(-1, -2)
+
+    def relations(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """[B, K, N, N] relation bits (sampled in training), zero wherever a slot is padding."""
+        m = mask.to(state.dtype)
+        pair = (m.unsqueeze(-1) * m.unsqueeze(-2)).unsqueeze(1)
+        return self.gs(self.relation_logits(state, mask)) * pair
+
+    def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
+        b, n, _ = state.shape
+        unary = self._unary_bits(state, mask)
+        z = self.message(torch.cat([unary, action], dim=-1))  # [B, N, D]
+        alpha = self.relations(state, mask)  # [B, K, N, N]
+        h = (alpha.reshape(b, self.n_relations * n, n) @ z).view(b, self.n_relations, n, -1)
+        h = h.transpose(1, 2).reshape(b, n, -1)  # [B, N, K * D], heads concatenated
+        return self._effects(self.decoder(h), mask)
+
+
+class DeepSym(EffectModel):
+    """Fixed-size DeepSym: slots ordered [source, target, rest, padding]."""
+
+    def __init__(
+        self,
+        state_dim: int,
+        max_objects: int,
+        n_unary: int = 4,
+        hidden: int = 128,
+        layers: int = 2,
+        temperature: float = DEFAULT_TEMPERATURE,
+        hard: bool = DEFAULT_HARD,
+    ):
+        super().__init__(state_dim, n_unary, hidden, layers, temperature, hard)
+        self._config.update(max_objects=max_objects)
+        self.max_objects = max_objects
+        slot = n_unary + 1 + ACTION_DIM  # bits, is-real, action encoding
+        self.decoder = MLP(max_objects * slot, [hidden] * layers, max_objects * EFFECT_DIM)
+
+    @staticmethod
+    def role_order(action: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """[B, N] permutation putting source, target, other real objects, padding first."""
+        n = mask.shape[1]
+        rank = torch.where(mask, 2.0, 3.0)
+        rank = torch.where(action[..., 4] > 0.5, 1.0, rank)
+        rank = torch.where(action[..., 0] > 0.5, 0.0, rank)
+        rank = rank * n + torch.arange(n, device=mask.device)  # stable within a rank
+        return rank.argsort(dim=1)
+
+    def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
+        b, n, _ = state.shape
+        m = self.max_objects
+        slots = torch.cat([self._unary_bits(state, mask), mask.unsqueeze(-1).to(state.dtype),
+                           action * mask.unsqueeze(-1)], dim=-1)
+        order = self.role_order(action, mask)
+        slots = slots.gather(1, order.unsqueeze(-1).expand_as(slots))
+        if n > m:
+            if mask.sum(dim=1).max() > m:
+                raise ValueError(f"DeepSym was built for at most {m} objects")
+            slots = slots[:, :m]
+        elif n < m:
+            slots = torch.cat([slots, slots.new_zeros(b, m - n, slots.shape[-1])], dim=1)
+        out = self.decoder(slots.reshape(b, -1)).view(b, m, EFFECT_DIM)
+        if n > m:
+            out = torch.cat([out, out.new_zeros(b, n - m, EFFECT_DIM)], dim=1)
+        else:
+            out = out[:, :n]
+        inverse = order.argsort(dim=1)
+        out = out.gather(1, inverse.unsqueeze(-1).expand_as(out))
+        return self._effects(out, mask)
+
+
+class AttentiveDeepSym(EffectModel):
+    """Unary bits per object, transformer encoder layers over objects, decoder."""
+
+    def __init__(
+        self,
+        state_dim: int,
+        n_unary: int = 4,
+        n_heads: int = 4,
+        n_blocks: int = 2,
+        d_model: int = 128,
+        hidden: int = 128,
+        layers: int = 2,
+        temperature: float = DEFAULT_TEMPERATURE,
+        hard: bool = DEFAULT_HARD,
+    ):
+        super().__init__(state_dim, n_unary, hidden, layers, temperature, hard)
+        self._config.update(n_heads=n_heads, n_blocks=n_blocks, d_model=d_model)
+        self.embed = nn.Linear(n_unary + ACTION_DIM, d_model)
+        block = nn.TransformerEncoderLayer(
+            d_model, n_heads, dim_feedforward=hidden, dropout=0.0, batch_first=True
+        )
+        self.transformer = nn.TransformerEncoder(block, n_blocks, enable_nested_tensor=False)
+        self.decoder = MLP(d_model, [hidden] * layers, EFFECT_DIM)
+
+    def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
+        x = self.embed(torch.cat([self._unary_bits(state, mask), action], dim=-1))
+        x = self.transformer(x, src_key_padding_mask=~mask)
+        return self._effects(self.decoder(x), mask)
+
+
+MODELS: dict[str, type[EffectModel]] = {
+    "relational": RelationalDeepSym,
+    "attentive": AttentiveDeepSym,
+    "deepsym": DeepSym,
+}
+
+
+def build_model(name: str, **kwargs) -> EffectModel:
+    """The model registered as `name`, built with `kwargs` (see each class)."""
+    if name not in MODELS:
+        raise ValueError(f"unknown model {name!r}; expected one of {sorted(MODELS)}")
+    return MODELS[name](**kwargs)

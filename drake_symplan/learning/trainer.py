@@ -1,0 +1,198 @@
+"""Training loop: seeded Adam with gradient clipping, early stopping, resumable runs.
+
+`train(TrainConfig(...))` loads the whole data set into memory, splits it by
+episode (80/10/10, seeded), fits normalisation statistics on the training split,
+and runs epochs of shuffled mini-batches. After every epoch it evaluates the
+validation loss in eval mode (deterministic bits), appends a row to `log.csv`, saves
+`last.pt` and, on improvement, `best.pt`. Training stops after `epochs` epochs or
+`patience` epochs without improvement; the test metrics of the best checkpoint go to
+`metrics.json`. A run interrupted at any point resumes from `last.pt` with
+`resume=True` (same data and settings; `epochs` may be raised), continuing the same
+random streams.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+from tqdm import tqdm
+
+from drake_symplan.data.storage import fingerprint, load_transitions
+from drake_symplan.learning import checkpoint as ckpt_io
+from drake_symplan.learning.dataset import TensorSet, normalization_stats, split_by_episode
+from drake_symplan.learning.evaluate import effect_loss, effect_metrics, evaluate_loss
+from drake_symplan.learning.models import MODELS, build_model
+
+LOG_FIELDS = ("epoch", "train_loss", "val_loss", "val_error_cm", "best_val_loss", "seconds")
+# Settings that may differ when a run is resumed.
+RESUMABLE_CHANGES = ("epochs", "patience", "threads", "progress")
+
+
+@dataclass
+class TrainConfig:
+    model: str
+    data: str
+    out: str
+    epochs: int = 200
+    batch_size: int = 128
+    lr: float = 1e-4
+    seed: int = 0
+    patience: int = 20
+    grad_clip: float = 10.0
+    threads: int | None = None  # torch.set_num_threads; None leaves torch's default
+    temperature: float = 1.0
+    hard: bool = True
+    model_kwargs: dict = field(default_factory=dict)
+    progress: bool = True
+
+    def __post_init__(self):
+        if self.model not in MODELS:
+            raise ValueError(f"unknown model {self.model!r}; expected one of {sorted(MODELS)}")
+        for name in ("epochs", "batch_size", "patience"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.lr <= 0:
+            raise ValueError(f"lr must be positive, got {self.lr}")
+
+
+def make_model(cfg: TrainConfig, state_dim: int, max_objects: int):
+    kwargs = {"state_dim": state_dim, "temperature": cfg.temperature, "hard": cfg.hard,
+              **cfg.model_kwargs}
+    if cfg.model == "deepsym":
+        kwargs.setdefault("max_objects", max_objects)
+    return build_model(cfg.model, **kwargs)
+
+
+def make_optimizer(model: torch.nn.Module, lr: float) -> torch.optim.Adam:
+    # The fused CPU kernel is the fastest Adam here; it needs float parameters.
+    return torch.optim.Adam(model.parameters(), lr=lr, fused=True)
+
+
+def train_step(model, optimizer, batch, grad_clip: float) -> torch.Tensor:
+    """One Adam step on `batch` = (state, action, effect, mask); returns the loss."""
+    state, action, effect, mask = batch
+    optimizer.zero_grad(set_to_none=True)
+    loss = effect_loss(model(state, action, mask), effect, mask.to(state.dtype))
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(model.parameters(), grad_clip, foreach=True)
+    optimizer.step()
+    return loss.detach()
+
+
+def _check_resumable(saved: dict, cfg: TrainConfig, data_fp: str, out: Path) -> None:
+    if saved["data_fingerprint"] != data_fp:
+        raise ValueError(f"cannot resume {out}: the data in {cfg.data} changed since it started")
+    now = dataclasses.asdict(cfg)
+    diff = [k for k, v in saved["train_config"].items()
+            if k not in RESUMABLE_CHANGES and k not in ("data", "out") and now.get(k) != v]
+    if diff:
+        raise ValueError(f"cannot resume {out}: settings {diff} differ from the saved run")
+
+
+def train(cfg: TrainConfig, resume: bool = False) -> dict:
+    """Train `cfg.model` on `cfg.data` into run directory `cfg.out`; returns the metrics."""
+    if cfg.threads is not None:
+        torch.set_num_threads(cfg.threads)
+    out = Path(cfg.out)
+    last_path, best_path = out / ckpt_io.LAST, out / ckpt_io.BEST
+    if last_path.exists() and not resume:
+        raise ValueError(f"{out} already holds a run; resume it or choose another output")
+    if resume and not last_path.exists():
+        raise FileNotFoundError(f"nothing to resume: {last_path} does not exist")
+
+    data_path = Path(cfg.data).resolve()
+    arrays = load_transitions(data_path)
+    data_fp = fingerprint(data_path)
+    splits = split_by_episode(arrays.episode, cfg.seed)
+    sets = {name: TensorSet.from_arrays(arrays, idx) for name, idx in splits.items()}
+    if len(sets["train"]) == 0 or len(sets["val"]) == 0:
+        raise ValueError(f"{data_path}: the train or validation split is empty")
+
+    torch.manual_seed(cfg.seed)
+    model = make_model(cfg, arrays.state.shape[2], int(arrays.mask.sum(axis=1).max()))
+    model.set_normalization(**normalization_stats(arrays.subset(splits["train"])))
+    optimizer = make_optimizer(model, cfg.lr)
+    shuffle = torch.Generator().manual_seed(cfg.seed)
+    progress = {"epoch": 0, "best_val_loss": math.inf, "best_epoch": 0, "bad_epochs": 0}
+
+    if resume:
+        saved = ckpt_io.read_checkpoint(last_path)
+        _check_resumable(saved, cfg, data_fp, out)
+        model.load_state_dict(saved["model_state"])
+        optimizer.load_state_dict(saved["optimizer_state"])
+        progress = saved["progress"]
+        torch.set_rng_state(saved["rng"]["torch"])
+        shuffle.set_state(saved["rng"]["shuffle"])
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out / ckpt_io.LOG, "w", newline="") as f:
+            csv.writer(f).writerow(LOG_FIELDS)
+    ckpt_io.write_json(out / ckpt_io.CONFIG, {
+        "train_config": dataclasses.asdict(cfg), "model": cfg.model,
+        "model_config": model.config(), "data": str(data_path), "data_fingerprint": data_fp,
+        "split_sizes": {k: int(len(v)) for k, v in splits.items()},
+        "versions": ckpt_io.versions(),
+    })
+
+    def payload(metrics: dict) -> dict:
+        return {
+            "model": cfg.model, "model_config": model.config(),
+            "model_state": model.state_dict(), "optimizer_state": optimizer.state_dict(),
+            "epoch": progress["epoch"], "train_config": dataclasses.asdict(cfg),
+            "data_fingerprint": data_fp, "metrics": metrics, "progress": dict(progress),
+            "rng": {"torch": torch.get_rng_state(), "shuffle": shuffle.get_state()},
+        }
+
+    stopped_early = progress["bad_epochs"] >= cfg.patience
+    bar = tqdm(total=cfg.epochs, initial=min(progress["epoch"], cfg.epochs), unit="epoch",
+               desc=f"train {cfg.model}", disable=not cfg.progress)
+    while progress["epoch"] < cfg.epochs and not stopped_early:
+        start = time.perf_counter()
+        model.train()
+        total, batches = torch.zeros(()), 0
+        for batch in sets["train"].batches(cfg.batch_size, shuffle):
+            total += train_step(model, optimizer, batch, cfg.grad_clip)
+            batches += 1
+        train_loss = float(total) / max(1, batches)
+        val = effect_metrics(model, sets["val"])
+        progress["epoch"] += 1
+        improved = val["loss"] < progress["best_val_loss"]
+        if improved:
+            progress.update(best_val_loss=val["loss"], best_epoch=progress["epoch"], bad_epochs=0)
+        else:
+            progress["bad_epochs"] += 1
+        metrics = {"train_loss": train_loss, "val_loss": val["loss"],
+                   "val_error_cm": val["error_cm"]}
+        if improved:
+            ckpt_io.save_checkpoint(best_path, payload(metrics))
+        ckpt_io.save_checkpoint(last_path, payload(metrics))
+        seconds = time.perf_counter() - start
+        with open(out / ckpt_io.LOG, "a", newline="") as f:
+            csv.writer(f).writerow([progress["epoch"], f"{train_loss:.6g}", f"{val['loss']:.6g}",
+                                    f"{val['error_cm']:.4f}", f"{progress['best_val_loss']:.6g}",
+                                    f"{seconds:.3f}"])
+        bar.update(1)
+        bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val['loss']:.3g}",
+                        val_cm=f"{val['error_cm']:.2f}")
+        stopped_early = progress["bad_epochs"] >= cfg.patience
+    bar.close()
+
+    best_model = ckpt_io.model_from_checkpoint(ckpt_io.read_checkpoint(best_path))
+    result = {
+        "run": str(out), "model": cfg.model, "epochs": progress["epoch"],
+        "best_epoch": progress["best_epoch"], "best_val_loss": progress["best_val_loss"],
+        "stopped_early": stopped_early, "data_fingerprint": data_fp,
+        "val": effect_metrics(best_model, sets["val"]),
+        "test": effect_metrics(best_model, sets["test"]) if len(sets["test"]) else None,
+        "train_loss_eval": evaluate_loss(best_model, sets["train"]),
+        "parameters": int(sum(p.numel() for p in best_model.parameters())),
+    }
+    ckpt_io.write_json(out / ckpt_io.METRICS, result)
+    return result
+

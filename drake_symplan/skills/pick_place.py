@@ -1,0 +1,210 @@
+"""The paper's single action as an IK-planned joint trajectory executed in full physics.
+
+pick(source, grasp) then place on target at a release offset: approach, descend, close,
+lift, carry, descend, open, retreat, home. Offsets run along world y. The gripper TCP goes
+to source + grasp offset, then to target + release offset, so the two offsets compose
+(a long block grasped off-centre and released at the centre of a cube hangs over it).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import time
+
+import numpy as np
+from pydrake.trajectories import PiecewisePolynomial
+
+from drake_symplan.skills.ik import ArmIK
+from drake_symplan.structs import OFFSET_METRES, Action, ObjectState
+from drake_symplan.world.scenes import HALF_EXTENTS
+from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
+
+APPROACH_HEIGHT = 0.12  # m above grasp/release points
+MIN_CARRY_HEIGHT = 0.30  # m, TCP height while carrying
+CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
+RELEASE_CLEARANCE = 0.015  # m gap between the held box's bottom and the target's top
+LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
+JOINT_SPEED = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi]) * 0.5
+
+
+@dc.dataclass
+class Motion:
+    """A joint trajectory with the times at which the lift ends and the motion ends."""
+
+    trajectory: PiecewisePolynomial
+    t_lift: float
+    t_end: float
+
+
+@dc.dataclass
+class ObjectOutcome:
+    type: str
+    start: list[float]
+    after_lift: list[float]
+    end: list[float]
+    tilt_deg: float
+    lifted: bool
+
+
+@dc.dataclass
+class Outcome:
+    status: str  # "ok" | "infeasible" | "sim_failure"
+    objects: dict[str, ObjectOutcome]
+    seconds: float
+    message: str = ""
+
+    def to_json(self) -> dict:
+        return {
+            "status": self.status,
+            "message": self.message,
+            "objects": {
+                n: {"type": o.type, "start": o.start, "end": o.end,
+                    "after_lift": o.after_lift, "tilt_deg": o.tilt_deg, "lifted": o.lifted}
+                for n, o in self.objects.items()
+            },
+            "seconds": self.seconds,
+        }
+
+
+class InfeasibleAction(Exception):
+    """No IK solution for a waypoint of the action."""
+
+
+def _fold_yaw(yaw: float, period: float) -> float:
+    return float((yaw + period / 2) % period - period / 2)
+
+
+def _top_z(o: ObjectState) -> float:
+    hx, hy, hz = HALF_EXTENTS[o.type]
+    return float(o.position[2] + hz * np.cos(o.tilt) + max(hx, hy) * np.sin(o.tilt))
+
+
+def grasp_yaw(o: ObjectState) -> float:
+    """Gripper yaw that closes the fingers across the box's short x side."""
+    return _fold_yaw(o.yaw, np.pi / 2 if o.type == "cube" else np.pi)
+
+
+class PickPlacePlanner:
+    """Turns an action and the caller's object states into a joint trajectory."""
+
+    def __init__(self, ik: ArmIK | None = None):
+        self.ik = ik or ArmIK()
+
+    def _solve(self, what: str, p: np.ndarray, yaw: float, seed: np.ndarray) -> np.ndarray:
+        q = self.ik.solve(p, yaw, seed)
+        if q is None:
+            raise InfeasibleAction(
+                f"unreachable pose: {what} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})")
+        return q
+
+    def plan(
+        self, action: Action, objects: dict[str, ObjectState], q_start: np.ndarray = HOME_Q
+    ) -> Motion:
+        for name in (action.source, action.target):
+            if name not in objects:
+                raise ValueError(f"unknown object {name!r} (objects: {sorted(objects)})")
+        src, tgt = objects[action.source], objects[action.target]
+        grasp = src.position + np.array([0.0, OFFSET_METRES[action.grasp], 0.0])
+        release = tgt.position + np.array([0.0, OFFSET_METRES[action.release], 0.0])
+        release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
+        carry_z = max(MIN_CARRY_HEIGHT,
+                      max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
+        yaw_g = grasp_yaw(src)
+        yaw_r = yaw_g + _fold_yaw(tgt.yaw - src.yaw, np.pi / 2)
+        up = np.array([0.0, 0.0, APPROACH_HEIGHT])
+
+        knots: list[tuple[np.ndarray, float, float]] = []  # (q_arm, finger, min duration)
+        q = self._solve("pre-grasp", grasp + up, yaw_g, q_start)
+        knots.append((q, FINGER_OPEN, 0.6))
+        for frac in (0.5, 1.0):
+            q = self._solve("grasp", grasp + up * (1 - frac), yaw_g, q)
+            knots.append((q, FINGER_OPEN, 0.25))
+        knots.append((q, FINGER_CLOSED, 0.3))
+        lift = np.array([grasp[0], grasp[1], carry_z])
+        q = self._solve("lift", lift, yaw_g, q)
+        knots.append((q, FINGER_CLOSED, 0.5))
+        n_lift = len(knots)
+        above = np.array([release[0], release[1], carry_z])
+        dist = float(np.linalg.norm(above[:2] - lift[:2]))
+        steps = max(1, int(np.ceil(dist / 0.15)))
+        for k in range(1, steps + 1):
+            f = k / steps
+            q = self._solve("carry", lift + (above - lift) * f, yaw_g + (yaw_r - yaw_g) * f, q)
+            knots.append((q, FINGER_CLOSED, 0.6 * dist / 0.3 / steps + 0.05))
+        q = self._solve("release", release, yaw_r, q)
+        knots.append((q, FINGER_CLOSED, 0.45))
+        knots.append((q, FINGER_OPEN, 0.3))
+        q = self._solve("retreat", release + up, yaw_r, q)
+        knots.append((q, FINGER_OPEN, 0.3))
+        knots.append((HOME_Q, FINGER_OPEN, 0.7))
+        knots.append((HOME_Q, FINGER_OPEN, 0.2))  # settle
+
+        times, qs = [0.0], [np.concatenate([q_start, [FINGER_OPEN] * 2])]
+        t_lift = 0.0
+        for i, (qk, finger, dmin) in enumerate(knots):
+            dq = np.abs(qk - qs[-1][:6])
+            times.append(times[-1] + max(dmin, float(np.max(1.5 * dq / JOINT_SPEED))))
+            qs.append(np.concatenate([qk, [finger, finger]]))
+            if i + 1 == n_lift:
+                t_lift = times[-1]
+        traj = PiecewisePolynomial.CubicShapePreserving(
+            times, np.column_stack(qs), zero_end_point_derivatives=True)
+        return Motion(traj, t_lift, times[-1])
+
+
+def execute(station: Station, motion: Motion) -> tuple[dict, dict, dict]:
+    """Runs the motion from the station's current state; object states at start/lift/end."""
+    start = station.object_states()
+    station.command_source.UpdateTrajectory(motion.trajectory)
+    t0 = station.context.get_time()
+    if t0 != 0.0:
+        raise RuntimeError("execute expects an episode reset to time 0")
+    station.simulator.AdvanceTo(motion.t_lift)
+    lifted = station.object_states()
+    station.simulator.AdvanceTo(motion.t_end)
+    end = station.object_states()
+    return start, lifted, end
+
+
+def pick_place(
+    station: Station,
+    planner: PickPlacePlanner,
+    action: Action,
+    objects: dict[str, ObjectState],
+) -> Outcome:
+    """Plans from `objects` (the caller's belief) and executes on the station.
+
+    The station must have been reset to the episode's scene at time 0. Reported poses are
+    the simulator's (this is the outcome report, not an input to any decision).
+    """
+    t_wall = time.perf_counter()
+    try:
+        motion = planner.plan(action, objects, station.arm_positions())
+    except InfeasibleAction as e:
+        now = station.object_states()
+        return Outcome("infeasible", _report(now, now, now), time.perf_counter() - t_wall,
+                       str(e))
+    start_states = station.object_states()
+    snapshot = station.context.Clone()
+    try:
+        start, lifted, end = execute(station, motion)
+    except RuntimeError as e:
+        station.context.SetTimeStateAndParametersFrom(snapshot)
+        station.hold(station.arm_positions())
+        return Outcome("sim_failure", _report(start_states, start_states, start_states),
+                       time.perf_counter() - t_wall, f"simulation failed: {e}")
+    return Outcome("ok", _report(start, lifted, end), time.perf_counter() - t_wall)
+
+
+def _report(start: dict, lifted: dict, end: dict) -> dict[str, ObjectOutcome]:
+    out = {}
+    for name, s in start.items():
+        out[name] = ObjectOutcome(
+            type=s.type,
+            start=[round(float(v), 5) for v in s.position],
+            after_lift=[round(float(v), 5) for v in lifted[name].position],
+            end=[round(float(v), 5) for v in end[name].position],
+            tilt_deg=round(float(np.degrees(end[name].tilt)), 3),
+            lifted=bool(lifted[name].position[2] - s.position[2] > LIFTED_THRESHOLD),
+        )
+    return out

@@ -1,0 +1,522 @@
+"""Lifted operators from symbolic transitions (paper III-C), by canonical grouping.
+
+Transitions are grouped when their lifted action and lifted preconditions are equal
+under some substitution of objects. Instead of trying object permutations per sample
+(O(n!)), each transition gets a canonical object order:
+
+1. roles fix the first two parameters: `?o0` is the source, `?o1` the target;
+2. the other objects are ordered by a colour that summarises their symbols and
+   relations: their unary bits (and self-relations, if kept), then refined by the
+   sorted multiset of (relation bits to/from each other object, that object's colour)
+   until the colouring is stable (colour refinement, all transitions at once in numpy);
+3. objects left with equal colours are genuine ties. A tie whose swap is an
+   automorphism of the transition (identical objects, before and after the action)
+   needs nothing: either order gives the same encoding. Only the remaining ties are
+   permuted, and the order with the smallest (precondition, effect) encoding wins.
+
+The grouping key is then (grasp, release, number of objects, precondition bits in
+canonical order); since colours are computed from the whole data set as ranks of
+sorted signatures and ties are broken by minimum, neither the key nor the operator list
+depends on the order of the transitions. Parameters are all real objects of a transition
+(the data set stores only the relevant ones: action arguments plus objects in contact
+with them). Each group's lifted effect is its most frequent next state in canonical
+order (ties between equally frequent effects go to the smaller encoding); groups seen
+fewer than `min_count` times are dropped (50, as in the paper).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_symplan.structs import ACTION_DIM, OFFSETS, Action
+from drake_symplan.symbolic.states import Atom, SymbolicState
+
+REQUIRED_KEYS = ("unary", "relational", "next_unary", "next_relational", "action", "mask")
+UNCERTAIN_KEYS = tuple(f"{k}_uncertain" for k in REQUIRED_KEYS[:4])
+
+# Relative thresholds reported next to the absolute one (fractions of the data size).
+# The paper's 50 of 160k training samples is about 3.1e-4.
+REPORT_FRACTIONS = (1e-4, 2.5e-4, 5e-4, 1e-3, 2.5e-3, 5e-3)
+
+
+@dataclass(frozen=True)
+class LearnConfig:
+    """min_count: groups seen fewer times are dropped. min_fraction: if given, the
+    threshold is ceil(min_fraction * number of transitions) instead. self_relations:
+    keep r_k(o, o) bits as `(rK ?x ?x)` literals (default: ignore them).
+    drop_uncertain: leave out transitions with any uncertain bit among real objects."""
+
+    min_count: int = 50
+    min_fraction: float | None = None
+    self_relations: bool = False
+    drop_uncertain: bool = False
+
+    def threshold(self, n_transitions: int) -> int:
+        if self.min_fraction is not None:
+            if not 0.0 <= self.min_fraction <= 1.0:
+                raise ValueError(f"min_fraction must be in [0, 1], got {self.min_fraction}")
+            return max(1, math.ceil(self.min_fraction * n_transitions))
+        if self.min_count < 1:
+            raise ValueError(f"min_count must be >= 1, got {self.min_count}")
+        return self.min_count
+
+
+@dataclass
+class Operator:
+    """One lifted operator: parameters ?o0 (source), ?o1 (target), ?o2, ...
+
+    pre_* hold the precondition bits, post_* the bits after the most frequent effect,
+    both in parameter order ([n, P] and [K, n, n]).
+    """
+
+    index: int  # rank by frequency, 0 = most frequent
+    grasp: str
+    release: str
+    count: int  # transitions in the group
+    effect_count: int  # transitions of the group that had the chosen effect
+    n_effects: int  # distinct effects seen in the group
+    pre_unary: np.ndarray
+    pre_relational: np.ndarray
+    post_unary: np.ndarray
+    post_relational: np.ndarray
+    self_relations: bool = False
+    example: int = -1  # index of one transition with the chosen effect
+    example_slots: tuple[int, ...] = ()  # that transition's object slot per parameter
+
+    @property
+    def n_params(self) -> int:
+        return self.pre_unary.shape[0]
+
+    @property
+    def name(self) -> str:
+        return operator_name(self.grasp, self.release, self.count, self.index)
+
+    @property
+    def params(self) -> tuple[str, ...]:
+        return tuple(f"?o{i}" for i in range(self.n_params))
+
+    def _state(self, unary, relational) -> SymbolicState:
+        return SymbolicState(tuple(p[1:] for p in self.params), unary, relational)
+
+    def _lift(self, atoms: list[Atom]) -> list[Atom]:
+        return [(a[0],) + tuple("?" + x for x in a[1:]) for a in atoms]
+
+    def preconditions(self) -> list[Atom]:
+        """`(different ?oi ?oj)` for i < j, then every symbol literal over the params."""
+        n = self.n_params
+        different = [("different", f"?o{i}", f"?o{j}") for i in range(n) for j in range(i + 1, n)]
+        facts = self._state(self.pre_unary, self.pre_relational).facts(self.self_relations)
+        return different + self._lift(facts)
+
+    def effects(self) -> tuple[list[Atom], list[Atom]]:
+        """(add list, delete list) in positive-STRIPS form: a bit that turns on adds
+        `(pJ ..)` and deletes `(not_pJ ..)`, and the other way round."""
+        pre = self._lift(self._state(self.pre_unary, self.pre_relational).facts(self.self_relations))
+        post = self._lift(
+            self._state(self.post_unary, self.post_relational).facts(self.self_relations)
+        )
+        add = [b for a, b in zip(pre, post, strict=True) if a != b]
+        delete = [a for a, b in zip(pre, post, strict=True) if a != b]
+        return add, delete
+
+    def to_dict(self) -> dict:
+        add, delete = self.effects()
+        return {
+            "index": self.index,
+            "name": self.name,
+            "grasp": self.grasp,
+            "release": self.release,
+            "count": self.count,
+            "effect_count": self.effect_count,
+            "n_effects": self.n_effects,
+            "params": list(self.params),
+            "preconditions": [" ".join(a) for a in self.preconditions()],
+            "add": [" ".join(a) for a in add],
+            "delete": [" ".join(a) for a in delete],
+            "example": self.example,
+            "example_slots": list(self.example_slots),
+        }
+
+
+def operator_name(grasp: str, release: str, count: int, index: int) -> str:
+    """Action schema name: offsets, group count and frequency rank, e.g.
+    `pick_center_place_right_n736_op19` (see pddl.parse_plan_step)."""
+    return f"pick_{grasp}_place_{release}_n{count}_op{index}"
+
+
+@dataclass
+class OperatorSet:
+    """The result of operator learning."""
+
+    operators: list[Operator]  # kept groups, most frequent first
+    n_unary: int
+    n_relations: int
+    self_relations: bool
+    n_transitions: int  # transitions grouped (after dropping uncertain ones)
+    n_dropped_uncertain: int
+    threshold: int
+    group_counts: np.ndarray  # count of every group, kept or not, descending
+    seconds: float = 0.0
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def n_groups(self) -> int:
+        return len(self.group_counts)
+
+    def threshold_report(self) -> list[dict]:
+        """What absolute and relative thresholds would keep: operators and the
+        fraction of transitions their groups cover."""
+        counts = self.group_counts
+        total = max(self.n_transitions, 1)
+        rows = []
+        thresholds = sorted({1, 5, 10, 20, 50, 100, 200, self.threshold})
+        for frac in REPORT_FRACTIONS:
+            rows.append(("fraction", frac, max(1, math.ceil(frac * self.n_transitions))))
+        rows = [("count", t / total, t) for t in thresholds] + rows
+        out = []
+        for kind, frac, t in rows:
+            kept = counts >= t
+            out.append({
+                "by": kind,
+                "threshold": int(t),
+                "fraction": float(frac),
+                "operators": int(kept.sum()),
+                "coverage": float(counts[kept].sum() / total),
+            })
+        return out
+
+    def summary(self) -> dict:
+        kept = int(sum(op.count for op in self.operators))
+        return {
+            "n_transitions": self.n_transitions,
+            "n_dropped_uncertain": self.n_dropped_uncertain,
+            "n_groups": self.n_groups,
+            "threshold": self.threshold,
+            "n_operators": len(self.operators),
+            "coverage": kept / max(self.n_transitions, 1),
+            "n_unary": self.n_unary,
+            "n_relations": self.n_relations,
+            "self_relations": self.self_relations,
+            "seconds": self.seconds,
+            "timings": self.timings,
+        }
+
+
+# ---------------------------------------------------------------- input checks
+
+
+def check_dataset(data: dict) -> tuple[int, int, int, int]:
+    """Validates the symbolic data set contract; returns (T, N, P, K)."""
+    missing = [k for k in REQUIRED_KEYS if k not in data]
+    if missing:
+        raise ValueError(f"symbolic data set lacks {missing}; it has {sorted(data)}")
+    unary, rel, mask = data["unary"], data["relational"], data["mask"]
+    if unary.ndim != 3 or rel.ndim != 4 or mask.ndim != 2:
+        raise ValueError(
+            f"expected unary [T,N,P], relational [T,K,N,N], mask [T,N]; got "
+            f"{unary.shape}, {rel.shape}, {mask.shape}"
+        )
+    t, n, p = unary.shape
+    k = rel.shape[1]
+    shapes = {
+        "unary": (t, n, p), "next_unary": (t, n, p), "relational": (t, k, n, n),
+        "next_relational": (t, k, n, n), "action": (t, n, ACTION_DIM), "mask": (t, n),
+    }
+    for key, shape in shapes.items():
+        if tuple(data[key].shape) != shape:
+            raise ValueError(f"{key} has shape {tuple(data[key].shape)}, expected {shape}")
+    for key in UNCERTAIN_KEYS:
+        if key in data and tuple(data[key].shape) != shapes[key[: -len("_uncertain")]]:
+            raise ValueError(f"{key} has shape {tuple(data[key].shape)}, expected "
+                             f"{shapes[key[: -len('_uncertain')]]}")
+    return t, n, p, k
+
+
+def _roles(action: np.ndarray, mask: np.ndarray):
+    """Source, target, grasp and release index per transition; ValueError on rows
+    without exactly one source and one target among the real objects."""
+    a = action > 0.5
+    is_src = a[:, :, 0] & mask
+    is_tgt = a[:, :, 4] & mask
+    bad = (is_src.sum(1) != 1) | (is_tgt.sum(1) != 1) | (is_src & is_tgt).any(1)
+    if bad.any():
+        rows = np.flatnonzero(bad)
+        raise ValueError(
+            f"{len(rows)} transitions do not have exactly one source and one distinct "
+            f"target among their real objects (first: {rows[:5].tolist()})"
+        )
+    ar = np.arange(len(action))
+    src = is_src.argmax(1)
+    tgt = is_tgt.argmax(1)
+    grasp_bits = a[ar, src, 1:4]
+    release_bits = a[ar, tgt, 5:8]
+    if (grasp_bits.sum(1) != 1).any() or (release_bits.sum(1) != 1).any():
+        raise ValueError("some transitions do not have exactly one grasp and one release offset")
+    return src, tgt, grasp_bits.argmax(1), release_bits.argmax(1)
+
+
+# ---------------------------------------------------------------- canonical order
+
+
+def _rank_rows(rows: np.ndarray) -> np.ndarray:
+    """Dense rank of each row among all rows (lexicographic order of int rows)."""
+    rows = np.ascontiguousarray(rows)
+    inverse = np.unique(rows, axis=0, return_inverse=True)[1]
+    return inverse.reshape(-1)
+
+
+def _byte_ids(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(id, count) of each distinct uint8 row; ids are ranks in byte order."""
+    rows = np.ascontiguousarray(rows, dtype=np.uint8)
+    void = rows.view(np.dtype((np.void, rows.shape[1]))).reshape(-1)
+    _, inverse, counts = np.unique(void, return_inverse=True, return_counts=True)
+    return inverse.reshape(-1), counts
+
+
+def _colours(unary, rel, mask, src, tgt, self_relations) -> np.ndarray:
+    """Colour refinement over all transitions at once; returns [T, N] colour ranks,
+    sorted role-major (source < target < others < padding)."""
+    t, n = mask.shape
+    k = rel.shape[1]
+    ar = np.arange(t)
+    role = np.where(mask, 2, 3).astype(np.int64)
+    role[ar, tgt] = 1
+    role[ar, src] = 0
+    feats = [role[:, :, None], unary.astype(np.int64)]
+    if self_relations:
+        idx = np.arange(n)
+        feats.append(rel[:, :, idx, idx].transpose(0, 2, 1).astype(np.int64))
+    colour = _rank_rows(np.concatenate(feats, axis=2).reshape(t * n, -1)).reshape(t, n)
+    weights = (1 << np.arange(k)).astype(np.int64)
+    out_bits = np.einsum("tkij,k->tij", rel.astype(np.int64), weights)
+    bits = out_bits + (out_bits.transpose(0, 2, 1) << k)  # [T, N, N]: to j and from j
+    invalid = ~mask[:, None, :] | np.eye(n, dtype=bool)[None]
+    n_colours = colour.max() + 1
+    for _ in range(n):
+        code = colour[:, None, :] * (1 << (2 * k)) + bits
+        code[invalid] = -1
+        code.sort(axis=2)
+        sig = np.concatenate([colour[:, :, None], code], axis=2).reshape(t * n, -1)
+        colour = _rank_rows(sig).reshape(t, n)
+        if colour.max() + 1 == n_colours:
+            break
+        n_colours = colour.max() + 1
+    return colour
+
+
+def _permute(unary, rel, order):
+    """Arrays with objects reordered: unary [B,N,P], rel [B,K,N,N], order [B,N]."""
+    u = np.take_along_axis(unary, order[:, :, None], axis=1)
+    r = np.take_along_axis(rel, order[:, None, :, None], axis=2)
+    r = np.take_along_axis(r, order[:, None, None, :], axis=3)
+    return u, r
+
+
+def _encode(unary, rel):
+    b = unary.shape[0]
+    return np.concatenate([unary.reshape(b, -1), rel.reshape(b, -1)], axis=1).astype(np.uint8)
+
+
+def canonical_orders(unary, rel, next_unary, next_rel, mask, src, tgt, self_relations=False):
+    """[T, N] object index per canonical slot (padding last) and the number of
+    transitions whose ties needed permuting."""
+    t, n = mask.shape
+    colour = _colours(unary, rel, mask, src, tgt, self_relations)
+    order = np.argsort(colour, axis=1, kind="stable")
+    sorted_colour = np.take_along_axis(colour, order, axis=1)
+    real = np.take_along_axis(mask, order, axis=1)
+    tie = (sorted_colour[:, 1:] == sorted_colour[:, :-1]) & real[:, 1:]  # slot s ~ s+1
+    rows = np.flatnonzero(tie.any(1))
+    if len(rows) == 0:
+        return order, 0
+    # A tie whose transposition is an automorphism of (pre, next) needs no permuting.
+    o = order[rows]
+    u, r = _permute(unary[rows], rel[rows], o)
+    nu, nr = _permute(next_unary[rows], next_rel[rows], o)
+    genuine = np.zeros(len(rows), dtype=bool)
+    for s in range(n - 1):
+        has = tie[rows, s]
+        if not has.any():
+            continue
+        perm = np.arange(n)
+        perm[[s, s + 1]] = perm[[s + 1, s]]
+        same = np.ones(len(rows), dtype=bool)
+        for arr_u, arr_r in ((u, r), (nu, nr)):
+            same &= (arr_u[:, perm] == arr_u).all((1, 2))
+            same &= (arr_r[:, :, perm][:, :, :, perm] == arr_r).all((1, 2, 3))
+        genuine |= has & ~same
+    for row in rows[genuine]:
+        order[row] = _best_tie_order(
+            unary[row], rel[row], next_unary[row], next_rel[row], order[row], tie[row]
+        )
+    return order, int(genuine.sum())
+
+
+def _best_tie_order(unary, rel, next_unary, next_rel, order, tie):
+    """Tries the permutations inside each run of tied slots; returns the order with
+    the lexicographically smallest (precondition, next state) encoding."""
+    n = len(order)
+    runs, start = [], 0
+    for s in range(n):
+        if s == n - 1 or not tie[s]:
+            if s > start:
+                runs.append(list(range(start, s + 1)))
+            start = s + 1
+    choices = [list(itertools.permutations(run)) for run in runs]
+    perms = []
+    for combo in itertools.product(*choices):
+        perm = np.arange(n)
+        for run, p in zip(runs, combo, strict=True):
+            perm[run] = p
+        perms.append(order[perm])
+    perms = np.array(perms)
+    m = len(perms)
+    u, r = _permute(np.repeat(unary[None], m, 0), np.repeat(rel[None], m, 0), perms)
+    nu, nr = _permute(np.repeat(next_unary[None], m, 0), np.repeat(next_rel[None], m, 0), perms)
+    enc = np.concatenate([_encode(u, r), _encode(nu, nr)], axis=1)
+    best = np.lexsort(enc.T[::-1])[0]
+    return perms[best]
+
+
+# ---------------------------------------------------------------- learning
+
+
+def _clean(data: dict, config: LearnConfig):
+    """Boolean arrays with padding and (optionally) self-relations zeroed, and the
+    indices of the transitions kept."""
+    mask = np.asarray(data["mask"]).astype(bool)
+    keep = np.arange(len(mask))
+    if config.drop_uncertain:
+        bad = np.zeros(len(mask), dtype=bool)
+        n = mask.shape[1]
+        pair = mask[:, :, None] & mask[:, None, :]
+        if not config.self_relations:
+            pair &= ~np.eye(n, dtype=bool)[None]
+        for key in ("unary", "next_unary"):
+            if f"{key}_uncertain" in data:
+                bad |= (np.asarray(data[f"{key}_uncertain"]).astype(bool) & mask[:, :, None]).any((1, 2))
+        for key in ("relational", "next_relational"):
+            if f"{key}_uncertain" in data:
+                unc = np.asarray(data[f"{key}_uncertain"]).astype(bool)
+                bad |= (unc & pair[:, None]).any((1, 2, 3))
+        keep = np.flatnonzero(~bad)
+    mask = mask[keep]
+    n = mask.shape[1]
+    pair = mask[:, None, :, None] & mask[:, None, None, :]
+    if not config.self_relations:
+        pair = pair & ~np.eye(n, dtype=bool)[None, None]
+    out = {
+        "unary": np.asarray(data["unary"])[keep].astype(bool) & mask[:, :, None],
+        "next_unary": np.asarray(data["next_unary"])[keep].astype(bool) & mask[:, :, None],
+        "relational": np.asarray(data["relational"])[keep].astype(bool) & pair,
+        "next_relational": np.asarray(data["next_relational"])[keep].astype(bool) & pair,
+        "action": np.asarray(data["action"])[keep],
+        "mask": mask,
+    }
+    return out, keep
+
+
+def learn_operators(data: dict, config: LearnConfig | None = None) -> OperatorSet:
+    """Groups the transitions of a symbolic data set into lifted operators."""
+    config = config or LearnConfig()
+    t0 = time.perf_counter()
+    _, _, n_unary, n_rel = check_dataset(data)
+    d, keep = _clean(data, config)
+    mask = d["mask"]
+    t, n = mask.shape
+    if t == 0:
+        raise ValueError("no transitions to learn operators from")
+    src, tgt, grasp, release = _roles(d["action"], mask)
+    t1 = time.perf_counter()
+
+    order, n_permuted = canonical_orders(
+        d["unary"], d["relational"], d["next_unary"], d["next_relational"], mask, src, tgt,
+        config.self_relations,
+    )
+    u, r = _permute(d["unary"], d["relational"], order)
+    nu, nr = _permute(d["next_unary"], d["next_relational"], order)
+    n_obj = mask.sum(1)
+    t2 = time.perf_counter()
+
+    head = np.stack([grasp, release, n_obj], axis=1).astype(np.uint8)
+    pre_bits = np.packbits(_encode(u, r), axis=1)
+    post_bits = np.packbits(_encode(nu, nr), axis=1)
+    group, group_counts = _byte_ids(np.concatenate([head, pre_bits], axis=1))
+    effect, _ = _byte_ids(post_bits)
+    n_effect_ids = int(effect.max()) + 1
+    pair_ids, pair_counts = np.unique(group * n_effect_ids + effect, return_counts=True)
+    pair_group, pair_effect = pair_ids // n_effect_ids, pair_ids % n_effect_ids
+    # Per group: most frequent effect, then the smallest encoding among equals.
+    by = np.lexsort((pair_effect, -pair_counts, pair_group))
+    first = np.ones(len(by), dtype=bool)
+    first[1:] = pair_group[by][1:] != pair_group[by][:-1]
+    best_effect = np.empty(len(group_counts), dtype=np.int64)
+    best_count = np.empty(len(group_counts), dtype=np.int64)
+    best_effect[pair_group[by][first]] = pair_effect[by][first]
+    best_count[pair_group[by][first]] = pair_counts[by][first]
+    n_effects = np.bincount(pair_group, minlength=len(group_counts))
+    t3 = time.perf_counter()
+
+    threshold = config.threshold(t)
+    kept_groups = np.flatnonzero(group_counts >= threshold)
+    # Most frequent first; equal counts by group id (the rank of the key bytes).
+    kept_groups = kept_groups[np.lexsort((kept_groups, -group_counts[kept_groups]))]
+    # One example per group: the first transition with the chosen effect.
+    chosen = effect == best_effect[group]
+    example = np.full(len(group_counts), t, dtype=np.int64)
+    idx = np.flatnonzero(chosen)
+    np.minimum.at(example, group[idx], idx)
+    operators = []
+    for rank, g in enumerate(kept_groups):
+        e = int(example[g])
+        m = int(n_obj[e])
+        operators.append(Operator(
+            index=rank,
+            grasp=OFFSETS[grasp[e]],
+            release=OFFSETS[release[e]],
+            count=int(group_counts[g]),
+            effect_count=int(best_count[g]),
+            n_effects=int(n_effects[g]),
+            pre_unary=u[e, :m].copy(),
+            pre_relational=r[e, :, :m, :m].copy(),
+            post_unary=nu[e, :m].copy(),
+            post_relational=nr[e, :, :m, :m].copy(),
+            self_relations=config.self_relations,
+            example=int(keep[e]),
+            example_slots=tuple(int(x) for x in order[e, :m]),
+        ))
+    t4 = time.perf_counter()
+    return OperatorSet(
+        operators=operators,
+        n_unary=n_unary,
+        n_relations=n_rel,
+        self_relations=config.self_relations,
+        n_transitions=t,
+        n_dropped_uncertain=int(len(data["mask"]) - t),
+        threshold=threshold,
+        group_counts=np.sort(group_counts)[::-1],
+        seconds=t4 - t0,
+        timings={
+            "check": t1 - t0, "canonical": t2 - t1, "group": t3 - t2, "build": t4 - t3,
+            "permuted_transitions": n_permuted,
+        },
+    )
+
+
+def example_action(op: Operator) -> Action:
+    """The operator's action on its example transition's object slots (o<slot>)."""
+    s, t = op.example_slots[:2]
+    return Action(f"o{s}", op.grasp, f"o{t}", op.release)
+
+
+def load_symbols(path) -> dict:
+    """A symbolic data set saved with np.savez (symbols.npz)."""
+    with np.load(path) as f:
+        data = {k: f[k] for k in f.files}
+    check_dataset(data)
+    return data

@@ -1,0 +1,261 @@
+"""PDDL domain and problem writers for learned operators (paper III-D), and a small
+positive-STRIPS reader that checks plans.
+
+Everything written is positive STRIPS with typing (`:strips :typing`), which both Fast
+Downward and pyperplan read: symbols are `(pJ ?x)` / `(not_pJ ?x)` and `(rK ?x ?y)` /
+`(not_rK ?x ?y)`, negation being explicit predicates. Distinct parameters are kept
+distinct by a static `(different ?a ?b)` precondition for every parameter pair, which
+problems list for every ordered pair of distinct objects.
+
+Action names carry the offsets, the group's count and its frequency rank,
+`pick_<grasp>_place_<release>_n<count>_op<rank>`; the first two parameters are always
+the source and the target, so `plan_step_action` maps a plan step to a pick/place by
+role, never by position in a name.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from drake_symplan.structs import OFFSETS, Action
+from drake_symplan.symbolic.operators import Operator
+from drake_symplan.symbolic.states import (
+    Atom,
+    SymbolicState,
+    difference_facts,
+    predicate_names,
+)
+
+TYPE = "obj"
+DOMAIN_NAME = "symplan"
+
+_STEP = re.compile(
+    r"^pick_(?P<grasp>[a-z]+)_place_(?P<release>[a-z]+)_n(?P<count>\d+)_op(?P<index>\d+)$"
+)
+
+
+def _atom(a: Atom) -> str:
+    return "(" + " ".join(a) + ")"
+
+
+def _wrap(atoms: list[str], indent: str) -> str:
+    if not atoms:
+        return "(and)"
+    return "(and\n" + "".join(f"{indent}  {a}\n" for a in atoms) + f"{indent})"
+
+
+def domain_pddl(
+    operators: Iterable[Operator],
+    n_unary: int,
+    n_relations: int,
+    name: str = DOMAIN_NAME,
+    n_transitions: int | None = None,
+) -> str:
+    """The domain: one action schema per operator, most frequent first."""
+    unary, binary = predicate_names(n_unary, n_relations)
+    preds = [f"({p} ?x - {TYPE})" for p in unary]
+    preds += [f"({p} ?x ?y - {TYPE})" for p in binary + ["different"]]
+    lines = [
+        f"; Learned by drake_symplan: {n_unary} unary and {n_relations} relational symbols.",
+        f"(define (domain {name})",
+        "  (:requirements :strips :typing)",
+        f"  (:types {TYPE})",
+        "  (:predicates",
+        *[f"    {p}" for p in preds],
+        "  )",
+    ]
+    for op in operators:
+        add, delete = op.effects()
+        of = f" of {n_transitions}" if n_transitions else ""
+        lines += [
+            f"  ; rank {op.index}: {op.count}{of} transitions; this effect in "
+            f"{op.effect_count} ({op.n_effects} distinct effect(s))",
+            f"  (:action {op.name}",
+            "    :parameters (" + " ".join(f"{p} - {TYPE}" for p in op.params) + ")",
+            "    :precondition " + _wrap([_atom(a) for a in op.preconditions()], "    "),
+            "    :effect "
+            + _wrap([_atom(a) for a in add] + [f"(not {_atom(a)})" for a in delete], "    "),
+            "  )",
+        ]
+    lines.append(")")
+    return "\n".join(lines) + "\n"
+
+
+def problem_pddl(
+    start: SymbolicState,
+    goal: SymbolicState,
+    goal_contacts: set[tuple[str, str]] | None,
+    name: str = "problem",
+    domain: str = DOMAIN_NAME,
+    self_relations: bool = False,
+) -> str:
+    """A problem from perceived start and goal states (paper IV-C).
+
+    The start is the full closed-world state plus the `different` facts; the goal is
+    every object's unary atoms plus relation atoms only for the pairs in
+    `goal_contacts` (both directions; None: all pairs). Both states must name the
+    same objects.
+    """
+    if set(start.objects) != set(goal.objects):
+        raise ValueError(
+            f"start and goal name different objects: {start.objects} vs {goal.objects}"
+        )
+    if (start.n_unary, start.n_relations) != (goal.n_unary, goal.n_relations):
+        raise ValueError("start and goal have different numbers of symbols")
+    init = start.facts(self_relations) + difference_facts(start.objects)
+    goal_atoms = goal.goal_facts(goal_contacts, self_relations)
+    lines = [
+        f"(define (problem {name})",
+        f"  (:domain {domain})",
+        "  (:objects " + " ".join(start.objects) + f" - {TYPE})",
+        "  (:init",
+        *[f"    {_atom(a)}" for a in init],
+        "  )",
+        "  (:goal " + _wrap([_atom(a) for a in goal_atoms], "  ") + ")",
+        ")",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------- plan steps
+
+
+@dataclass(frozen=True)
+class PlanStep:
+    action: Action
+    count: int  # transitions behind the operator
+    index: int  # the operator's frequency rank
+    args: tuple[str, ...]  # all parameters, source and target first
+
+
+def plan_step_action(step: str) -> PlanStep:
+    """`(pick_center_place_right_n736_op19 o3 o1 o2)` -> pick(o3:center) place(o1:right).
+
+    Source and target are the first two arguments (by role); the rest are the objects
+    in contact that the operator's preconditions talk about.
+    """
+    tokens = step.strip().strip("()").split()
+    if len(tokens) < 3:
+        raise ValueError(f"plan step {step!r} has no source and target arguments")
+    m = _STEP.match(tokens[0].lower())
+    if not m or m["grasp"] not in OFFSETS or m["release"] not in OFFSETS:
+        raise ValueError(f"{tokens[0]!r} is not a learned pick/place operator name")
+    action = Action(tokens[1], m["grasp"], tokens[2], m["release"])
+    return PlanStep(action, int(m["count"]), int(m["index"]), tuple(tokens[1:]))
+
+
+# ---------------------------------------------------------------- reading back
+
+
+def parse_sexpr(text: str):
+    """Nested lists of lowercase tokens; ';' starts a comment. ValueError on
+    unbalanced parentheses."""
+    tokens = re.findall(r"[()]|[^\s()]+", re.sub(r";[^\n]*", "", text).lower())
+    stack: list[list] = [[]]
+    for tok in tokens:
+        if tok == "(":
+            stack.append([])
+        elif tok == ")":
+            if len(stack) == 1:
+                raise ValueError("unbalanced ')' in PDDL")
+            inner = stack.pop()
+            stack[-1].append(inner)
+        else:
+            stack[-1].append(tok)
+    if len(stack) != 1:
+        raise ValueError("unbalanced '(' in PDDL")
+    if len(stack[0]) != 1 or not isinstance(stack[0][0], list):
+        raise ValueError("PDDL text is not one (define ...) expression")
+    return stack[0][0]
+
+
+def _conj(expr) -> list:
+    if not expr:
+        return []
+    if expr[0] == "and":
+        return expr[1:]
+    return [expr]
+
+
+def _params(tokens: list[str]) -> list[str]:
+    out, skip = [], False
+    for tok in tokens:
+        if skip:
+            skip = False
+        elif tok == "-":
+            skip = True
+        else:
+            out.append(tok)
+    return out
+
+
+@dataclass
+class Schema:
+    params: list[str]
+    pre: list[tuple[str, ...]]
+    add: list[tuple[str, ...]]
+    delete: list[tuple[str, ...]]
+
+
+def read_domain(text: str) -> dict[str, Schema]:
+    """Action schemas of a positive-STRIPS domain."""
+    expr = parse_sexpr(text)
+    if expr[:1] != ["define"]:
+        raise ValueError("domain does not start with (define ...)")
+    schemas = {}
+    for part in expr[2:]:
+        if not part or part[0] != ":action":
+            continue
+        fields = dict(zip(part[2::2], part[3::2], strict=False))
+        add, delete = [], []
+        for lit in _conj(fields.get(":effect", [])):
+            if lit[0] == "not":
+                delete.append(tuple(lit[1]))
+            else:
+                add.append(tuple(lit))
+        pre = [tuple(lit) for lit in _conj(fields.get(":precondition", []))]
+        if any(lit[0] in ("not", "or", "=", "forall", "exists", "imply") for lit in pre):
+            raise ValueError(f"action {part[1]} has a precondition that is not positive STRIPS")
+        schemas[part[1]] = Schema(_params(fields.get(":parameters", [])), pre, add, delete)
+    return schemas
+
+
+def read_problem(text: str) -> tuple[list[str], set[tuple[str, ...]], list[tuple[str, ...]]]:
+    """(objects, initial atoms, goal atoms) of a positive-STRIPS problem."""
+    expr = parse_sexpr(text)
+    if expr[:1] != ["define"]:
+        raise ValueError("problem does not start with (define ...)")
+    parts = {p[0]: p[1:] for p in expr[2:] if p and isinstance(p[0], str)}
+    objects = _params(parts.get(":objects", []))
+    init = {tuple(a) for a in parts.get(":init", [])}
+    goal = [tuple(a) for a in _conj(parts[":goal"][0])] if parts.get(":goal") else []
+    return objects, init, goal
+
+
+def check_plan(domain_text: str, problem_text: str, plan: list[str]) -> str | None:
+    """Simulates `plan` from the problem's initial state: None when every step is
+    applicable and the goal holds at the end, else what went wrong."""
+    schemas = read_domain(domain_text)
+    _, state, goal = read_problem(problem_text)
+    for i, step in enumerate(plan):
+        tokens = step.strip().strip("()").lower().split()
+        if not tokens or tokens[0] not in schemas:
+            return f"step {i}: unknown action in {step!r}"
+        schema = schemas[tokens[0]]
+        if len(tokens) - 1 != len(schema.params):
+            return f"step {i}: {step!r} has {len(tokens) - 1} arguments, expected {len(schema.params)}"
+        bind = dict(zip(schema.params, tokens[1:], strict=True))
+
+        def ground(atom, bind=bind):
+            return tuple(bind.get(x, x) for x in atom)
+
+        missing = [ground(a) for a in schema.pre if ground(a) not in state]
+        if missing:
+            return f"step {i}: {step!r} is not applicable, missing {missing[:3]}"
+        state = (state - {ground(a) for a in schema.delete}) | {ground(a) for a in schema.add}
+    unmet = [g for g in goal if g not in state]
+    if unmet:
+        return f"goal not reached after {len(plan)} steps, missing {unmet[:3]}"
+    return None

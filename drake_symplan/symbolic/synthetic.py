@@ -1,0 +1,205 @@
+"""A toy symbolic blocks world with known operators, for tests and benchmarks.
+
+Objects are cubes or long blocks (one unary bit, p0 = long). Every object rests on the
+table or on one other object, and supports at most one. K = 3 relations:
+
+    r0(a, b): a rests centred on b
+    r1(a, b): a rests off-centre on b
+    r2(a, b): a supports b (b rests on a, either way)
+
+The action pick(source, grasp) place(target, release) has these outcomes:
+
+* something rests on the source, or on the target: nothing happens;
+* a long source grasped off-centre slips with probability `slip` (nothing happens);
+* release centre: the source ends centred on the target;
+* release off-centre on a cube: the source falls onto the table;
+* release off-centre on a long block: the source ends off-centre on it with
+  probability 1 - `fall`, else it falls onto the table.
+
+Relevant objects of a transition are the action arguments plus the objects in contact
+with them before the action, as in the paper. Outcomes depend only on them, so the
+operators learned from enough data are exact for the most likely outcome, and a goal
+made by most-likely outcomes is reachable in the learned domain.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from drake_symplan.structs import ACTION_DIM, OFFSETS, Action, encode_action
+from drake_symplan.symbolic.states import SymbolicState
+
+N_UNARY = 1
+N_RELATIONS = 3
+
+
+@dataclass
+class World:
+    long: np.ndarray  # [n] bool
+    below: np.ndarray  # [n] int, support index or -1 for the table
+    offcentre: np.ndarray  # [n] bool, resting off-centre on its support
+
+    @property
+    def n(self) -> int:
+        return len(self.long)
+
+    def copy(self) -> World:
+        return World(self.long.copy(), self.below.copy(), self.offcentre.copy())
+
+    def above(self, i: int) -> int:
+        on = np.flatnonzero(self.below == i)
+        return int(on[0]) if len(on) else -1
+
+    def contacts(self, i: int) -> list[int]:
+        return [j for j in (int(self.below[i]), self.above(i)) if j >= 0]
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(unary [n, 1], relational [3, n, n]) as uint8."""
+        n = self.n
+        unary = self.long[:, None].astype(np.uint8)
+        rel = np.zeros((N_RELATIONS, n, n), dtype=np.uint8)
+        for a in range(n):
+            b = int(self.below[a])
+            if b >= 0:
+                rel[1 if self.offcentre[a] else 0, a, b] = 1
+                rel[2, b, a] = 1
+        return unary, rel
+
+    def state(self, names: list[str] | None = None) -> SymbolicState:
+        unary, rel = self.arrays()
+        names = names or [f"o{i}" for i in range(self.n)]
+        return SymbolicState(tuple(names), unary, rel)
+
+    def contact_pairs(self, names: list[str] | None = None) -> set[tuple[str, str]]:
+        names = names or [f"o{i}" for i in range(self.n)]
+        return {(names[a], names[int(b)]) for a, b in enumerate(self.below) if b >= 0}
+
+
+def random_world(n: int, rng: np.random.Generator) -> World:
+    """n objects of random types, stacked at random."""
+    world = World(rng.random(n) < 0.5, np.full(n, -1), np.zeros(n, dtype=bool))
+    for i in rng.permutation(n):
+        clear = [j for j in range(n) if j != i and world.above(j) < 0 and _placed(world, j, i)]
+        if clear and rng.random() < 0.5:
+            j = int(rng.choice(clear))
+            world.below[i] = j
+            world.offcentre[i] = bool(world.long[j] and rng.random() < 0.5)
+    return world
+
+
+def _placed(world: World, j: int, i: int) -> bool:
+    """j is not above i (so putting i on j makes no cycle)."""
+    while j >= 0:
+        if j == i:
+            return False
+        j = int(world.below[j])
+    return True
+
+
+def step(
+    world: World,
+    action: Action,
+    rng: np.random.Generator | None = None,
+    slip: float = 0.3,
+    fall: float = 0.15,
+) -> World:
+    """The world after `action` (source/target as 'o<i>'); rng=None: most likely outcome."""
+    s, t = int(action.source[1:]), int(action.target[1:])
+    out = world.copy()
+    if world.above(s) >= 0 or world.above(t) >= 0:
+        return out
+    if world.long[s] and action.grasp != "center":
+        if (rng is None and slip > 0.5) or (rng is not None and rng.random() < slip):
+            return out
+    if action.release == "center":
+        out.below[s], out.offcentre[s] = t, False
+    elif not world.long[t]:
+        out.below[s], out.offcentre[s] = -1, False
+    elif (rng is None and fall < 0.5) or (rng is not None and rng.random() >= fall):
+        out.below[s], out.offcentre[s] = t, True
+    else:
+        out.below[s], out.offcentre[s] = -1, False
+    return out
+
+
+def random_action(world: World, rng: np.random.Generator) -> Action:
+    s, t = rng.choice(world.n, size=2, replace=False)
+    return Action(f"o{s}", OFFSETS[rng.integers(3)], f"o{t}", OFFSETS[rng.integers(3)])
+
+
+def relevant(world: World, action: Action) -> list[int]:
+    s, t = int(action.source[1:]), int(action.target[1:])
+    objs = [s, t]
+    for i in world.contacts(s) + world.contacts(t):
+        if i not in objs:
+            objs.append(i)
+    return objs
+
+
+def random_transitions(
+    n_transitions: int,
+    seed: int = 0,
+    n_objects: tuple[int, int] = (2, 4),
+    episode_length: int = 10,
+    max_objects: int = 6,
+    shuffle_slots: bool = True,
+) -> dict:
+    """A symbolic data set (the read-out contract) from random exploration.
+
+    Episodes start from a random scene with n_objects[0]..n_objects[1] objects; each
+    transition keeps the relevant objects, padded to `max_objects` slots (in a random
+    slot order when `shuffle_slots`).
+    """
+    rng = np.random.default_rng(seed)
+    n_max = max_objects
+    out = {
+        "unary": np.zeros((n_transitions, n_max, N_UNARY), np.uint8),
+        "relational": np.zeros((n_transitions, N_RELATIONS, n_max, n_max), np.uint8),
+        "action": np.zeros((n_transitions, n_max, ACTION_DIM), np.float32),
+        "mask": np.zeros((n_transitions, n_max), bool),
+    }
+    out["next_unary"] = np.zeros_like(out["unary"])
+    out["next_relational"] = np.zeros_like(out["relational"])
+    world = None
+    for i in range(n_transitions):
+        if i % episode_length == 0:
+            world = random_world(int(rng.integers(n_objects[0], n_objects[1] + 1)), rng)
+        action = random_action(world, rng)
+        after = step(world, action, rng)
+        objs = relevant(world, action)
+        if shuffle_slots:
+            objs = [objs[j] for j in rng.permutation(len(objs))]
+        m = len(objs)
+        u, r = world.arrays()
+        nu, nr = after.arrays()
+        idx = np.array(objs)
+        out["unary"][i, :m] = u[idx]
+        out["next_unary"][i, :m] = nu[idx]
+        out["relational"][i, :, :m, :m] = r[:, idx][:, :, idx]
+        out["next_relational"][i, :, :m, :m] = nr[:, idx][:, :, idx]
+        out["action"][i, :m] = encode_action(action, [f"o{j}" for j in objs])
+        out["mask"][i, :m] = True
+        world = after
+    for key in ("unary", "relational", "next_unary", "next_relational"):
+        out[f"{key}_uncertain"] = np.zeros(out[key].shape, bool)
+    return out
+
+
+def random_problem(
+    n: int, n_steps: int, rng: np.random.Generator
+) -> tuple[SymbolicState, SymbolicState, set[tuple[str, str]]]:
+    """(start, goal, goal contacts): a random scene and the scene after `n_steps`
+    random actions that change something, taken with their most likely outcome."""
+    start = random_world(n, rng)
+    world = start
+    steps = 0
+    for _ in range(100 * n_steps):
+        if steps == n_steps:
+            break
+        after = step(world, random_action(world, rng))
+        if not (np.array_equal(after.below, world.below)
+                and np.array_equal(after.offcentre, world.offcentre)):
+            world, steps = after, steps + 1
+    return start.state(), world.state(), world.contact_pairs()

@@ -1,0 +1,186 @@
+"""Scene descriptions: boxes on the table, YAML load/save, validation and a seeded sampler.
+
+Frames: world origin at the robot base, table top at z = 0. Positions are box centres;
+a long block's long axis is its local y.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import math
+from pathlib import Path
+
+import numpy as np
+
+# Box half-extents (x, y, z) in metres, per object type.
+HALF_EXTENTS: dict[str, tuple[float, float, float]] = {
+    "cube": (0.025, 0.025, 0.025),
+    "long": (0.025, 0.125, 0.025),
+}
+OBJECT_TYPES = tuple(HALF_EXTENTS)
+MASSES = {"cube": 0.1, "long": 0.4}
+
+# Where objects may be placed (box centres), metres.
+WORKSPACE_X = (0.45, 1.0)
+WORKSPACE_Y = (-0.4, 0.4)
+MAX_OBJECTS = 8
+
+# Resting tolerance: a box is supported if its bottom is within this of the table or
+# of another box's top, with overlapping footprints.
+_SUPPORT_TOL = 0.005
+_OVERLAP_TOL = 1e-4
+
+
+class SceneError(ValueError):
+    """A malformed or physically impossible scene."""
+
+
+@dc.dataclass
+class ObjectSpec:
+    name: str = ""
+    type: str = "cube"
+    position: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    yaw: float = 0.0
+
+    @property
+    def half_extents(self) -> np.ndarray:
+        return np.array(HALF_EXTENTS[self.type])
+
+
+@dc.dataclass
+class Scene:
+    objects: list[ObjectSpec] = dc.field(default_factory=list)
+
+    @property
+    def names(self) -> list[str]:
+        return [o.name for o in self.objects]
+
+    def object(self, name: str) -> ObjectSpec:
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise SceneError(f"no object named {name!r} in the scene (objects: {self.names})")
+
+
+def _footprint_corners(o: ObjectSpec) -> np.ndarray:
+    hx, hy, _ = HALF_EXTENTS[o.type]
+    c, s = math.cos(o.yaw), math.sin(o.yaw)
+    local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
+    return local @ np.array([[c, s], [-s, c]]) + np.array(o.position[:2])
+
+
+def _footprints_overlap(a: ObjectSpec, b: ObjectSpec, tol: float) -> bool:
+    """Separating-axis test on the two yawed rectangles; touching is not overlapping."""
+    ca, cb = _footprint_corners(a), _footprint_corners(b)
+    for yaw in (a.yaw, b.yaw):
+        for axis in (np.array([math.cos(yaw), math.sin(yaw)]),
+                     np.array([-math.sin(yaw), math.cos(yaw)])):
+            pa, pb = ca @ axis, cb @ axis
+            if pa.max() <= pb.min() + tol or pb.max() <= pa.min() + tol:
+                return False
+    return True
+
+
+def validate_scene(scene: Scene) -> Scene:
+    """Raises SceneError naming the problem; returns the scene unchanged if it is valid."""
+    if not scene.objects:
+        raise SceneError("scene has no objects")
+    if len(scene.objects) > MAX_OBJECTS:
+        raise SceneError(f"scene has {len(scene.objects)} objects; at most {MAX_OBJECTS}")
+    names = scene.names
+    if len(set(names)) != len(names) or any(not n for n in names):
+        raise SceneError(f"object names must be unique and non-empty, got {names}")
+    for o in scene.objects:
+        if o.type not in HALF_EXTENTS:
+            raise SceneError(
+                f"object {o.name!r} has unknown type {o.type!r}; expected one of {OBJECT_TYPES}"
+            )
+        if len(o.position) != 3 or not all(math.isfinite(v) for v in o.position):
+            raise SceneError(f"object {o.name!r} position must be 3 finite numbers")
+        x, y, _ = o.position
+        if not (WORKSPACE_X[0] <= x <= WORKSPACE_X[1] and WORKSPACE_Y[0] <= y <= WORKSPACE_Y[1]):
+            raise SceneError(
+                f"object {o.name!r} at ({x:.3f}, {y:.3f}) is outside the workspace "
+                f"x in {WORKSPACE_X}, y in {WORKSPACE_Y}"
+            )
+    for i, a in enumerate(scene.objects):
+        za, ha = a.position[2], HALF_EXTENTS[a.type][2]
+        for b in scene.objects[i + 1:]:
+            zb, hb = b.position[2], HALF_EXTENTS[b.type][2]
+            z_overlap = min(za + ha, zb + hb) - max(za - ha, zb - hb)
+            if z_overlap > _SUPPORT_TOL and _footprints_overlap(a, b, _OVERLAP_TOL):
+                raise SceneError(f"objects {a.name!r} and {b.name!r} overlap")
+        bottom = za - ha
+        if abs(bottom) <= _SUPPORT_TOL:
+            continue
+        supported = any(
+            abs(bottom - (b.position[2] + HALF_EXTENTS[b.type][2])) <= _SUPPORT_TOL
+            and _footprints_overlap(a, b, _OVERLAP_TOL)
+            for b in scene.objects if b is not a
+        )
+        if not supported:
+            raise SceneError(
+                f"object {a.name!r} (bottom at z = {bottom:.3f}) rests on neither the table "
+                f"nor another object"
+            )
+    return scene
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Loads and validates a scene YAML file."""
+    from pydrake.common.yaml import yaml_load_typed
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"scene file {path} does not exist")
+    try:
+        scene = yaml_load_typed(schema=Scene, filename=str(path))
+    except RuntimeError as e:
+        raise SceneError(f"malformed scene file {path}: {e}") from e
+    return validate_scene(scene)
+
+
+def scene_to_yaml(scene: Scene) -> str:
+    lines = ["objects:"]
+    for o in scene.objects:
+        pos = ", ".join(f"{v:.4f}" for v in o.position)
+        lines.append(
+            f"  - {{name: {o.name}, type: {o.type}, position: [{pos}], yaw: {o.yaw:.4f}}}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def save_scene(scene: Scene, path: str | Path) -> None:
+    Path(path).write_text(scene_to_yaml(validate_scene(scene)))
+
+
+def sample_scene(
+    rng: np.random.Generator,
+    num_objects: int,
+    long_fraction: float = 0.5,
+    yaw_jitter: float = 0.0,
+    min_gap: float = 0.02,
+    max_tries: int = 1000,
+) -> Scene:
+    """A random valid scene: `num_objects` upright boxes on the table, long blocks along y.
+
+    `yaw_jitter` (radians) perturbs each yaw uniformly; `min_gap` keeps footprints apart so
+    that sampled objects start out not touching.
+    """
+    if not 1 <= num_objects <= MAX_OBJECTS:
+        raise SceneError(f"num_objects must be in [1, {MAX_OBJECTS}], got {num_objects}")
+    objects: list[ObjectSpec] = []
+    for i in range(num_objects):
+        kind = "long" if rng.random() < long_fraction else "cube"
+        hx, hy, hz = HALF_EXTENTS[kind]
+        for _ in range(max_tries):
+            yaw = float(rng.uniform(-yaw_jitter, yaw_jitter)) if yaw_jitter > 0 else 0.0
+            x = float(rng.uniform(WORKSPACE_X[0] + hx, WORKSPACE_X[1] - hx))
+            y = float(rng.uniform(WORKSPACE_Y[0] + hy, WORKSPACE_Y[1] - hy))
+            cand = ObjectSpec(f"o{i}", kind, [x, y, hz], yaw)
+            if not any(_footprints_overlap(cand, o, -min_gap) for o in objects):
+                objects.append(cand)
+                break
+        else:
+            raise SceneError(f"could not place {num_objects} objects without overlap")
+    return validate_scene(Scene(objects))

@@ -1,0 +1,257 @@
+"""The station diagram: UR10 + gripper, table, a pool of boxes, PD control, optional Meshcat.
+
+One diagram serves many episodes: `Station.reset(scene)` assigns pool bodies to the
+scene's objects, parks (and locks) the unused ones under the table, and puts the arm home.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    MultibodyPlantConfig,
+)
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+from drake_symplan.structs import ObjectState
+from drake_symplan.world.scenes import HALF_EXTENTS, OBJECT_TYPES, Scene, validate_scene
+
+MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
+MODEL_FILES = {
+    "cube": "package://drake_symplan_models/objects/cube.sdf",
+    "long": "package://drake_symplan_models/objects/long_block.sdf",
+}
+ARM_JOINTS = [
+    "shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
+    "wrist_1_joint", "wrist_2_joint", "wrist_3_joint",
+]
+FINGER_JOINTS = ["left_finger_joint", "right_finger_joint"]
+FINGER_OPEN = 0.05  # finger joint position (m): 8.5 cm between the finger pads
+FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlier
+
+# A home posture that keeps the arm above and behind the workspace (tcp near x=0.3, z=0.55).
+HOME_Q = np.array([0.0, -1.9, 1.9, -1.57, -1.57, 0.0])
+
+
+@dc.dataclass
+class StationConfig:
+    """Everything that shapes the diagram; loadable with yaml_load_typed."""
+
+    time_step: float = 5e-3
+    contact_model: str = "hydroelastic_with_fallback"
+    discrete_contact_approximation: str = "sap"
+    pool_cubes: int = 8
+    pool_longs: int = 8
+    arm_kp: list[float] = dc.field(default_factory=lambda: [4000, 4000, 2000, 500, 500, 300])
+    arm_kd: list[float] = dc.field(default_factory=lambda: [400, 400, 200, 30, 30, 15])
+    finger_kp: float = 1000.0
+    finger_kd: float = 20.0
+
+
+def add_package_paths(parser: Parser) -> None:
+    parser.package_map().AddPackageXml(str(MODELS_DIR / "package.xml"))
+
+
+def AddUr10(plant, parser: Parser):
+    """Adds the UR10 + gripper welded at the world origin; returns its model instance."""
+    (arm,) = parser.AddModels(url="package://drake_symplan_models/ur10/ur10.urdf")
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link", arm))
+    return arm
+
+
+def _parked_pose(index: int) -> RigidTransform:
+    # Far below the table and apart from each other: out of every camera's view.
+    return RigidTransform([-3.0 + 0.4 * index, 3.0, -3.0])
+
+
+def tilt_of(R: RotationMatrix) -> float:
+    """Angle (rad) between the box's local z axis and world z, folded for box symmetry.
+
+    A box lying on any face has tilt 0: we take the body axis closest to vertical.
+    """
+    m = np.abs(R.matrix()[2, :])
+    return float(np.arccos(np.clip(m.max(), -1.0, 1.0)))
+
+
+class Station:
+    """The built diagram plus handles and per-episode reset."""
+
+    def __init__(self, config: StationConfig | None = None, meshcat: Meshcat | None = None):
+        self.config = config or StationConfig()
+        cfg = self.config
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlant(
+            MultibodyPlantConfig(
+                time_step=cfg.time_step,
+                contact_model=cfg.contact_model,
+                discrete_contact_approximation=cfg.discrete_contact_approximation,
+            ),
+            builder,
+        )
+        parser = Parser(plant)
+        add_package_paths(parser)
+        self.arm = AddUr10(plant, parser)
+        (table,) = parser.AddModels(url="package://drake_symplan_models/table/table.sdf")
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("__model__", table))
+        # Gravity is compensated exactly by disabling it on the arm (PD alone would sag).
+        plant.set_gravity_enabled(self.arm, False)
+
+        self.pool: dict[str, list] = {t: [] for t in OBJECT_TYPES}
+        sizes = {"cube": cfg.pool_cubes, "long": cfg.pool_longs}
+        for kind in OBJECT_TYPES:
+            for i in range(sizes[kind]):
+                parser.SetAutoRenaming(True)
+                (inst,) = parser.AddModels(url=MODEL_FILES[kind])
+                plant.RenameModelInstance(inst, f"{kind}_{i}")
+                self.pool[kind].append(plant.GetBodyByName("body", inst))
+
+        for name, kp, kd in zip(ARM_JOINTS, cfg.arm_kp, cfg.arm_kd, strict=True):
+            plant.GetJointActuatorByName(name + "_motor").set_controller_gains(
+                PdControllerGains(p=kp, d=kd))
+        for name in FINGER_JOINTS:
+            plant.GetJointActuatorByName(name.replace("_joint", "_motor")).set_controller_gains(
+                PdControllerGains(p=cfg.finger_kp, d=cfg.finger_kd))
+        plant.Finalize()
+
+        self.command_source = builder.AddSystem(
+            TrajectorySource(self.hold_trajectory(HOME_Q, FINGER_OPEN), 1))
+        builder.Connect(self.command_source.get_output_port(),
+                        plant.get_desired_state_input_port(self.arm))
+        self.meshcat = meshcat
+        self.visualizer = None
+        if meshcat is not None:
+            self.visualizer = MeshcatVisualizer.AddToBuilder(
+                builder, scene_graph, meshcat,
+                MeshcatVisualizerParams(role=Role.kIllustration, prefix="station"))
+        self.plant, self.scene_graph = plant, scene_graph
+        self._extend_diagram(builder)
+        self.diagram = builder.Build()
+        self.simulator = Simulator(self.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        self.assigned: dict[str, object] = {}  # scene name -> body
+        self.types: dict[str, str] = {}
+        self._gripper_body = plant.GetBodyByName("gripper_palm", self.arm)
+        self.tcp_frame = plant.GetFrameByName("tcp", self.arm)
+        # Each pool body's model instance holds exactly its floating joint.
+        self._floating_joints = {
+            b.index(): plant.get_joint(plant.GetJointIndices(b.model_instance())[0])
+            for bodies in self.pool.values() for b in bodies
+        }
+
+    def _extend_diagram(self, builder: DiagramBuilder) -> None:
+        """Hook for subclasses that add systems (cameras) before the diagram is built."""
+
+    @staticmethod
+    def hold_trajectory(q_arm: np.ndarray, finger: float) -> PiecewisePolynomial:
+        q = np.concatenate([q_arm, [finger, finger]])
+        return PiecewisePolynomial.FirstOrderHold([0.0, 1.0], np.column_stack([q, q]))
+
+    # --- episodes -----------------------------------------------------------------
+
+    def reset(self, scene: Scene, q_arm: np.ndarray = HOME_Q) -> None:
+        """Puts the scene's objects on the table, parks the rest, arm home, time 0."""
+        validate_scene(scene)
+        counts = {t: sum(o.type == t for o in scene.objects) for t in OBJECT_TYPES}
+        for t in OBJECT_TYPES:
+            if counts[t] > len(self.pool[t]):
+                raise ValueError(
+                    f"scene has {counts[t]} objects of type {t!r}; the station's pool has "
+                    f"{len(self.pool[t])} (StationConfig.pool_{t}s)")
+        self.context.SetTime(0.0)
+        plant, ctx = self.plant, self.plant_context
+        self.assigned, self.types = {}, {}
+        used = {t: 0 for t in OBJECT_TYPES}
+        for o in scene.objects:
+            body = self.pool[o.type][used[o.type]]
+            used[o.type] += 1
+            self.assigned[o.name], self.types[o.name] = body, o.type
+        park = 0
+        for t in OBJECT_TYPES:
+            for i, body in enumerate(self.pool[t]):
+                fj = self._floating_joints[body.index()]
+                fj.Unlock(ctx)
+                if i >= used[t]:
+                    plant.SetFreeBodyPose(ctx, body, _parked_pose(park))
+                    plant.SetFreeBodySpatialVelocity(ctx, body, _zero_velocity())
+                    fj.Lock(ctx)
+                    park += 1
+        for o in scene.objects:
+            body = self.assigned[o.name]
+            X = RigidTransform(RollPitchYaw(0, 0, o.yaw), np.asarray(o.position, float))
+            plant.SetFreeBodyPose(ctx, body, X)
+            plant.SetFreeBodySpatialVelocity(ctx, body, _zero_velocity())
+        q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
+        plant.SetPositions(ctx, self.arm, q)
+        plant.SetVelocities(ctx, self.arm, np.zeros(8))
+        self.hold(q_arm)
+
+    def hold(self, q_arm: np.ndarray, finger: float = FINGER_OPEN) -> None:
+        """Commands the arm to hold `q_arm` from now on."""
+        self.command_source.UpdateTrajectory(self.hold_trajectory(q_arm, finger))
+        self.simulator.Initialize()
+
+    def settle(self, seconds: float = 0.5) -> None:
+        """Lets physics run with the current command held (objects come to rest)."""
+        self.simulator.AdvanceTo(self.context.get_time() + seconds)
+
+    # --- ground truth (tests and perception measurement only) ----------------------
+
+    def object_poses(self) -> dict[str, RigidTransform]:
+        return {n: self.plant.EvalBodyPoseInWorld(self.plant_context, b)
+                for n, b in self.assigned.items()}
+
+    def object_states(self) -> dict[str, ObjectState]:
+        out = {}
+        for n, X in self.object_poses().items():
+            R = X.rotation()
+            yaw = float(RollPitchYaw(R).yaw_angle())
+            out[n] = ObjectState(n, self.types[n], X.translation().copy(), yaw, tilt_of(R))
+        return out
+
+    def contact_graph(self, tolerance: float = 0.003) -> set[tuple[str, str]]:
+        """Pairs of scene objects whose surfaces are within `tolerance` (sorted names)."""
+        query = self.scene_graph.get_query_output_port().Eval(
+            self.scene_graph.GetMyContextFromRoot(self.context))
+        body_of = {}
+        for name, body in self.assigned.items():
+            for gid in self.plant.GetCollisionGeometriesForBody(body):
+                body_of[gid] = name
+        pairs = set()
+        for d in query.ComputeSignedDistancePairwiseClosestPoints(tolerance):
+            a, b = body_of.get(d.id_A), body_of.get(d.id_B)
+            if a and b and a != b:
+                pairs.add(tuple(sorted((a, b))))
+        return pairs
+
+    def gripper_pose(self) -> RigidTransform:
+        return self.tcp_frame.CalcPoseInWorld(self.plant_context)
+
+    def arm_positions(self) -> np.ndarray:
+        return self.plant.GetPositions(self.plant_context, self.arm)[:6].copy()
+
+    def finger_positions(self) -> np.ndarray:
+        return self.plant.GetPositions(self.plant_context, self.arm)[6:].copy()
+
+    def object_corners_z(self, name: str) -> np.ndarray:
+        """World z of the 8 corners of an object's box (ground truth)."""
+        X = self.object_poses()[name]
+        h = np.array(HALF_EXTENTS[self.types[name]])
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        return (X.multiply((signs * h).T))[2]
+
+
+def _zero_velocity():
+    from pydrake.multibody.math import SpatialVelocity
+
+    return SpatialVelocity(np.zeros(3), np.zeros(3))
