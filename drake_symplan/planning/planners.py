@@ -1,0 +1,277 @@
+"""Planner back-ends behind one interface: Fast Downward (subprocess) and pyperplan.
+
+`plan(domain_path, problem_path, planner="fd" | "pyperplan", timeout=10.0)` returns a
+`PlanResult` whose status is one of solved / unsolvable / timeout / error, with the
+plan as PDDL step strings `"(action arg ...)"` and the planner's own message when
+something went wrong. Nothing here raises for a planner failure: a malformed PDDL
+file, an unsolvable task, a timeout or a missing planner all come back as results.
+
+* Fast Downward is the prebuilt binary in the `up-fast-downward` wheel, run through its
+  driver as a subprocess (FD is GPL-3.0; it stays a separate program). Every call gets
+  its own temporary directory (the driver writes `output.sas` and `sas_plan` into its
+  working directory), its own process group, and a wall-clock limit after which the
+  whole group is killed. Exit codes follow FD's documented table.
+* pyperplan is imported and run in a forked child process, since it has no time limit
+  of its own and a Python thread cannot be stopped: at the deadline the child is
+  killed, so a timeout really stops the work.
+
+Both default to optimal A* with LM-cut, so on unit-cost tasks their plans have equal
+length.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import multiprocessing
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+STATUSES = ("solved", "unsolvable", "timeout", "error")
+DEFAULT_TIMEOUT = 10.0
+FD_SEARCH = "astar(lmcut())"
+FD_ENV = "SYMPLAN_FAST_DOWNWARD"  # overrides the driver path
+
+# Fast Downward exit codes (driver/returncodes.py in the wheel).
+_FD_SOLVED = {0: "", 1: "plan found, then out of memory", 2: "plan found, then out of time",
+              3: "plan found, then out of memory and time"}
+_FD_UNSOLVABLE = {10: "unsolvable (proved by the translator)",
+                  11: "unsolvable (search space exhausted)",
+                  12: "no plan found by an incomplete search (not a proof of unsolvability)",
+                  13: "unsolvable within the bound"}
+_FD_TIMEOUT = {21: "translator out of time", 23: "search out of time",
+               24: "search out of memory and time"}
+_FD_ERROR = {20: "translator out of memory", 22: "search out of memory",
+             30: "translator critical error", 31: "translator input error (malformed PDDL?)",
+             32: "search critical error", 33: "search input error",
+             34: "search configuration not supported", 35: "driver critical error",
+             36: "driver input error", 37: "driver: unsupported"}
+
+
+@dataclass
+class PlanResult:
+    status: str  # one of STATUSES
+    plan: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    message: str = ""
+    planner: str = ""
+
+    def __post_init__(self):
+        if self.status not in STATUSES:
+            raise ValueError(f"unknown status {self.status!r}")
+
+    @property
+    def solved(self) -> bool:
+        return self.status == "solved"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _check_files(domain, problem) -> tuple[Path, Path]:
+    domain, problem = Path(domain), Path(problem)
+    for p in (domain, problem):
+        if not p.is_file():
+            raise FileNotFoundError(f"no PDDL file {p}")
+    return domain.resolve(), problem.resolve()
+
+
+def _read_plan(text: str) -> list[str]:
+    steps = []
+    for line in text.splitlines():
+        line = line.strip()
+        if line and not line.startswith(";"):
+            steps.append(line if line.startswith("(") else f"({line})")
+    return steps
+
+
+# ---------------------------------------------------------------- Fast Downward
+
+
+def find_fast_downward() -> Path | None:
+    """The FD driver script: $SYMPLAN_FAST_DOWNWARD, else the one in the
+    up-fast-downward wheel (located without importing the wheel's package)."""
+    if os.environ.get(FD_ENV):
+        path = Path(os.environ[FD_ENV])
+        return path if path.is_file() else None
+    spec = importlib.util.find_spec("up_fast_downward")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    for root in spec.submodule_search_locations:
+        driver = Path(root) / "downward" / "fast-downward.py"
+        if driver.is_file():
+            return driver
+    return None
+
+
+def _fd_message(out: str, err: str) -> str:
+    keep = re.compile(r"error|reason|exception|traceback|not found|unsupported|killed", re.I)
+    lines = [ln.strip() for ln in (err + "\n" + out).splitlines() if ln.strip()]
+    picked = [ln for ln in lines if keep.search(ln) and "time limit" not in ln.lower()]
+    return "; ".join((picked or lines[-3:])[:6])
+
+
+def fast_downward(
+    domain,
+    problem,
+    timeout: float = DEFAULT_TIMEOUT,
+    search: str = FD_SEARCH,
+    driver: str | Path | None = None,
+) -> PlanResult:
+    """Fast Downward on PDDL files, in a temporary directory, under a time limit."""
+    start = time.perf_counter()
+    domain, problem = _check_files(domain, problem)
+
+    def result(status, plan=(), message=""):
+        return PlanResult(status, list(plan), time.perf_counter() - start, message, "fd")
+
+    driver = Path(driver) if driver is not None else find_fast_downward()
+    if driver is None or not driver.is_file():
+        return result("error", message=(
+            f"Fast Downward not found (driver {driver}); install the up-fast-downward "
+            f"wheel or set {FD_ENV} to a fast-downward.py"))
+    with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
+        plan_file = Path(tmp) / "sas_plan"
+        cmd = [sys.executable, str(driver), "--plan-file", str(plan_file),
+               "--overall-time-limit", f"{max(1, math.ceil(timeout))}s",
+               str(domain), str(problem), "--search", search]
+        try:
+            proc = subprocess.Popen(cmd, cwd=tmp, stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE, text=True, start_new_session=True)
+        except OSError as e:
+            return result("error", message=f"could not start Fast Downward: {e}")
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            _kill_group(proc)
+            proc.communicate()
+            return result("timeout", message=f"Fast Downward killed after {timeout:g} s")
+        code = proc.returncode
+        plan_files = sorted(Path(tmp).glob("sas_plan*"))
+        plan = _read_plan(plan_files[-1].read_text()) if plan_files else []
+    if code in _FD_SOLVED and plan_files:
+        return result("solved", plan, _FD_SOLVED[code])
+    if code in _FD_UNSOLVABLE:
+        return result("unsolvable", message=_FD_UNSOLVABLE[code])
+    if code in _FD_TIMEOUT:
+        return result("timeout", message=_FD_TIMEOUT[code])
+    what = _FD_ERROR.get(code, f"exit code {code}")
+    if code == 0:
+        what = "exit code 0 but no plan file"
+    return result("error", message=f"Fast Downward: {what}: {_fd_message(out, err)}")
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        proc.kill()
+
+
+# ---------------------------------------------------------------- pyperplan
+
+
+def _pyperplan_child(conn, domain: str, problem: str, search: str, heuristic: str | None):
+    """Runs in the child: parse, ground, search; sends (status, payload)."""
+    try:
+        import logging
+
+        logging.disable(logging.CRITICAL)
+        from pyperplan import planner as pp
+
+        if search not in pp.SEARCHES:
+            raise ValueError(f"unknown pyperplan search {search!r}; one of {sorted(pp.SEARCHES)}")
+        if heuristic is not None and heuristic not in pp.HEURISTICS:
+            raise ValueError(
+                f"unknown pyperplan heuristic {heuristic!r}; one of {sorted(pp.HEURISTICS)}")
+        heuristic_class = None if heuristic is None else pp.HEURISTICS[heuristic]
+        solution = pp.search_plan(domain, problem, pp.SEARCHES[search], heuristic_class)
+        if solution is None:
+            conn.send(("unsolvable", "pyperplan: search space exhausted, no plan"))
+        else:
+            conn.send(("solved", [op.name for op in solution]))
+    except BaseException as e:  # noqa: BLE001 - everything goes back as a message
+        conn.send(("error", f"pyperplan: {type(e).__name__}: {e}"))
+    finally:
+        conn.close()
+
+
+def pyperplan_plan(
+    domain,
+    problem,
+    timeout: float = DEFAULT_TIMEOUT,
+    search: str = "astar",
+    heuristic: str | None = "lmcut",
+) -> PlanResult:
+    """pyperplan on PDDL files in a child process that is killed at the deadline."""
+    start = time.perf_counter()
+    domain, problem = _check_files(domain, problem)
+
+    def result(status, plan=(), message=""):
+        return PlanResult(status, list(plan), time.perf_counter() - start, message, "pyperplan")
+
+    if importlib.util.find_spec("pyperplan") is None:
+        return result("error", message="pyperplan is not installed (pip install pyperplan)")
+    methods = multiprocessing.get_all_start_methods()
+    ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_pyperplan_child,
+                       args=(send, str(domain), str(problem), search, heuristic), daemon=True)
+    try:
+        proc.start()
+    except OSError as e:
+        return result("error", message=f"could not start pyperplan: {e}")
+    send.close()
+    ready = False
+    try:
+        ready = recv.poll(max(timeout - (time.perf_counter() - start), 0.0))
+        message = recv.recv() if ready else None
+    except (EOFError, OSError):
+        message = ("error", f"pyperplan child died (exit code {proc.exitcode})")
+    finally:
+        if proc.is_alive() and not ready:
+            proc.kill()
+        proc.join(5.0)
+        recv.close()
+    if message is None:
+        return result("timeout", message=f"pyperplan stopped after {timeout:g} s")
+    status, payload = message
+    if status == "solved":
+        return result("solved", payload)
+    return result(status, message=payload)
+
+
+# ---------------------------------------------------------------- registry
+
+PLANNERS: dict[str, Callable[..., PlanResult]] = {
+    "fd": fast_downward,
+    "pyperplan": pyperplan_plan,
+}
+
+
+def plan(domain, problem, planner: str = "fd", timeout: float = DEFAULT_TIMEOUT,
+         **options) -> PlanResult:
+    """Plans with a registered back-end on PDDL files."""
+    if planner not in PLANNERS:
+        raise ValueError(f"unknown planner {planner!r}; one of {sorted(PLANNERS)}")
+    if not timeout > 0:
+        raise ValueError(f"timeout must be positive, got {timeout}")
+    return PLANNERS[planner](domain, problem, timeout=timeout, **options)
+
+
+def plan_pddl(domain_text: str, problem_text: str, planner: str = "fd",
+              timeout: float = DEFAULT_TIMEOUT, **options) -> PlanResult:
+    """Plans on PDDL given as text (written to a temporary directory)."""
+    with tempfile.TemporaryDirectory(prefix="symplan-pddl-") as tmp:
+        d, p = Path(tmp) / "domain.pddl", Path(tmp) / "problem.pddl"
+        d.write_text(domain_text)
+        p.write_text(problem_text)
+        return plan(d, p, planner, timeout, **options)
