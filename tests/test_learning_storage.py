@@ -1,0 +1,73 @@
+"""Sharded transition storage: round trip, padding, fingerprint, clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drake_symplan.data.storage import (
+    fingerprint,
+    load_transitions,
+    write_manifest,
+    write_shard,
+)
+from drake_symplan.structs import TransitionArrays
+
+
+def _arrays(t: int, n: int, d: int = 3, seed: int = 0, episode0: int = 0) -> TransitionArrays:
+    rng = np.random.default_rng(seed)
+    mask = np.ones((t, n), bool)
+    mask[:, -1] = False
+    return TransitionArrays(
+        state=rng.normal(size=(t, n, d)).astype(np.float32),
+        action=np.zeros((t, n, 8), np.float32),
+        effect=rng.normal(size=(t, n, 6)).astype(np.float32),
+        mask=mask,
+        episode=np.arange(t, dtype=np.int64) + episode0,
+        next_state=rng.normal(size=(t, n, d)).astype(np.float32),
+    )
+
+
+def test_round_trip_pads_to_largest_n_in_index_order(tmp_path):
+    a, b = _arrays(2, 3, seed=1), _arrays(3, 4, seed=2, episode0=10)
+    write_manifest(tmp_path, {"note": "test"})
+    write_shard(tmp_path, 1, b)
+    path = write_shard(tmp_path, 0, a)
+    assert path.name == "shard-000000.npz"
+    assert not [p for p in tmp_path.iterdir() if "tmp" in p.name]
+    out = load_transitions(tmp_path)
+    assert out.state.shape == (5, 4, 3) and out.mask.dtype == bool
+    np.testing.assert_array_equal(out.state[:2, :3], a.state)
+    np.testing.assert_array_equal(out.state[:2, 3], 0.0)
+    np.testing.assert_array_equal(out.mask[:2], np.c_[a.mask, np.zeros((2, 1), bool)])
+    np.testing.assert_array_equal(out.effect[2:], b.effect)
+    np.testing.assert_array_equal(out.next_state[2:], b.next_state)
+    np.testing.assert_array_equal(out.episode, [0, 1, 10, 11, 12])
+
+
+def test_fingerprint_tracks_contents(tmp_path):
+    write_manifest(tmp_path)
+    write_shard(tmp_path, 0, _arrays(2, 3, seed=1))
+    first = fingerprint(tmp_path)
+    assert first == fingerprint(tmp_path) and len(first) == 64
+    write_shard(tmp_path, 0, _arrays(2, 3, seed=2))
+    assert fingerprint(tmp_path) != first
+
+
+def test_errors_name_the_path(tmp_path):
+    with pytest.raises(FileNotFoundError, match="nowhere"):
+        load_transitions(tmp_path / "nowhere")
+    with pytest.raises(FileNotFoundError, match="manifest.json"):
+        load_transitions(tmp_path)
+    write_manifest(tmp_path)
+    with pytest.raises(ValueError, match="no shard"):
+        load_transitions(tmp_path)
+    (tmp_path / "shard-000000.npz").write_bytes(b"not an npz")
+    with pytest.raises(ValueError, match="shard-000000.npz"):
+        load_transitions(tmp_path)
+    np.savez(tmp_path / "shard-000000.npz", state=np.zeros((1, 2, 3)))
+    with pytest.raises(ValueError, match="lacks arrays"):
+        load_transitions(tmp_path)
+    (tmp_path / "manifest.json").write_text("{}")
+    with pytest.raises(ValueError, match="schema_version"):
+        load_transitions(tmp_path)
