@@ -188,18 +188,88 @@ def random_transitions(
 
 
 def random_problem(
-    n: int, n_steps: int, rng: np.random.Generator
+    n: int, n_steps: int, rng: np.random.Generator, max_tries: int = 100
 ) -> tuple[SymbolicState, SymbolicState, set[tuple[str, str]]]:
     """(start, goal, goal contacts): a random scene and the scene after `n_steps`
-    random actions that change something, taken with their most likely outcome."""
-    start = random_world(n, rng)
-    world = start
-    steps = 0
-    for _ in range(100 * n_steps):
-        if steps == n_steps:
-            break
-        after = step(world, random_action(world, rng))
-        if not (np.array_equal(after.below, world.below)
-                and np.array_equal(after.offcentre, world.offcentre)):
-            world, steps = after, steps + 1
-    return start.state(), world.state(), world.contact_pairs()
+    random actions that change something, taken with their most likely outcome.
+    Goals that already hold in the start (paper IV-C goal atoms) are redrawn."""
+    for _ in range(max_tries):
+        start = world = random_world(n, rng)
+        steps = 0
+        for _ in range(100 * n_steps):
+            if steps == n_steps:
+                break
+            after = step(world, random_action(world, rng))
+            if not (np.array_equal(after.below, world.below)
+                    and np.array_equal(after.offcentre, world.offcentre)):
+                world, steps = after, steps + 1
+        goal, contacts = world.state(), world.contact_pairs()
+        if not set(goal.goal_facts(contacts)) <= set(start.state().facts()):
+            return start.state(), goal, contacts
+    raise RuntimeError(f"no non-trivial problem in {max_tries} tries")
+
+
+@dataclass(frozen=True)
+class Row:
+    """One hand-written symbolic transition over objects 0..n-1.
+
+    unary: per object, its P bits. rel / next_rel: the true (k, i, j) relation bits.
+    action: (source, grasp, target, release) with object indices. next_unary defaults
+    to `unary`, next_rel to `rel` (no effect).
+    """
+
+    unary: tuple
+    rel: frozenset | set
+    action: tuple
+    next_unary: tuple | None = None
+    next_rel: frozenset | set | None = None
+
+
+def dataset_from_rows(
+    rows: list[Row], n_relations: int = N_RELATIONS, max_objects: int | None = None
+) -> dict:
+    """A symbolic data set (the read-out contract) from hand-written transitions."""
+    n_max = max_objects or max(len(r.unary) for r in rows)
+    n_unary = len(np.atleast_1d(rows[0].unary[0]))
+    t = len(rows)
+    out = {
+        "unary": np.zeros((t, n_max, n_unary), np.uint8),
+        "relational": np.zeros((t, n_relations, n_max, n_max), np.uint8),
+        "action": np.zeros((t, n_max, ACTION_DIM), np.float32),
+        "mask": np.zeros((t, n_max), bool),
+    }
+    out["next_unary"] = np.zeros_like(out["unary"])
+    out["next_relational"] = np.zeros_like(out["relational"])
+    for i, row in enumerate(rows):
+        n = len(row.unary)
+        out["mask"][i, :n] = True
+        out["unary"][i, :n] = np.array(row.unary).reshape(n, n_unary)
+        nu = row.unary if row.next_unary is None else row.next_unary
+        out["next_unary"][i, :n] = np.array(nu).reshape(n, n_unary)
+        for key, rel in (("relational", row.rel),
+                         ("next_relational", row.rel if row.next_rel is None else row.next_rel)):
+            for k, a, b in rel:
+                out[key][i, k, a, b] = 1
+        s, g, tg, r = row.action
+        names = [f"o{j}" for j in range(n)]
+        out["action"][i, :n] = encode_action(Action(names[s], g, names[tg], r), names)
+    return out
+
+
+def shuffled(data: dict, seed: int = 0, slots: bool = True) -> dict:
+    """The same data set with transitions (and, if `slots`, objects inside each
+    transition) in a random order."""
+    rng = np.random.default_rng(seed)
+    t, n = data["mask"].shape
+    rows = rng.permutation(t)
+    perm = np.array([rng.permutation(n) if slots else np.arange(n) for _ in range(t)])
+    out = {}
+    for key, arr in data.items():
+        arr = np.asarray(arr)[rows]
+        if slots and key.startswith(("relational", "next_relational")):
+            arr = np.take_along_axis(arr, perm[:, None, :, None], axis=2)
+            arr = np.take_along_axis(arr, perm[:, None, None, :], axis=3)
+        elif slots and key.startswith(("unary", "next_unary", "action", "mask")):
+            arr = np.take_along_axis(arr, perm.reshape((t, n) + (1,) * (arr.ndim - 2)), axis=1)
+        out[key] = arr
+    return out
