@@ -117,6 +117,7 @@ def test_permutation_equivariance(name):
         torch.testing.assert_close(rel_p, rel[:, :, perm][:, :, :, perm])
 
 
+@torch.no_grad()
 def test_relational_relations_are_bits_zero_on_padding_and_directed():
     model = _models()["relational"]
     state, action, mask = _batch()

@@ -20,11 +20,11 @@ from drake_symplan.world.scenes import HALF_EXTENTS
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
 
 APPROACH_HEIGHT = 0.12  # m above grasp/release points
-MIN_CARRY_HEIGHT = 0.30  # m, TCP height while carrying
+MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
-RELEASE_CLEARANCE = 0.015  # m gap between the held box's bottom and the target's top
+RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
-JOINT_SPEED = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi]) * 0.5
+JOINT_SPEED = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi]) * 0.8
 
 
 @dc.dataclass
@@ -115,14 +115,14 @@ class PickPlacePlanner:
 
         knots: list[tuple[np.ndarray, float, float]] = []  # (q_arm, finger, min duration)
         q = self._solve("pre-grasp", grasp + up, yaw_g, q_start)
-        knots.append((q, FINGER_OPEN, 0.6))
+        knots.append((q, FINGER_OPEN, 0.4))
         for frac in (0.5, 1.0):
             q = self._solve("grasp", grasp + up * (1 - frac), yaw_g, q)
-            knots.append((q, FINGER_OPEN, 0.25))
-        knots.append((q, FINGER_CLOSED, 0.3))
+            knots.append((q, FINGER_OPEN, 0.15))
+        knots.append((q, FINGER_CLOSED, 0.25))
         lift = np.array([grasp[0], grasp[1], carry_z])
         q = self._solve("lift", lift, yaw_g, q)
-        knots.append((q, FINGER_CLOSED, 0.5))
+        knots.append((q, FINGER_CLOSED, 0.35))
         n_lift = len(knots)
         above = np.array([release[0], release[1], carry_z])
         dist = float(np.linalg.norm(above[:2] - lift[:2]))
@@ -132,12 +132,12 @@ class PickPlacePlanner:
             q = self._solve("carry", lift + (above - lift) * f, yaw_g + (yaw_r - yaw_g) * f, q)
             knots.append((q, FINGER_CLOSED, 0.6 * dist / 0.3 / steps + 0.05))
         q = self._solve("release", release, yaw_r, q)
-        knots.append((q, FINGER_CLOSED, 0.45))
-        knots.append((q, FINGER_OPEN, 0.3))
+        knots.append((q, FINGER_CLOSED, 0.35))
+        knots.append((q, FINGER_OPEN, 0.25))
         q = self._solve("retreat", release + up, yaw_r, q)
-        knots.append((q, FINGER_OPEN, 0.3))
-        knots.append((HOME_Q, FINGER_OPEN, 0.7))
-        knots.append((HOME_Q, FINGER_OPEN, 0.2))  # settle
+        knots.append((q, FINGER_OPEN, 0.2))
+        knots.append((HOME_Q, FINGER_OPEN, 0.45))
+        knots.append((HOME_Q, FINGER_OPEN, 0.15))  # settle
 
         times, qs = [0.0], [np.concatenate([q_start, [FINGER_OPEN] * 2])]
         t_lift = 0.0

@@ -126,18 +126,39 @@ def validate_scene(scene: Scene) -> Scene:
     return scene
 
 
+def scene_from_dict(data: object, source: str = "scene") -> Scene:
+    """Builds a Scene from parsed YAML, naming the first malformed field."""
+    if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
+        raise SceneError(f"malformed {source}: expected a mapping with an 'objects' list")
+    fields = {f.name for f in dc.fields(ObjectSpec)}
+    objects = []
+    for i, item in enumerate(data["objects"]):
+        if not isinstance(item, dict):
+            raise SceneError(f"malformed {source}: objects[{i}] is not a mapping")
+        unknown = set(item) - fields
+        if unknown:
+            raise SceneError(f"malformed {source}: objects[{i}] has unknown keys {sorted(unknown)}")
+        try:
+            objects.append(ObjectSpec(
+                name=str(item["name"]), type=str(item.get("type", "cube")),
+                position=[float(v) for v in item["position"]], yaw=float(item.get("yaw", 0.0))))
+        except (KeyError, TypeError, ValueError) as e:
+            raise SceneError(f"malformed {source}: objects[{i}]: {e!r}") from e
+    return Scene(objects)
+
+
 def load_scene(path: str | Path) -> Scene:
     """Loads and validates a scene YAML file."""
-    from pydrake.common.yaml import yaml_load_typed
+    import yaml
 
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"scene file {path} does not exist")
     try:
-        scene = yaml_load_typed(schema=Scene, filename=str(path))
-    except RuntimeError as e:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as e:
         raise SceneError(f"malformed scene file {path}: {e}") from e
-    return validate_scene(scene)
+    return validate_scene(scene_from_dict(data, f"scene file {path}"))
 
 
 def scene_to_yaml(scene: Scene) -> str:

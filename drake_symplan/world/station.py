@@ -39,8 +39,9 @@ FINGER_JOINTS = ["left_finger_joint", "right_finger_joint"]
 FINGER_OPEN = 0.05  # finger joint position (m): 8.5 cm between the finger pads
 FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlier
 
-# A home posture that keeps the arm above and behind the workspace (tcp near x=0.3, z=0.55).
-HOME_Q = np.array([0.0, -1.9, 1.9, -1.57, -1.57, 0.0])
+# Home: TCP at (0.30, 0, 0.45) pointing down, behind the workspace (x >= 0.45) so the
+# cameras see the table unoccluded.
+HOME_Q = np.array([-0.5624, -2.3508, 2.2392, -1.4596, -1.5854, -2.1196])
 
 
 @dc.dataclass

@@ -1,0 +1,36 @@
+"""Meshcat helpers: a live viewer on localhost and self-contained HTML recordings."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+
+from pydrake.geometry import Meshcat, MeshcatParams
+
+
+def StartMeshcat(port: int | None = None) -> Meshcat:
+    """Drake's Meshcat server on localhost; prints its URL."""
+    params = MeshcatParams()
+    params.host = "localhost"
+    if port is not None:
+        params.port = port
+    meshcat = Meshcat(params)
+    print(f"Meshcat is serving at {meshcat.web_url()}", flush=True)
+    return meshcat
+
+
+@contextmanager
+def recording(station, path: str | Path | None):
+    """Records the station's visualizer while the block runs; writes one HTML file."""
+    if path is None or station.visualizer is None:
+        yield
+        return
+    vis = station.visualizer
+    vis.DeleteRecording()
+    vis.StartRecording(set_transforms_while_recording=True)
+    try:
+        yield
+    finally:
+        vis.StopRecording()
+        vis.PublishRecording()
+        Path(path).write_text(station.meshcat.StaticHtml())

@@ -1,0 +1,209 @@
+"""Planner back-ends: results on solvable, unsolvable, malformed and too-hard tasks,
+missing planners, the `plan` / `operators` commands, and FD vs pyperplan on learned
+domains."""
+
+import json
+import multiprocessing
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drake_symplan.cli import main as cli_main
+from drake_symplan.planning.planners import PLANNERS, PlanResult, fast_downward, plan, plan_pddl
+from drake_symplan.symbolic import synthetic
+from drake_symplan.symbolic.operators import LearnConfig, learn_operators
+from drake_symplan.symbolic.pddl import check_plan, domain_pddl, plan_step_action, problem_pddl
+
+HANOI = """
+(define (domain hanoi)
+  (:requirements :strips)
+  (:predicates (clear ?x) (on ?x ?y) (smaller ?x ?y))
+  (:action move
+    :parameters (?disc ?from ?to)
+    :precondition (and (smaller ?to ?disc) (on ?disc ?from) (clear ?disc) (clear ?to))
+    :effect (and (clear ?from) (on ?disc ?to) (not (on ?disc ?from)) (not (clear ?to)))))
+"""
+
+
+def hanoi_problem(n: int, goal_extra: str = "") -> str:
+    discs = [f"d{i}" for i in range(1, n + 1)]  # d1 smallest
+    pegs = ["p1", "p2", "p3"]
+    smaller = [f"(smaller {p} {d})" for p in pegs for d in discs]
+    smaller += [f"(smaller {b} {a})" for i, a in enumerate(discs) for b in discs[i + 1:]]
+    tower = [f"(on {discs[i]} {discs[i + 1]})" for i in range(n - 1)] + [f"(on {discs[-1]} p1)"]
+    goal = [f"(on {discs[i]} {discs[i + 1]})" for i in range(n - 1)] + [f"(on {discs[-1]} p3)"]
+    return (f"(define (problem hanoi{n}) (:domain hanoi) (:objects {' '.join(pegs + discs)})"
+            f" (:init {' '.join(smaller + tower)} (clear d1) (clear p2) (clear p3))"
+            f" (:goal (and {' '.join(goal)} {goal_extra})))")
+
+
+# Relaxed-reachable but unreachable: both a and b need the single token.
+TOKEN = """
+(define (domain token) (:requirements :strips) (:predicates (free) (a) (b))
+  (:action get-a :parameters () :precondition (free) :effect (and (a) (not (free))))
+  (:action get-b :parameters () :precondition (free) :effect (and (b) (not (free)))))
+"""
+TOKEN_PROBLEM = "(define (problem t) (:domain token) (:init (free)) (:goal (and (a) (b))))"
+
+
+@pytest.fixture(scope="module")
+def hanoi_files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("hanoi")
+    (d / "domain.pddl").write_text(HANOI)
+    (d / "p3.pddl").write_text(hanoi_problem(3))
+    (d / "p16.pddl").write_text(hanoi_problem(16))
+    return d
+
+
+@pytest.mark.parametrize("backend", sorted(PLANNERS))
+def test_solves_any_positive_strips_domain_optimally(backend, hanoi_files):
+    result = plan(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl", backend)
+    assert result.status == "solved", result.message
+    assert len(result.plan) == 7 and result.plan[0].startswith("(move ")
+    assert check_plan(HANOI, hanoi_problem(3), result.plan) is None
+
+
+@pytest.mark.parametrize("backend", sorted(PLANNERS))
+def test_unsolvable(backend):
+    for problem in (TOKEN_PROBLEM, TOKEN_PROBLEM.replace("(b)))", "(c)))")):
+        result = plan_pddl(TOKEN, problem, backend)
+        assert result.status in ("unsolvable", "error")
+        if "(c)" not in problem:
+            assert result.status == "unsolvable" and result.plan == []
+
+
+@pytest.mark.parametrize("backend", sorted(PLANNERS))
+def test_malformed_pddl_is_an_error_with_the_planners_message(backend):
+    result = plan_pddl(HANOI[:-3], hanoi_problem(3), backend)
+    assert result.status == "error"
+    assert "pars" in result.message.lower() or "parenthes" in result.message.lower()
+    bad = HANOI.replace("(clear ?to))", "(clear ?to) (not (= ?from ?to)))")
+    assert plan_pddl(bad, hanoi_problem(3), backend).status in ("error", "solved")
+
+
+def _processes_mentioning(text: str) -> list[int]:
+    pids = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if text in (proc / "cmdline").read_bytes().decode(errors="ignore"):
+                pids.append(int(proc.name))
+        except (OSError, ValueError):
+            continue
+    return pids
+
+
+@pytest.mark.parametrize("backend", sorted(PLANNERS))
+def test_timeout_stops_the_planner(backend, hanoi_files):
+    result = plan(hanoi_files / "domain.pddl", hanoi_files / "p16.pddl", backend,
+                  timeout=1.0, **({"search": "astar(blind())"} if backend == "fd" else {}))
+    assert result.status == "timeout", result
+    assert result.seconds < 5.0
+    assert multiprocessing.active_children() == []
+    assert _processes_mentioning(str(hanoi_files / "p16.pddl")) == []
+
+
+def test_missing_fast_downward_is_a_clear_error(hanoi_files, monkeypatch):
+    result = fast_downward(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl",
+                           driver="/nonexistent/fast-downward.py")
+    assert result.status == "error" and "not found" in result.message
+    monkeypatch.setenv("SYMPLAN_FAST_DOWNWARD", "/nonexistent/fast-downward.py")
+    result = plan(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl", "fd")
+    assert result.status == "error" and "SYMPLAN_FAST_DOWNWARD" in result.message
+
+
+def test_bad_arguments_raise_value_errors(hanoi_files):
+    with pytest.raises(ValueError, match="unknown planner"):
+        plan(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl", "ff")
+    with pytest.raises(FileNotFoundError):
+        plan(hanoi_files / "nope.pddl", hanoi_files / "p3.pddl")
+    with pytest.raises(ValueError):
+        PlanResult("maybe")
+    result = plan(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl", "pyperplan",
+                  heuristic="nope")
+    assert result.status == "error" and "unknown pyperplan heuristic" in result.message
+
+
+def run_cli(argv, monkeypatch, capsys):
+    monkeypatch.setattr(cli_main, "COMMAND_MODULES", ["drake_symplan.cli.planning_cmds"])
+    code = cli_main.main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("backend", sorted(PLANNERS))
+def test_plan_command_prints_json(backend, hanoi_files, monkeypatch, capsys):
+    code, out, _ = run_cli(["plan", "--domain", str(hanoi_files / "domain.pddl"),
+                            "--problem", str(hanoi_files / "p3.pddl"), "--planner", backend,
+                            "--timeout", "5", "--json"], monkeypatch, capsys)
+    assert code == 0
+    result = json.loads(out)
+    assert set(result) >= {"status", "plan", "seconds", "message"}
+    assert result["status"] == "solved" and len(result["plan"]) == 7
+
+
+def test_plan_command_errors_are_one_line(hanoi_files, tmp_path, monkeypatch, capsys):
+    code, _, err = run_cli(["plan", "--domain", str(tmp_path / "none.pddl"),
+                            "--problem", str(hanoi_files / "p3.pddl")], monkeypatch, capsys)
+    assert code == 2 and err.count("\n") == 1 and "no PDDL file" in err
+    (tmp_path / "bad.pddl").write_text("(define (domain")
+    code, out, _ = run_cli(["plan", "--domain", str(tmp_path / "bad.pddl"),
+                            "--problem", str(hanoi_files / "p3.pddl"), "--json"],
+                           monkeypatch, capsys)
+    assert code == 0 and json.loads(out)["status"] == "error"
+
+
+def test_operators_command_from_saved_symbols(tmp_path, monkeypatch, capsys):
+    data = synthetic.random_transitions(3000, seed=7)
+    np.savez_compressed(tmp_path / "symbols.npz", **data)
+    out_dir = tmp_path / "ops"
+    code, out, _ = run_cli(["operators", "--symbols", str(tmp_path / "symbols.npz"),
+                            "--out", str(out_dir), "--min-count", "20", "--json"],
+                           monkeypatch, capsys)
+    assert code == 0
+    result = json.loads(out)
+    assert result["n_transitions"] == 3000 and result["threshold"] == 20
+    assert result["n_operators"] == len(json.loads((out_dir / "operators.json").read_text())[
+        "operators"])
+    assert result["n_operators"] > 0
+    assert (out_dir / "domain.pddl").read_text().count("(:action ") == result["n_operators"]
+    report = (out_dir / "report.md").read_text()
+    assert "## Operators by frequency" in report and "- example: transition" in report
+    code, _, err = run_cli(["operators", "--out", str(out_dir)], monkeypatch, capsys)
+    assert code == 2 and "--symbols" in err
+
+
+@pytest.fixture(scope="module")
+def learned_domain():
+    data = synthetic.random_transitions(20000, seed=0)
+    ops = learn_operators(data, LearnConfig(min_count=10))
+    return domain_pddl(ops.operators, synthetic.N_UNARY, synthetic.N_RELATIONS)
+
+
+def test_both_planners_accept_learned_domains_and_agree_on_plan_length(learned_domain):
+    rng = np.random.default_rng(0)
+    solved = 0
+    for _ in range(20):
+        start, goal, contacts = synthetic.random_problem(4, int(rng.integers(2, 5)), rng)
+        problem = problem_pddl(start, goal, contacts)
+        fd = plan_pddl(learned_domain, problem, "fd")
+        pp = plan_pddl(learned_domain, problem, "pyperplan")
+        assert fd.status in ("solved", "unsolvable") and fd.status == pp.status, (fd, pp)
+        assert len(fd.plan) == len(pp.plan)
+        for result in (fd, pp):
+            assert check_plan(learned_domain, problem, result.plan) is None
+            for step in result.plan:
+                action = plan_step_action(step).action
+                assert action.source in start.objects and action.target in start.objects
+        solved += fd.solved
+    assert solved >= 15
+
+
+def test_pyperplan_child_is_gone_after_each_call(learned_domain):
+    rng = np.random.default_rng(1)
+    start, goal, contacts = synthetic.random_problem(3, 2, rng)
+    before = os.getpid()
+    result = plan_pddl(learned_domain, problem_pddl(start, goal, contacts), "pyperplan")
+    assert result.status in ("solved", "unsolvable")
+    assert os.getpid() == before and multiprocessing.active_children() == []

@@ -1,0 +1,81 @@
+"""Systems tests: the real diagram, IK and full physics, checked against known physical answers."""
+
+import numpy as np
+import pytest
+
+from drake_symplan.skills.pick_place import pick_place
+from drake_symplan.structs import Action, ObjectState
+from drake_symplan.world.scenes import ObjectSpec, Scene
+
+
+def run(station, planner, objects, action):
+    station.reset(Scene([ObjectSpec(n, t, list(p), 0.0) for n, t, p in objects]))
+    beliefs = {n: ObjectState(n, t, np.array(p, float)) for n, t, p in objects}
+    return pick_place(station, planner, action, beliefs)
+
+
+def test_cube_stacks_on_cube(station, planner):
+    out = run(station, planner,
+              [("o0", "cube", (0.7, 0.0, 0.025)), ("o1", "cube", (0.6, 0.2, 0.025))],
+              Action("o1", "center", "o0", "center"))
+    assert out.status == "ok"
+    end = np.array(out.objects["o1"].end)
+    assert end[2] == pytest.approx(0.075, abs=0.005)
+    assert np.linalg.norm(end[:2] - np.array(out.objects["o0"].end[:2])) < 0.01
+    assert out.objects["o1"].lifted and not out.objects["o0"].lifted
+    assert out.objects["o1"].tilt_deg < 3
+
+
+def test_carried_block_carries_the_cube_on_it(station, planner):
+    out = run(station, planner,
+              [("o0", "cube", (0.7, 0.0, 0.025)), ("o1", "long", (0.6, 0.2, 0.025)),
+               ("o2", "cube", (0.6, 0.275, 0.075))],
+              Action("o1", "center", "o0", "center"))
+    assert out.status == "ok"
+    block, cube = np.array(out.objects["o1"].end), np.array(out.objects["o2"].end)
+    assert out.objects["o2"].lifted
+    assert cube[2] == pytest.approx(block[2] + 0.05, abs=0.008)  # resting on the block
+    assert abs(cube[0] - block[0]) < 0.025 and abs(cube[1] - block[1]) < 0.125
+
+
+def test_block_released_off_centre_on_a_cube_tips(station, planner):
+    out = run(station, planner,
+              [("o0", "cube", (0.7, 0.0, 0.025)), ("o1", "long", (0.6, 0.2, 0.025))],
+              Action("o1", "left", "o0", "center"))
+    assert out.status == "ok"
+    assert out.objects["o1"].tilt_deg > 10
+
+
+def test_grasp_beside_a_cube_does_not_lift_it(station, planner):
+    out = run(station, planner,
+              [("o0", "cube", (0.7, 0.0, 0.025)), ("o1", "cube", (0.6, 0.2, 0.025))],
+              Action("o1", "right", "o0", "center"))
+    assert out.status == "ok"
+    assert not out.objects["o1"].lifted
+    assert np.allclose(out.objects["o1"].end, out.objects["o1"].start, atol=0.005)
+
+
+def test_unreachable_target_is_infeasible(station, planner):
+    objects = [("o0", "cube", (0.7, 0.0, 0.025)), ("o1", "cube", (0.6, 0.2, 0.025))]
+    station.reset(Scene([ObjectSpec(n, t, list(p), 0.0) for n, t, p in objects]))
+    beliefs = {n: ObjectState(n, t, np.array(p, float)) for n, t, p in objects}
+    beliefs["o0"] = ObjectState("o0", "cube", np.array([1.9, 0.0, 0.025]))
+    out = pick_place(station, planner, Action("o1", "center", "o0", "center"), beliefs)
+    assert out.status == "infeasible"
+    assert "unreachable" in out.message
+    assert out.objects["o1"].end == out.objects["o1"].start
+
+
+def test_recording_is_written(tmp_path):
+    from drake_symplan.cli.main import main
+
+    scene = tmp_path / "s.yaml"
+    scene.write_text("objects:\n"
+                     "  - {name: o0, type: cube, position: [0.70, 0.00, 0.025], yaw: 0.0}\n"
+                     "  - {name: o1, type: cube, position: [0.60, 0.20, 0.025], yaw: 0.0}\n")
+    html = tmp_path / "rec.html"
+    assert main(["act", "--scene", str(scene), "--pick", "o1:center", "--place", "o0:center",
+                 "--record", str(html), "--json"]) == 0
+    text = html.read_text()
+    assert len(text) > 100_000
+    assert "<html" in text.lower() and "animation" in text.lower()

@@ -1,0 +1,112 @@
+"""Symbolic states as facts, PDDL writers, plan-step mapping and the plan checker."""
+
+import numpy as np
+import pytest
+
+from drake_symplan.structs import Action
+from drake_symplan.symbolic.operators import LearnConfig, learn_operators
+from drake_symplan.symbolic.pddl import (
+    check_plan,
+    domain_pddl,
+    parse_sexpr,
+    plan_step_action,
+    problem_pddl,
+    read_domain,
+    read_problem,
+)
+from drake_symplan.symbolic.states import SymbolicState, difference_facts
+from drake_symplan.symbolic.synthetic import Row, dataset_from_rows
+
+
+def two_cubes(on: bool) -> SymbolicState:
+    """o0 centred on o1 (r0(o0, o1), r2(o1, o0)) or both on the table."""
+    rel = np.zeros((3, 2, 2), bool)
+    if on:
+        rel[0, 0, 1] = rel[2, 1, 0] = True
+    return SymbolicState(("o0", "o1"), np.zeros((2, 1), bool), rel)
+
+
+def stack_domain():
+    """Learned from rows: a cube onto a cube, centred, lands on it."""
+    rows = [Row((0, 0), set(), (0, "center", 1, "center"), next_rel={(0, 0, 1), (2, 1, 0)})]
+    ops = learn_operators(dataset_from_rows(rows), LearnConfig(min_count=1))
+    return domain_pddl(ops.operators, 1, 3, n_transitions=1)
+
+
+def test_state_facts_are_closed_world_and_positive():
+    s = two_cubes(on=True)
+    facts = s.facts()
+    assert ("not_p0", "o0") in facts and ("r0", "o0", "o1") in facts
+    assert ("not_r0", "o1", "o0") in facts and ("r2", "o1", "o0") in facts
+    assert len(facts) == 2 * 1 + 2 * 3  # P per object, K per ordered pair, no self
+    assert len(s.facts(self_relations=True)) == 2 + 4 * 3
+    assert difference_facts(s.objects) == [("different", "o0", "o1"), ("different", "o1", "o0")]
+
+
+def test_goal_relations_only_for_contacts():
+    s = SymbolicState(("a", "b", "c"), np.zeros((3, 1)), np.zeros((3, 3, 3)))
+    goal = s.goal_facts({("a", "b")})
+    assert sorted({a[1:] for a in goal if len(a) == 3}) == [("a", "b"), ("b", "a")]
+    assert len([a for a in goal if len(a) == 2]) == 3
+    assert len(s.goal_facts(set())) == 3
+    with pytest.raises(ValueError, match="unknown object"):
+        s.goal_facts({("a", "z")})
+
+
+def test_state_rejects_bad_names_and_shapes():
+    with pytest.raises(ValueError, match="PDDL object name"):
+        SymbolicState(("O1",), np.zeros((1, 1)), np.zeros((1, 1, 1)))
+    with pytest.raises(ValueError, match="distinct"):
+        SymbolicState(("a", "a"), np.zeros((2, 1)), np.zeros((1, 2, 2)))
+    with pytest.raises(ValueError, match="relational"):
+        SymbolicState(("a", "b"), np.zeros((2, 1)), np.zeros((1, 3, 3)))
+
+
+def test_domain_is_positive_strips_with_roles_first():
+    text = stack_domain()
+    assert "(:requirements :strips :typing)" in text
+    schemas = read_domain(text)
+    (name, schema), = schemas.items()
+    assert name == "pick_center_place_center_n1_op0"
+    assert schema.params == ["?o0", "?o1"]
+    assert ("different", "?o0", "?o1") in schema.pre
+    assert sorted(schema.add) == [("r0", "?o0", "?o1"), ("r2", "?o1", "?o0")]
+    assert sorted(schema.delete) == [("not_r0", "?o0", "?o1"), ("not_r2", "?o1", "?o0")]
+    assert "(not (=" not in text and " - obj" in text
+
+
+def test_problem_and_plan_check():
+    domain = stack_domain()
+    problem = problem_pddl(two_cubes(False), two_cubes(True), {("o0", "o1")}, name="p1")
+    objects, init, goal = read_problem(problem)
+    assert objects == ["o0", "o1"]
+    assert ("different", "o0", "o1") in init and ("not_r0", "o0", "o1") in init
+    assert ("r0", "o0", "o1") in goal and len(goal) == 2 + 2 * 3
+    assert check_plan(domain, problem, ["(pick_center_place_center_n1_op0 o0 o1)"]) is None
+    assert "goal not reached" in check_plan(domain, problem, [])
+    assert "not applicable" in check_plan(
+        domain, problem, ["(pick_center_place_center_n1_op0 o1 o0)"] * 2)
+    assert "unknown action" in check_plan(domain, problem, ["(fly o0 o1)"])
+
+
+def test_problem_needs_same_objects():
+    other = SymbolicState(("o0", "o2"), np.zeros((2, 1)), np.zeros((3, 2, 2)))
+    with pytest.raises(ValueError, match="different objects"):
+        problem_pddl(two_cubes(False), other, set())
+
+
+def test_plan_step_maps_to_action_by_role():
+    step = plan_step_action("(pick_center_place_right_n736_op19 o3 o1 o2)")
+    assert step.action == Action("o3", "center", "o1", "right")
+    assert (step.count, step.index, step.args) == (736, 19, ("o3", "o1", "o2"))
+    assert plan_step_action("PICK_LEFT_PLACE_LEFT_N5_OP0 a b").action.source == "a"
+    for bad in ("(pick_up_place_left_n5_op0 a b)", "(move a b)", "(pick_left_place_left_n5_op0 a)"):
+        with pytest.raises(ValueError):
+            plan_step_action(bad)
+
+
+def test_sexpr_parser_reports_unbalanced_text():
+    assert parse_sexpr("(define (x) ; comment )\n (y z))") == ["define", ["x"], ["y", "z"]]
+    for bad in ("(define (x)", "(define))", "x y"):
+        with pytest.raises(ValueError):
+            parse_sexpr(bad)
