@@ -177,7 +177,7 @@ def test_operators_command_from_saved_symbols(tmp_path, monkeypatch, capsys):
 @pytest.fixture(scope="module")
 def learned_domain():
     data = synthetic.random_transitions(20000, seed=0)
-    ops = learn_operators(data, LearnConfig(min_count=10))
+    ops = learn_operators(data, LearnConfig(min_count=20))
     return domain_pddl(ops.operators, synthetic.N_UNARY, synthetic.N_RELATIONS)
 
 
@@ -191,7 +191,7 @@ def test_both_planners_accept_learned_domains_and_agree_on_plan_length(learned_d
         pp = plan_pddl(learned_domain, problem, "pyperplan")
         assert fd.status in ("solved", "unsolvable") and fd.status == pp.status, (fd, pp)
         assert len(fd.plan) == len(pp.plan)
-        for result in (fd, pp):
+        for result in (fd, pp) if fd.solved else ():
             assert check_plan(learned_domain, problem, result.plan) is None
             for step in result.plan:
                 action = plan_step_action(step).action

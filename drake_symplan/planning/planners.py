@@ -22,7 +22,6 @@ length.
 from __future__ import annotations
 
 import importlib.util
-import math
 import multiprocessing
 import os
 import re
@@ -140,8 +139,9 @@ def fast_downward(
             f"wheel or set {FD_ENV} to a fast-downward.py"))
     with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
         plan_file = Path(tmp) / "sas_plan"
+        # The wall-clock limit below is the time limit: the driver's own limits are
+        # CPU-time rlimits, which kill the translator early when little is left.
         cmd = [sys.executable, str(driver), "--plan-file", str(plan_file),
-               "--overall-time-limit", f"{max(1, math.ceil(timeout))}s",
                str(domain), str(problem), "--search", search]
         try:
             proc = subprocess.Popen(cmd, cwd=tmp, stdout=subprocess.PIPE,
@@ -161,8 +161,8 @@ def fast_downward(
         return result("solved", plan, _FD_SOLVED[code])
     if code in _FD_UNSOLVABLE:
         return result("unsolvable", message=_FD_UNSOLVABLE[code])
-    if code in _FD_TIMEOUT:
-        return result("timeout", message=_FD_TIMEOUT[code])
+    if code in _FD_TIMEOUT or code in (-signal.SIGXCPU, 256 - signal.SIGXCPU):
+        return result("timeout", message=_FD_TIMEOUT.get(code, "CPU time limit"))
     what = _FD_ERROR.get(code, f"exit code {code}")
     if code == 0:
         what = "exit code 0 but no plan file"
