@@ -153,15 +153,15 @@ class PickPlacePlanner:
 
 
 def execute(station: Station, motion: Motion) -> tuple[dict, dict, dict]:
-    """Runs the motion from the station's current state; object states at start/lift/end."""
+    """Runs the motion from the station's current time; object states at start/lift/end."""
     start = station.object_states()
-    station.command_source.UpdateTrajectory(motion.trajectory)
     t0 = station.context.get_time()
-    if t0 != 0.0:
-        raise RuntimeError("execute expects an episode reset to time 0")
-    station.simulator.AdvanceTo(motion.t_lift)
+    trajectory = motion.trajectory.Clone()
+    trajectory.shiftRight(t0)
+    station.command_source.UpdateTrajectory(trajectory)
+    station.simulator.AdvanceTo(t0 + motion.t_lift)
     lifted = station.object_states()
-    station.simulator.AdvanceTo(motion.t_end)
+    station.simulator.AdvanceTo(t0 + motion.t_end)
     end = station.object_states()
     return start, lifted, end
 
@@ -174,8 +174,8 @@ def pick_place(
 ) -> Outcome:
     """Plans from `objects` (the caller's belief) and executes on the station.
 
-    The station must have been reset to the episode's scene at time 0. Reported poses are
-    the simulator's (this is the outcome report, not an input to any decision).
+    Actions chain: each starts where the last one left the station. Reported poses are the
+    simulator's (this is the outcome report, not an input to any decision).
     """
     t_wall = time.perf_counter()
     try:

@@ -196,6 +196,16 @@ class Station:
         plant.SetPositions(ctx, self.arm, q)
         plant.SetVelocities(ctx, self.arm, np.zeros(8))
         self.hold(q_arm)
+        self._show_only_assigned()  # after Initialize: it re-creates the geometry
+
+    def _show_only_assigned(self) -> None:
+        if self.meshcat is None:
+            return
+        in_use = {b.index() for b in self.assigned.values()}
+        for bodies in self.pool.values():
+            for b in bodies:
+                path = f"/drake/station/{self.plant.GetModelInstanceName(b.model_instance())}"
+                self.meshcat.SetProperty(path, "visible", b.index() in in_use)
 
     def hold(self, q_arm: np.ndarray, finger: float = FINGER_OPEN) -> None:
         """Commands the arm to hold `q_arm` from now on."""

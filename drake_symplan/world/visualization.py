@@ -15,6 +15,7 @@ def StartMeshcat(port: int | None = None) -> Meshcat:
     if port is not None:
         params.port = port
     meshcat = Meshcat(params)
+    meshcat.SetCameraPose(camera_in_world=[1.9, -1.3, 1.1], target_in_world=[0.65, 0.0, 0.1])
     print(f"Meshcat is serving at {meshcat.web_url()}", flush=True)
     return meshcat
 
