@@ -1,32 +1,17 @@
-"""Lifted operators from symbolic transitions (paper III-C), by canonical grouping.
+"""Lifted operators from symbolic transitions (paper III-C).
 
-Transitions are grouped when their lifted action and lifted preconditions are equal
-under some substitution of objects. Instead of trying object permutations per sample
-(O(n!)), each transition gets a canonical object order:
-
-1. roles fix the first two parameters: `?o0` is the source, `?o1` the target;
-2. the other objects are ordered by a colour that summarises their symbols and
-   relations: their unary bits (and self-relations, if kept), then refined by the
-   sorted multiset of (relation bits to/from each other object, that object's colour)
-   until the colouring is stable (colour refinement, all transitions at once in numpy);
-3. objects left with equal colours are genuine ties. A tie whose swap is an
-   automorphism of the transition (identical objects, before and after the action)
-   needs nothing: either order gives the same encoding. Only the remaining ties are
-   permuted, and the order with the smallest (precondition, effect) encoding wins.
-
-The grouping key is then (grasp, release, number of objects, precondition bits in
-canonical order); since colours are computed from the whole data set as ranks of
-sorted signatures and ties are broken by minimum, neither the key nor the operator list
-depends on the order of the transitions. Parameters are all real objects of a transition
-(the data set stores only the relevant ones: action arguments plus objects in contact
-with them). Each group's lifted effect is its most frequent next state in canonical
-order (ties between equally frequent effects go to the smaller encoding); groups seen
-fewer than `min_count` times are dropped (50, as in the paper).
+Transitions are grouped by (grasp, release, number of objects, precondition bits in
+the canonical object order of `canonical.py`): `?o0` is the source, `?o1` the target,
+`?o2`... the other relevant objects (all real objects of a transition: the data set
+stores only the action arguments plus the objects in contact with them). Each group's
+lifted effect is its most frequent next state in canonical order; equally frequent
+effects go to the smaller encoding, so the result does not depend on the order of the
+transitions. Groups seen fewer than `min_count` times (50, as in the paper) are
+dropped; `threshold_report` says what other absolute or relative thresholds would keep.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -34,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.structs import ACTION_DIM, OFFSETS, Action
+from drake_symplan.symbolic.canonical import canonical_orders, encode, permute
 from drake_symplan.symbolic.states import Atom, SymbolicState
 
 REQUIRED_KEYS = ("unary", "relational", "next_unary", "next_relational", "action", "mask")
@@ -260,127 +246,12 @@ def _roles(action: np.ndarray, mask: np.ndarray):
     return src, tgt, grasp_bits.argmax(1), release_bits.argmax(1)
 
 
-# ---------------------------------------------------------------- canonical order
-
-
-def _rank_rows(rows: np.ndarray) -> np.ndarray:
-    """Dense rank of each row among all rows (lexicographic order of int rows)."""
-    rows = np.ascontiguousarray(rows)
-    inverse = np.unique(rows, axis=0, return_inverse=True)[1]
-    return inverse.reshape(-1)
-
-
 def _byte_ids(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(id, count) of each distinct uint8 row; ids are ranks in byte order."""
     rows = np.ascontiguousarray(rows, dtype=np.uint8)
     void = rows.view(np.dtype((np.void, rows.shape[1]))).reshape(-1)
     _, inverse, counts = np.unique(void, return_inverse=True, return_counts=True)
     return inverse.reshape(-1), counts
-
-
-def _colours(unary, rel, mask, src, tgt, self_relations) -> np.ndarray:
-    """Colour refinement over all transitions at once; returns [T, N] colour ranks,
-    sorted role-major (source < target < others < padding)."""
-    t, n = mask.shape
-    k = rel.shape[1]
-    ar = np.arange(t)
-    role = np.where(mask, 2, 3).astype(np.int64)
-    role[ar, tgt] = 1
-    role[ar, src] = 0
-    feats = [role[:, :, None], unary.astype(np.int64)]
-    if self_relations:
-        idx = np.arange(n)
-        feats.append(rel[:, :, idx, idx].transpose(0, 2, 1).astype(np.int64))
-    colour = _rank_rows(np.concatenate(feats, axis=2).reshape(t * n, -1)).reshape(t, n)
-    weights = (1 << np.arange(k)).astype(np.int64)
-    out_bits = np.einsum("tkij,k->tij", rel.astype(np.int64), weights)
-    bits = out_bits + (out_bits.transpose(0, 2, 1) << k)  # [T, N, N]: to j and from j
-    invalid = ~mask[:, None, :] | np.eye(n, dtype=bool)[None]
-    n_colours = colour.max() + 1
-    for _ in range(n):
-        code = colour[:, None, :] * (1 << (2 * k)) + bits
-        code[invalid] = -1
-        code.sort(axis=2)
-        sig = np.concatenate([colour[:, :, None], code], axis=2).reshape(t * n, -1)
-        colour = _rank_rows(sig).reshape(t, n)
-        if colour.max() + 1 == n_colours:
-            break
-        n_colours = colour.max() + 1
-    return colour
-
-
-def _permute(unary, rel, order):
-    """Arrays with objects reordered: unary [B,N,P], rel [B,K,N,N], order [B,N]."""
-    u = np.take_along_axis(unary, order[:, :, None], axis=1)
-    r = np.take_along_axis(rel, order[:, None, :, None], axis=2)
-    r = np.take_along_axis(r, order[:, None, None, :], axis=3)
-    return u, r
-
-
-def _encode(unary, rel):
-    b = unary.shape[0]
-    return np.concatenate([unary.reshape(b, -1), rel.reshape(b, -1)], axis=1).astype(np.uint8)
-
-
-def canonical_orders(unary, rel, next_unary, next_rel, mask, src, tgt, self_relations=False):
-    """[T, N] object index per canonical slot (padding last) and the number of
-    transitions whose ties needed permuting."""
-    t, n = mask.shape
-    colour = _colours(unary, rel, mask, src, tgt, self_relations)
-    order = np.argsort(colour, axis=1, kind="stable")
-    sorted_colour = np.take_along_axis(colour, order, axis=1)
-    real = np.take_along_axis(mask, order, axis=1)
-    tie = (sorted_colour[:, 1:] == sorted_colour[:, :-1]) & real[:, 1:]  # slot s ~ s+1
-    rows = np.flatnonzero(tie.any(1))
-    if len(rows) == 0:
-        return order, 0
-    # A tie whose transposition is an automorphism of (pre, next) needs no permuting.
-    o = order[rows]
-    u, r = _permute(unary[rows], rel[rows], o)
-    nu, nr = _permute(next_unary[rows], next_rel[rows], o)
-    genuine = np.zeros(len(rows), dtype=bool)
-    for s in range(n - 1):
-        has = tie[rows, s]
-        if not has.any():
-            continue
-        perm = np.arange(n)
-        perm[[s, s + 1]] = perm[[s + 1, s]]
-        same = np.ones(len(rows), dtype=bool)
-        for arr_u, arr_r in ((u, r), (nu, nr)):
-            same &= (arr_u[:, perm] == arr_u).all((1, 2))
-            same &= (arr_r[:, :, perm][:, :, :, perm] == arr_r).all((1, 2, 3))
-        genuine |= has & ~same
-    for row in rows[genuine]:
-        order[row] = _best_tie_order(
-            unary[row], rel[row], next_unary[row], next_rel[row], order[row], tie[row]
-        )
-    return order, int(genuine.sum())
-
-
-def _best_tie_order(unary, rel, next_unary, next_rel, order, tie):
-    """Tries the permutations inside each run of tied slots; returns the order with
-    the lexicographically smallest (precondition, next state) encoding."""
-    n = len(order)
-    runs, start = [], 0
-    for s in range(n):
-        if s == n - 1 or not tie[s]:
-            if s > start:
-                runs.append(list(range(start, s + 1)))
-            start = s + 1
-    choices = [list(itertools.permutations(run)) for run in runs]
-    perms = []
-    for combo in itertools.product(*choices):
-        perm = np.arange(n)
-        for run, p in zip(runs, combo, strict=True):
-            perm[run] = p
-        perms.append(order[perm])
-    perms = np.array(perms)
-    m = len(perms)
-    u, r = _permute(np.repeat(unary[None], m, 0), np.repeat(rel[None], m, 0), perms)
-    nu, nr = _permute(np.repeat(next_unary[None], m, 0), np.repeat(next_rel[None], m, 0), perms)
-    enc = np.concatenate([_encode(u, r), _encode(nu, nr)], axis=1)
-    best = np.lexsort(enc.T[::-1])[0]
-    return perms[best]
 
 
 # ---------------------------------------------------------------- learning
@@ -438,14 +309,14 @@ def learn_operators(data: dict, config: LearnConfig | None = None) -> OperatorSe
         d["unary"], d["relational"], d["next_unary"], d["next_relational"], mask, src, tgt,
         config.self_relations,
     )
-    u, r = _permute(d["unary"], d["relational"], order)
-    nu, nr = _permute(d["next_unary"], d["next_relational"], order)
+    u, r = permute(d["unary"], d["relational"], order)
+    nu, nr = permute(d["next_unary"], d["next_relational"], order)
     n_obj = mask.sum(1)
     t2 = time.perf_counter()
 
     head = np.stack([grasp, release, n_obj], axis=1).astype(np.uint8)
-    pre_bits = np.packbits(_encode(u, r), axis=1)
-    post_bits = np.packbits(_encode(nu, nr), axis=1)
+    pre_bits = np.packbits(encode(u, r), axis=1)
+    post_bits = np.packbits(encode(nu, nr), axis=1)
     group, group_counts = _byte_ids(np.concatenate([head, pre_bits], axis=1))
     effect, _ = _byte_ids(post_bits)
     n_effect_ids = int(effect.max()) + 1
