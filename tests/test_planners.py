@@ -79,8 +79,14 @@ def test_malformed_pddl_is_an_error_with_the_planners_message(backend):
     result = plan_pddl(HANOI[:-3], hanoi_problem(3), backend)
     assert result.status == "error"
     assert "pars" in result.message.lower() or "parenthes" in result.message.lower()
-    bad = HANOI.replace("(clear ?to))", "(clear ?to) (not (= ?from ?to)))")
-    assert plan_pddl(bad, hanoi_problem(3), backend).status in ("error", "solved")
+    result = plan_pddl(HANOI, hanoi_problem(3).replace("(on d3 p3)", "(on d3 p9)"), backend)
+    assert result.status in ("error", "unsolvable")  # pyperplan does not check objects
+    if backend == "fd":
+        assert "Undefined object" in result.message and "p9" in result.message
+    # Not positive STRIPS: FD reads it, pyperplan says what it cannot read.
+    adl = HANOI.replace("(clear ?disc) (clear ?to))", "(clear ?disc) (clear ?to) (not (= ?from ?to)))")
+    result = plan_pddl(adl, hanoi_problem(3), backend)
+    assert result.status == ("solved" if backend == "fd" else "error"), result
 
 
 def _processes_mentioning(text: str) -> list[int]:
@@ -207,3 +213,25 @@ def test_pyperplan_child_is_gone_after_each_call(learned_domain):
     result = plan_pddl(learned_domain, problem_pddl(start, goal, contacts), "pyperplan")
     assert result.status in ("solved", "unsolvable")
     assert os.getpid() == before and multiprocessing.active_children() == []
+
+
+def test_operators_command_reads_symbols_out_of_a_run(tmp_path, monkeypatch, capsys):
+    # The read-out needs a trained model; a stand-in module checks the wiring only.
+    import sys
+    import types
+
+    data = synthetic.random_transitions(1000, seed=8)
+    calls = []
+    fake = types.ModuleType("drake_symplan.learning.readout")
+    fake.readout_dataset = lambda run, data_dir: calls.append((run, data_dir)) or data
+    monkeypatch.setitem(sys.modules, "drake_symplan.learning.readout", fake)
+    (tmp_path / "run").mkdir()
+    (tmp_path / "data").mkdir()
+    code, out, _ = run_cli(["operators", str(tmp_path / "run"), "--data", str(tmp_path / "data"),
+                            "--out", str(tmp_path / "ops"), "--min-fraction", "0.01", "--json"],
+                           monkeypatch, capsys)
+    assert code == 0 and calls == [(tmp_path / "run", tmp_path / "data")]
+    result = json.loads(out)
+    assert result["threshold"] == 10 and result["n_transitions"] == 1000
+    saved = np.load(tmp_path / "ops" / "symbols.npz")
+    assert np.array_equal(saved["relational"], data["relational"])

@@ -24,7 +24,6 @@ from __future__ import annotations
 import importlib.util
 import multiprocessing
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -112,10 +111,12 @@ def find_fast_downward() -> Path | None:
 
 
 def _fd_message(out: str, err: str) -> str:
-    keep = re.compile(r"error|reason|exception|traceback|not found|unsupported|killed", re.I)
-    lines = [ln.strip() for ln in (err + "\n" + out).splitlines() if ln.strip()]
-    picked = [ln for ln in lines if keep.search(ln) and "time limit" not in ln.lower()]
-    return "; ".join((picked or lines[-3:])[:6])
+    """The planner's own explanation: its output minus progress and driver chatter."""
+    lines = [ln.strip() for ln in (out + "\n" + err).splitlines() if ln.strip()]
+    noise = ("INFO", "->", "Parsing", "Driver aborting", "translate exit code",
+             "search exit code", "[t=", "Remove intermediate")
+    picked = [ln for ln in lines if not ln.startswith(noise)]
+    return "; ".join((picked or lines)[-4:])
 
 
 def fast_downward(
