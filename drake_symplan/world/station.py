@@ -24,6 +24,7 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.structs import ObjectState
+from drake_symplan.world.cameras import AddDepthCameras, CameraConfig, DepthNoise, read_point_clouds
 from drake_symplan.world.scenes import HALF_EXTENTS, OBJECT_TYPES, Scene, validate_scene
 
 MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
@@ -57,6 +58,7 @@ class StationConfig:
     arm_kd: list[float] = dc.field(default_factory=lambda: [400, 400, 200, 30, 30, 15])
     finger_kp: float = 1000.0
     finger_kd: float = 20.0
+    cameras: list[CameraConfig] = dc.field(default_factory=list)  # see default_cameras()
 
 
 def add_package_paths(parser: Parser) -> None:
@@ -135,7 +137,7 @@ class Station:
                 builder, scene_graph, meshcat,
                 MeshcatVisualizerParams(role=Role.kIllustration, prefix="station"))
         self.plant, self.scene_graph = plant, scene_graph
-        self._extend_diagram(builder)
+        self.cameras = AddDepthCameras(builder, scene_graph, cfg.cameras)
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
@@ -149,9 +151,6 @@ class Station:
             b.index(): plant.get_joint(plant.GetJointIndices(b.model_instance())[0])
             for bodies in self.pool.values() for b in bodies
         }
-
-    def _extend_diagram(self, builder: DiagramBuilder) -> None:
-        """Hook for subclasses that add systems (cameras) before the diagram is built."""
 
     @staticmethod
     def hold_trajectory(q_arm: np.ndarray, finger: float) -> PiecewisePolynomial:
@@ -244,6 +243,12 @@ class Station:
             if a and b and a != b:
                 pairs.add(tuple(sorted((a, b))))
         return pairs
+
+    def point_clouds(self, noise: DepthNoise | None = None, rng=None) -> list[np.ndarray]:
+        """World-frame depth points [M, 3] from each camera at the current state."""
+        if not self.cameras:
+            raise ValueError("the station has no cameras (StationConfig.cameras is empty)")
+        return read_point_clouds(self.cameras, self.context, noise, rng)
 
     def gripper_pose(self) -> RigidTransform:
         return self.tcp_frame.CalcPoseInWorld(self.plant_context)

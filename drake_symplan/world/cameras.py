@@ -1,0 +1,129 @@
+"""Depth cameras around the table: RgbdSensors rendered headless by VTK (EGL) + point clouds.
+
+`AddDepthCameras` adds one RgbdSensor and one DepthImageToPointCloud per camera config;
+`read_point_clouds` evaluates them into world-frame xyz arrays, with optional noise.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.geometry import (
+    ClippingRange,
+    DepthRange,
+    DepthRenderCamera,
+    MakeRenderEngineVtk,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+)
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.perception import BaseField, DepthImageToPointCloud
+from pydrake.systems.sensors import CameraInfo, PixelType, RgbdSensor
+
+RENDERER = "vtk_depth"
+
+
+@dc.dataclass
+class CameraConfig:
+    name: str = "camera"
+    position: list[float] = dc.field(default_factory=lambda: [1.5, 0.0, 0.8])
+    target: list[float] = dc.field(default_factory=lambda: [0.72, 0.0, 0.0])
+    width: int = 640
+    height: int = 480
+    fov_y_deg: float = 45.0
+    depth_min: float = 0.1
+    depth_max: float = 3.0
+
+
+def default_cameras() -> list[CameraConfig]:
+    """Three cameras: one facing the robot across the table, one on each side."""
+    return [
+        CameraConfig("far", [1.55, 0.0, 0.80], [0.72, 0.0, 0.0]),
+        CameraConfig("left", [0.80, 0.95, 0.75], [0.72, 0.0, 0.0]),
+        CameraConfig("right", [0.80, -0.95, 0.75], [0.72, 0.0, 0.0]),
+    ]
+
+
+def look_at(position, target) -> RigidTransform:
+    """Camera pose X_WC: camera z looks at `target`, camera y points down in the image."""
+    p, t = np.asarray(position, float), np.asarray(target, float)
+    z = t - p
+    z /= np.linalg.norm(z)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    if np.linalg.norm(x) < 1e-6:  # looking straight down
+        x = np.array([0.0, -1.0, 0.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return RigidTransform(RotationMatrix(np.column_stack([x, y, z])), p)
+
+
+@dc.dataclass
+class DepthCamera:
+    config: CameraConfig
+    sensor: RgbdSensor
+    to_cloud: DepthImageToPointCloud
+    X_WC: RigidTransform
+
+
+def AddDepthCameras(builder, scene_graph, configs: list[CameraConfig]) -> list[DepthCamera]:
+    """Adds the VTK (EGL, headless) renderer, the sensors and the point-cloud converters."""
+    if not configs:
+        return []
+    if not scene_graph.HasRenderer(RENDERER):
+        scene_graph.AddRenderer(RENDERER, MakeRenderEngineVtk(RenderEngineVtkParams(
+            backend="EGL")))
+    cameras = []
+    for cfg in configs:
+        info = CameraInfo(cfg.width, cfg.height, np.radians(cfg.fov_y_deg))
+        core = RenderCameraCore(RENDERER, info, ClippingRange(0.01, 10.0), RigidTransform())
+        depth = DepthRenderCamera(core, DepthRange(cfg.depth_min, cfg.depth_max))
+        X_WC = look_at(cfg.position, cfg.target)
+        world_id = scene_graph.world_frame_id()
+        sensor = builder.AddSystem(RgbdSensor(world_id, X_WC, depth))
+        sensor.set_name(f"camera_{cfg.name}")
+        builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+        to_cloud = builder.AddSystem(DepthImageToPointCloud(
+            info, PixelType.kDepth32F, 1.0, BaseField.kXYZs))
+        to_cloud.set_name(f"cloud_{cfg.name}")
+        builder.Connect(sensor.depth_image_32F_output_port(),
+                        to_cloud.depth_image_input_port())
+        builder.Connect(sensor.body_pose_in_world_output_port(),
+                        to_cloud.camera_pose_input_port())
+        cameras.append(DepthCamera(cfg, sensor, to_cloud, X_WC))
+    return cameras
+
+
+@dc.dataclass
+class DepthNoise:
+    """Gaussian noise along each camera ray plus random pixel dropout."""
+
+    sigma: float = 0.0  # metres
+    dropout: float = 0.0  # fraction of pixels lost
+
+    def apply(self, xyz: np.ndarray, origin: np.ndarray, rng: np.random.Generator):
+        if self.dropout > 0:
+            xyz = xyz[rng.random(len(xyz)) >= self.dropout]
+        if self.sigma > 0:
+            ray = xyz - origin
+            ray /= np.linalg.norm(ray, axis=1, keepdims=True)
+            xyz = xyz + ray * rng.normal(0.0, self.sigma, (len(xyz), 1))
+        return xyz
+
+
+def read_point_clouds(
+    cameras: list[DepthCamera],
+    root_context,
+    noise: DepthNoise | None = None,
+    rng: np.random.Generator | None = None,
+) -> list[np.ndarray]:
+    """World-frame points [M, 3] per camera (invalid depths dropped)."""
+    clouds = []
+    for cam in cameras:
+        ctx = cam.to_cloud.GetMyContextFromRoot(root_context)
+        xyz = cam.to_cloud.point_cloud_output_port().Eval(ctx).xyzs().T
+        xyz = xyz[np.isfinite(xyz).all(axis=1)]
+        if noise is not None and (noise.sigma > 0 or noise.dropout > 0):
+            xyz = noise.apply(xyz, cam.X_WC.translation(), rng or np.random.default_rng())
+        clouds.append(xyz)
+    return clouds
