@@ -119,6 +119,16 @@ def test_missing_fast_downward_is_a_clear_error(hanoi_files, monkeypatch):
     assert result.status == "error" and "SYMPLAN_FAST_DOWNWARD" in result.message
 
 
+def test_missing_pyperplan_is_a_clear_error(hanoi_files, monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "pyperplan" else real(name, *a))
+    result = plan(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl", "pyperplan")
+    assert result.status == "error" and "not installed" in result.message
+
+
 def test_bad_arguments_raise_value_errors(hanoi_files):
     with pytest.raises(ValueError, match="unknown planner"):
         plan(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl", "ff")

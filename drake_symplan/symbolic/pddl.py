@@ -11,6 +11,11 @@ Action names carry the offsets, the group's count and its frequency rank,
 `pick_<grasp>_place_<release>_n<count>_op<rank>`; the first two parameters are always
 the source and the target, so `plan_step_action` maps a plan step to a pick/place by
 role, never by position in a name.
+
+As in the paper, preconditions speak only about an operator's parameters (the objects
+that were relevant when it was learned). Positive STRIPS cannot say "and nothing else
+touches ?o0", so a 2-parameter operator also matches a source that has a third object
+in contact in the planner's state; the executor's goal check catches what that costs.
 """
 
 from __future__ import annotations
