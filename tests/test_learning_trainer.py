@@ -1,0 +1,141 @@
+"""Training runs end to end: checkpoints, log, resume, eval effects, symbols, errors."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+
+import numpy as np
+import pytest
+import torch
+
+from drake_symplan.cli import learning_cmds
+from drake_symplan.data.storage import write_manifest, write_shard
+from drake_symplan.learning.checkpoint import load_run
+from drake_symplan.learning.dataset import split_by_episode
+from drake_symplan.learning.evaluate import aggregate_runs, object_errors_cm, summarize_errors
+from drake_symplan.learning.readout import read_symbols, readout_dataset
+from drake_symplan.learning.synthetic import same_group_rule
+from drake_symplan.learning.trainer import TrainConfig, train
+
+torch.set_num_threads(1)
+SMALL = {"epochs": 2, "batch_size": 64, "lr": 1e-3, "threads": 1, "progress": False}
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("data")
+    arrays, _ = same_group_rule(300, seed=0, episode_length=5)
+    write_manifest(out)
+    write_shard(out, 0, arrays.subset(np.arange(150)))
+    write_shard(out, 1, arrays.subset(np.arange(150, 300)))
+    return out
+
+
+def _parse(argv):
+    parser = argparse.ArgumentParser()
+    learning_cmds.register(parser.add_subparsers(dest="command", required=True))
+    return parser.parse_args(argv)
+
+
+def test_split_is_by_episode_seeded_and_complete():
+    episode = np.repeat(np.arange(20), 3)
+    splits = split_by_episode(episode, seed=4)
+    again = split_by_episode(episode, seed=4)
+    assert all(np.array_equal(splits[k], again[k]) for k in splits)
+    assert [len(splits[k]) // 3 for k in ("train", "val", "test")] == [16, 2, 2]
+    groups = [set(episode[splits[k]]) for k in ("train", "val", "test")]
+    assert not (groups[0] & groups[1] or groups[0] & groups[2] or groups[1] & groups[2])
+    assert sorted(np.concatenate(list(splits.values()))) == list(range(60))
+    with pytest.raises(ValueError, match="at least 3 episodes"):
+        split_by_episode(np.zeros(5, int), seed=0)
+
+
+def test_errors_exclude_padding_and_group_by_count():
+    effect = torch.zeros(2, 3, 6)
+    pred = torch.zeros(2, 3, 6)
+    pred[0, 0] = 0.06  # 6 cm on every component of a real object
+    pred[0, 2] = 9.0  # a padded slot: ignored
+    mask = torch.tensor([[True, True, False], [True, True, True]])
+    summary = summarize_errors(object_errors_cm(pred, effect, mask))
+    assert summary["objects"] == 5
+    assert summary["error_cm"] == pytest.approx(6.0 / 5)
+    assert summary["by_count"]["2"]["error_cm"] == pytest.approx(3.0)
+    assert summary["by_count"]["3"]["error_cm"] == pytest.approx(0.0)
+    models = aggregate_runs([
+        {"run": "a", "model": "m", "error_cm": 1.0, "by_count": {"2": {"error_cm": 1.0}}},
+        {"run": "b", "model": "m", "error_cm": 3.0, "by_count": {"2": {"error_cm": 2.0}}},
+    ])
+    assert models["m"]["error_cm"] == {"mean": 2.0, "std": pytest.approx(2 ** 0.5), "runs": 2}
+
+
+def test_train_resume_eval_and_symbols(data_dir, tmp_path):
+    straight = train(TrainConfig("relational", str(data_dir), str(tmp_path / "a"),
+                                 **{**SMALL, "epochs": 3}))
+    assert straight["epochs"] == 3 and straight["test"]["objects"] > 0
+    for name in ("best.pt", "last.pt", "config.json", "log.csv", "metrics.json"):
+        assert (tmp_path / "a" / name).is_file()
+
+    train(TrainConfig("relational", str(data_dir), str(tmp_path / "b"), **SMALL))
+    with pytest.raises(ValueError, match="already holds a run"):
+        train(TrainConfig("relational", str(data_dir), str(tmp_path / "b"), **SMALL))
+    with pytest.raises(ValueError, match="differ"):
+        train(TrainConfig("relational", str(data_dir), str(tmp_path / "b"),
+                          **{**SMALL, "lr": 0.5}), resume=True)
+    resumed = train(TrainConfig("relational", str(data_dir), str(tmp_path / "b"),
+                                **{**SMALL, "epochs": 3}), resume=True)
+    # Two epochs and a resumed third give exactly the run of three straight epochs.
+    assert resumed["epochs"] == 3
+    a = torch.load(tmp_path / "a" / "last.pt", weights_only=False)["model_state"]
+    b = torch.load(tmp_path / "b" / "last.pt", weights_only=False)["model_state"]
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    with open(tmp_path / "b" / "log.csv") as f:
+        assert [row["epoch"] for row in csv.DictReader(f)] == ["1", "2", "3"]
+
+    args = _parse(["eval", "effects", str(tmp_path / "a"), str(tmp_path / "b"),
+                   "--json", "--plot", str(tmp_path / "plot.png")])
+    result = args.func(args)
+    stats = result["models"]["relational"]["error_cm"]
+    assert stats["runs"] == 2 and stats["std"] == pytest.approx(0.0, abs=1e-6)
+    assert result["runs"][0]["error_cm"] == pytest.approx(straight["test"]["error_cm"])
+    assert (tmp_path / "plot.png").stat().st_size > 0
+
+    args = _parse(["symbols", str(tmp_path / "a"), "--data", str(data_dir),
+                   "--out", str(tmp_path / "symbols.npz"), "--json"])
+    summary = args.func(args)
+    assert summary["transitions"] == 300 and summary["relations"] == 3
+    with np.load(tmp_path / "symbols.npz") as z:
+        saved = {k: z[k] for k in z.files}
+    assert set(saved) == {
+        "unary", "relational", "next_unary", "next_relational", "action", "mask",
+        "unary_uncertain", "relational_uncertain", "next_unary_uncertain",
+        "next_relational_uncertain"}
+    assert saved["unary"].dtype == np.uint8 and saved["relational"].shape == (300, 3, 4, 4)
+    pad = ~(saved["mask"][:, None, :, None] & saved["mask"][:, None, None, :])
+    assert not saved["relational"][np.broadcast_to(pad, saved["relational"].shape)].any()
+
+    model, config = load_run(tmp_path / "a")
+    assert config["model"] == "relational" and not model.training
+    arrays = same_group_rule(300, seed=0, episode_length=5)[0]
+    one = read_symbols(model, arrays.state[7, :2], arrays.mask[7, :2])
+    assert one[0].shape == (2, 1) and one[2].shape == (3, 2, 2)
+    np.testing.assert_array_equal(one[2], saved["relational"][7, :, :2, :2])
+
+
+def test_baseline_readout_has_no_relations(data_dir, tmp_path):
+    train(TrainConfig("deepsym", str(data_dir), str(tmp_path / "d"), **{**SMALL, "epochs": 1}))
+    symbols = readout_dataset(tmp_path / "d", data_dir)
+    assert symbols["unary"].shape == (300, 4, 4)
+    assert symbols["relational"].shape == (300, 0, 4, 4)
+    assert symbols["next_relational_uncertain"].dtype == bool
+
+
+def test_missing_run_and_data_errors_name_the_path(tmp_path):
+    with pytest.raises(FileNotFoundError, match="best.pt"):
+        (tmp_path / "run").mkdir()
+        load_run(tmp_path / "run")
+    with pytest.raises(FileNotFoundError, match="nothing to resume"):
+        train(TrainConfig("relational", str(tmp_path), str(tmp_path / "r"), **SMALL),
+              resume=True)
+    with pytest.raises(FileNotFoundError, match="nowhere"):
+        train(TrainConfig("relational", str(tmp_path / "nowhere"), str(tmp_path / "r"), **SMALL))
