@@ -116,14 +116,25 @@ def read_point_clouds(
     root_context,
     noise: DepthNoise | None = None,
     rng: np.random.Generator | None = None,
+    z_min: float | None = None,
 ) -> list[np.ndarray]:
-    """World-frame points [M, 3] per camera (invalid depths dropped)."""
+    """World-frame points [M, 3] per camera (invalid depths dropped).
+
+    `z_min` drops points at or below that height (after noise) early, which saves most of
+    the work when only what stands on the table matters.
+    """
     clouds = []
     for cam in cameras:
         ctx = cam.to_cloud.GetMyContextFromRoot(root_context)
-        xyz = cam.to_cloud.point_cloud_output_port().Eval(ctx).xyzs().T
-        xyz = xyz[np.isfinite(xyz).all(axis=1)]
+        xyzs = cam.to_cloud.point_cloud_output_port().Eval(ctx).xyzs()
         if noise is not None and (noise.sigma > 0 or noise.dropout > 0):
+            xyz = xyzs.T[np.isfinite(xyzs[2])]
             xyz = noise.apply(xyz, cam.X_WC.translation(), rng or np.random.default_rng())
-        clouds.append(xyz)
+            if z_min is not None:
+                xyz = xyz[xyz[:, 2] > z_min]
+        else:
+            z = xyzs[2]
+            keep = z > z_min if z_min is not None else np.isfinite(z)
+            xyz = xyzs[:, keep].T
+        clouds.append(np.ascontiguousarray(xyz))
     return clouds

@@ -40,6 +40,8 @@ FINGER_JOINTS = ["left_finger_joint", "right_finger_joint"]
 FINGER_OPEN = 0.05  # finger joint position (m): 8.5 cm between the finger pads
 FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlier
 
+ROBOTS = ("ur10", "hand")  # StationConfig.robot
+
 # Home: TCP at (0.30, 0, 0.45) pointing down, behind the workspace (x >= 0.45) so the
 # cameras see the table unoccluded.
 HOME_Q = np.array([-0.5624, -2.3508, 2.2392, -1.4596, -1.5854, -2.1196])
@@ -59,6 +61,9 @@ class StationConfig:
     finger_kp: float = 1000.0
     finger_kd: float = 20.0
     cameras: list[CameraConfig] = dc.field(default_factory=list)  # see default_cameras()
+    # "ur10": the arm and gripper in full physics; "hand": the collision-free hand of
+    # world/hand.py (no arm), the fast back-end for data collection.
+    robot: str = "ur10"
 
 
 def add_package_paths(parser: Parser) -> None:
@@ -92,6 +97,8 @@ class Station:
     def __init__(self, config: StationConfig | None = None, meshcat: Meshcat | None = None):
         self.config = config or StationConfig()
         cfg = self.config
+        if cfg.robot not in ROBOTS:
+            raise ValueError(f"unknown robot {cfg.robot!r}; expected one of {ROBOTS}")
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlant(
             MultibodyPlantConfig(
@@ -103,11 +110,13 @@ class Station:
         )
         parser = Parser(plant)
         add_package_paths(parser)
-        self.arm = AddUr10(plant, parser)
+        self.arm = self.hand = None
+        if cfg.robot == "ur10":
+            self.arm = AddUr10(plant, parser)
+            # Gravity is compensated exactly by disabling it on the arm (PD alone would sag).
+            plant.set_gravity_enabled(self.arm, False)
         (table,) = parser.AddModels(url="package://drake_symplan_models/table/table.sdf")
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("__model__", table))
-        # Gravity is compensated exactly by disabling it on the arm (PD alone would sag).
-        plant.set_gravity_enabled(self.arm, False)
 
         self.pool: dict[str, list] = {t: [] for t in OBJECT_TYPES}
         sizes = {"cube": cfg.pool_cubes, "long": cfg.pool_longs}
@@ -118,18 +127,27 @@ class Station:
                 plant.RenameModelInstance(inst, f"{kind}_{i}")
                 self.pool[kind].append(plant.GetBodyByName("body", inst))
 
-        for name, kp, kd in zip(ARM_JOINTS, cfg.arm_kp, cfg.arm_kd, strict=True):
-            plant.GetJointActuatorByName(name + "_motor").set_controller_gains(
-                PdControllerGains(p=kp, d=kd))
-        for name in FINGER_JOINTS:
-            plant.GetJointActuatorByName(name.replace("_joint", "_motor")).set_controller_gains(
-                PdControllerGains(p=cfg.finger_kp, d=cfg.finger_kd))
+        if self.arm is not None:
+            for name, kp, kd in zip(ARM_JOINTS, cfg.arm_kp, cfg.arm_kd, strict=True):
+                plant.GetJointActuatorByName(name + "_motor").set_controller_gains(
+                    PdControllerGains(p=kp, d=kd))
+            for name in FINGER_JOINTS:
+                plant.GetJointActuatorByName(
+                    name.replace("_joint", "_motor")).set_controller_gains(
+                    PdControllerGains(p=cfg.finger_kp, d=cfg.finger_kd))
+        else:
+            from drake_symplan.world.hand import AddHand
+
+            self.hand = AddHand(plant, [b for bodies in self.pool.values() for b in bodies])
         plant.Finalize()
 
-        self.command_source = builder.AddSystem(
-            TrajectorySource(self.hold_trajectory(HOME_Q, FINGER_OPEN), 1))
-        builder.Connect(self.command_source.get_output_port(),
-                        plant.get_desired_state_input_port(self.arm))
+        if self.arm is not None:
+            self.command_source = builder.AddSystem(
+                TrajectorySource(self.hold_trajectory(HOME_Q, FINGER_OPEN), 1))
+            builder.Connect(self.command_source.get_output_port(),
+                            plant.get_desired_state_input_port(self.arm))
+        else:
+            self.command_source = self.hand.add_command_source(builder)
         self.meshcat = meshcat
         self.visualizer = None
         if meshcat is not None:
@@ -144,8 +162,9 @@ class Station:
         self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
         self.assigned: dict[str, object] = {}  # scene name -> body
         self.types: dict[str, str] = {}
-        self._gripper_body = plant.GetBodyByName("gripper_palm", self.arm)
-        self.tcp_frame = plant.GetFrameByName("tcp", self.arm)
+        if self.arm is not None:
+            self._gripper_body = plant.GetBodyByName("gripper_palm", self.arm)
+            self.tcp_frame = plant.GetFrameByName("tcp", self.arm)
         # Each pool body's model instance holds exactly its floating joint.
         self._floating_joints = {
             b.index(): plant.get_joint(plant.GetJointIndices(b.model_instance())[0])
@@ -191,10 +210,14 @@ class Station:
             X = RigidTransform(RollPitchYaw(0, 0, o.yaw), np.asarray(o.position, float))
             plant.SetFreeBodyPose(ctx, body, X)
             plant.SetFreeBodySpatialVelocity(ctx, body, _zero_velocity())
-        q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
-        plant.SetPositions(ctx, self.arm, q)
-        plant.SetVelocities(ctx, self.arm, np.zeros(8))
-        self.hold(q_arm)
+        if self.arm is not None:
+            q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
+            plant.SetPositions(ctx, self.arm, q)
+            plant.SetVelocities(ctx, self.arm, np.zeros(8))
+            self.hold(q_arm)
+        else:
+            self.hand.reset(ctx)
+            self.simulator.Initialize()
         self._show_only_assigned()  # after Initialize: it re-creates the geometry
 
     def _show_only_assigned(self) -> None:
@@ -244,11 +267,12 @@ class Station:
                 pairs.add(tuple(sorted((a, b))))
         return pairs
 
-    def point_clouds(self, noise: DepthNoise | None = None, rng=None) -> list[np.ndarray]:
+    def point_clouds(self, noise: DepthNoise | None = None, rng=None,
+                     z_min: float | None = None) -> list[np.ndarray]:
         """World-frame depth points [M, 3] from each camera at the current state."""
         if not self.cameras:
             raise ValueError("the station has no cameras (StationConfig.cameras is empty)")
-        return read_point_clouds(self.cameras, self.context, noise, rng)
+        return read_point_clouds(self.cameras, self.context, noise, rng, z_min)
 
     def gripper_pose(self) -> RigidTransform:
         return self.tcp_frame.CalcPoseInWorld(self.plant_context)

@@ -1,0 +1,250 @@
+"""Fit the known box models (5 cm cube, 5x25x5 cm long block) to surfaces and leftover points.
+
+Each visible top surface is explained by one or more boxes: a minimum-area rectangle gives
+its axes and extents; a 25 cm extent is a long block, a 5 cm square a cube, and anything in
+between is a long block only if the rest of its length is hidden under something higher
+(else a row of touching cubes). Boxes whose bottoms float with nothing fitted under them
+are supported by objects seen only from the side (a cube under a bridge): those are fitted
+to the leftover points below.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from scipy import ndimage
+
+from drake_symplan.perception.segmentation import CELL, HeightMap, Surface
+from drake_symplan.world.scenes import HALF_EXTENTS
+
+SIDE = 0.05
+LONG = 0.25
+_ANGLES = np.radians(np.arange(0.0, 90.0, 1.0))
+
+
+@dc.dataclass
+class FittedBox:
+    type: str
+    center: np.ndarray  # (3,)
+    R: np.ndarray  # 3x3, columns: box x, y (long axis), z in world
+    uncertain: bool = False
+    points: int = 0  # how many points support it
+
+    @property
+    def yaw(self) -> float:
+        y = self.R[:, 1]
+        return float(np.arctan2(-y[0], y[1]))  # yaw of the box's x axis == of its y axis
+
+    @property
+    def tilt(self) -> float:
+        return float(np.arccos(np.clip(np.abs(self.R[2, :]).max(), -1, 1)))
+
+    @property
+    def half_extents(self) -> np.ndarray:
+        return np.array(HALF_EXTENTS[self.type])
+
+    def contains(self, pts: np.ndarray, margin: float) -> np.ndarray:
+        local = (pts - self.center) @ self.R
+        return np.all(np.abs(local) <= self.half_extents + margin, axis=1)
+
+    def top_z(self) -> float:
+        corners = self.corners()
+        return float(corners[:, 2].max())
+
+    def bottom_z(self) -> float:
+        return float(self.corners()[:, 2].min())
+
+    def corners(self) -> np.ndarray:
+        s = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)])
+        return self.center + (s * self.half_extents) @ self.R.T
+
+
+def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    b1 = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    b1 /= np.linalg.norm(b1)
+    return b1, np.cross(n, b1)
+
+
+def min_area_rectangle(uv: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """(angle, lo, hi, axes 2x2) of the smallest enclosing rectangle of 2D points."""
+    best = None
+    for angles in (_ANGLES, None):
+        if angles is None:  # refine around the coarse optimum
+            angles = best[0] + np.radians(np.arange(-1.0, 1.01, 0.1))
+        c, s = np.cos(angles), np.sin(angles)
+        pu = uv @ np.stack([c, s])  # [M, A]
+        pv = uv @ np.stack([-s, c])
+        area = np.ptp(pu, axis=0) * np.ptp(pv, axis=0)
+        k = int(np.argmin(area))
+        best = (angles[k], pu[:, k], pv[:, k])
+    a, pu, pv = best
+    axes = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    return a, np.array([pu.min(), pv.min()]), np.array([pu.max(), pv.max()]), axes
+
+
+def _box_from_top(top_center: np.ndarray, n: np.ndarray, long_dir: np.ndarray, kind: str,
+                  uncertain: bool, npts: int) -> FittedBox:
+    y = long_dir - (long_dir @ n) * n
+    y /= np.linalg.norm(y)
+    x = np.cross(y, n)
+    R = np.column_stack([x, y, n])
+    return FittedBox(kind, top_center - n * HALF_EXTENTS[kind][2], R, uncertain, npts)
+
+
+def _hidden_fraction(hm: HeightMap, pts3: np.ndarray) -> float:
+    """Fraction of plane points `pts3` that are seen at that height or hidden under
+    something higher; the rest are contradicted (the table or a lower surface is seen
+    there: the table is not in the map, so an empty cell counts as the table)."""
+    seen = hm.lookup(pts3[:, :2])
+    contradicted = np.isnan(seen) | (seen < pts3[:, 2] - 0.01)
+    return float(1.0 - contradicted.mean())
+
+
+def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
+    n = surface.normal
+    b1, b2 = _plane_basis(n)
+    rel = surface.points - surface.centroid
+    uv = np.column_stack([rel @ b1, rel @ b2])
+    _, lo, hi, axes = min_area_rectangle(uv)
+    ext = hi - lo
+    # Long side first: u along the rectangle's longer extent.
+    if ext[1] > ext[0]:
+        axes, lo, hi, ext = axes[::-1], lo[::-1], hi[::-1], ext[::-1]
+    u_dir = axes[0, 0] * b1 + axes[0, 1] * b2
+    v_dir = axes[1, 0] * b1 + axes[1, 1] * b2
+    pu, pv = uv @ axes[0], uv @ axes[1]
+    n_strips = max(1, int(round(ext[1] / SIDE)))
+    boxes = []
+    for k in range(n_strips):
+        v0 = lo[1] + k * ext[1] / n_strips
+        in_strip = (pv >= v0 - 1e-9) & (pv <= v0 + ext[1] / n_strips + 1e-9)
+        if in_strip.sum() < 10:
+            continue
+        su = pu[in_strip]
+        u_lo, u_hi = su.min(), su.max()
+        v_mid = pv[in_strip].min() / 2 + pv[in_strip].max() / 2 if n_strips > 1 \
+            else (lo[1] + hi[1]) / 2
+        length = u_hi - u_lo
+        origin = surface.centroid + v_dir * v_mid
+        npts = int(in_strip.sum())
+        if length > LONG - 0.015:  # the whole block is seen
+            centre_u = (u_lo + u_hi) / 2
+            boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "long",
+                                       length > 0.30, npts))
+            continue
+        if length > 0.075:
+            # Could be a long block partly hidden under something, or touching cubes:
+            # slide a 25 cm block over every placement that covers what is seen.
+            centres = np.linspace(u_hi - LONG / 2, u_lo + LONG / 2, 21)
+            fracs = []
+            for centre_u in centres:
+                samples = np.linspace(centre_u - LONG / 2 + 0.01, centre_u + LONG / 2 - 0.01, 24)
+                fracs.append(_hidden_fraction(hm, origin + np.outer(samples, u_dir)))
+            fracs = np.array(fracs)
+            if fracs.max() > 0.9:
+                good = centres[fracs >= fracs.max() - 1e-9]
+                centre_u = (good.min() + good.max()) / 2
+                # A visible end that borders the table is the block's real end.
+                beyond = origin + np.outer([u_lo - 0.008, u_hi + 0.008], u_dir)
+                lo_real, hi_real = _hidden_fraction(hm, beyond[:1]) == 0, \
+                    _hidden_fraction(hm, beyond[1:]) == 0
+                if lo_real and not hi_real:
+                    centre_u = u_lo + LONG / 2
+                elif hi_real and not lo_real:
+                    centre_u = u_hi - LONG / 2
+                boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "long",
+                                           fracs.max() < 0.97, npts))
+                continue
+        count = max(1, int(round(length / SIDE)))
+        for j in range(count):
+            centre_u = u_lo + length * (j + 0.5) / count
+            boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "cube",
+                                       length < 0.035, npts // count))
+    return boxes
+
+
+def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBox]:
+    """Boxes for objects seen only from the side, under boxes that would otherwise float.
+
+    A box needs a support if its bottom is above the table or if it is tilted (a tipped
+    block leans on something). Points under it that no fitted box explains are clustered
+    and each cluster is fitted with an upright box whose top is where the points end.
+    """
+    found: list[FittedBox] = []
+    queue = list(boxes)
+    while queue:
+        box = queue.pop(0)
+        bottom = box.bottom_z()
+        tilted = box.tilt > np.radians(5)
+        if bottom < 0.02 and not tilted:
+            continue
+        footprint = box.corners()[:, :2]
+        if not tilted and any(abs(other.top_z() - bottom) < 0.012
+                              and _xy_overlap(footprint, other)
+                              for other in boxes + found if other is not box):
+            continue
+        lo, hi = footprint.min(axis=0) - 0.03, footprint.max(axis=0) + 0.03
+        sel = ((points[:, 2] < box.center[2]) & np.all(points[:, :2] >= lo, axis=1)
+               & np.all(points[:, :2] <= hi, axis=1))
+        cand = points[sel]
+        for other in boxes + found:
+            if len(cand):
+                cand = cand[~other.contains(cand, 0.006)]
+        new = _fit_side_clusters(cand, None if tilted else bottom, box)
+        found.extend(new)
+        queue.extend(new)
+    return found
+
+
+def _xy_overlap(footprint: np.ndarray, other: FittedBox) -> bool:
+    o = other.corners()[:, :2]
+    return bool(np.all(footprint.max(axis=0) > o.min(axis=0) + 0.005)
+                and np.all(o.max(axis=0) > footprint.min(axis=0) + 0.005))
+
+
+def _fit_side_clusters(cand: np.ndarray, top: float | None,
+                       above: FittedBox) -> list[FittedBox]:
+    """Upright boxes for point clusters under `above`; `top` None: from the points."""
+    if len(cand) < 40:
+        return []
+    lo = cand[:, :2].min(axis=0)
+    idx = np.floor((cand[:, :2] - lo) / CELL).astype(int)
+    grid = np.zeros(idx.max(axis=0) + 1, bool)
+    grid[idx[:, 0], idx[:, 1]] = True
+    labels, n = ndimage.label(ndimage.binary_dilation(grid, iterations=2))
+    out = []
+    yaw = above.yaw
+    axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
+    for lab in range(1, n + 1):
+        pts = cand[labels[idx[:, 0], idx[:, 1]] == lab]
+        if len(pts) < 40:
+            continue
+        uv = pts[:, :2] @ axes.T
+        ext = np.ptp(uv, axis=0)
+        kind = "long" if ext.max() > 0.08 else "cube"
+        dims = np.array([SIDE, LONG if kind == "long" else SIDE])
+        if kind == "long" and ext[0] > ext[1]:
+            axes_k = axes[::-1]
+            uv = uv[:, ::-1]
+            ext = ext[::-1]
+        else:
+            axes_k = axes
+        centre_uv = np.empty(2)
+        uncertain = False
+        for d in range(2):
+            a, b = uv[:, d].min(), uv[:, d].max()
+            if ext[d] >= 0.8 * dims[d]:
+                centre_uv[d] = (a + b) / 2
+            else:  # one face seen: anchor on the side with more points near its extreme
+                near_a = np.sum(uv[:, d] < a + 0.006)
+                near_b = np.sum(uv[:, d] > b - 0.006)
+                centre_uv[d] = b - dims[d] / 2 if near_b >= near_a else a + dims[d] / 2
+                uncertain |= ext[d] < 0.3 * dims[d]
+        xy = centre_uv @ axes_k
+        y_dir = np.array([*axes_k[1], 0.0])
+        n = np.array([0.0, 0.0, 1.0])
+        z_top = top if top is not None else max(SIDE, SIDE * round(pts[:, 2].max() / SIDE))
+        out.append(_box_from_top(np.array([xy[0], xy[1], z_top]), n, y_dir, kind, uncertain,
+                                 len(pts)))
+    return out

@@ -1,0 +1,32 @@
+"""The object feature vector x_i (the contract in DESIGN.md), from a perceived box only.
+
+x = [x, y, z, cos(tilt), long_axis_up, cos(k*yaw), sin(k*yaw), is_cube, is_long]
+- position in metres, world frame (box centre);
+- cos(tilt): tilt between world z and the box axis nearest to it (1 = resting on a face);
+- long_axis_up: |z component| of a long block's long axis (0 lying, 1 standing; 0 for cubes);
+- yaw folded by the box's symmetry: k = 4 for a cube (90 deg), k = 2 for a long block
+  (180 deg), so every symmetric-equivalent pose gives the same vector;
+- the perceived type, one-hot.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FEATURE_NAMES = ("x", "y", "z", "cos_tilt", "long_axis_up", "cos_k_yaw", "sin_k_yaw",
+                 "is_cube", "is_long")
+FEATURE_DIM = len(FEATURE_NAMES)
+YAW_SYMMETRY = {"cube": 4, "long": 2}
+
+
+def object_features(kind: str, position: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Features of a box of type `kind` at `position` with axes R (columns x, y=long, z)."""
+    if kind not in YAW_SYMMETRY:
+        raise ValueError(f"unknown object type {kind!r}; expected one of {tuple(YAW_SYMMETRY)}")
+    cos_tilt = float(np.abs(R[2, :]).max())
+    long_up = float(abs(R[2, 1])) if kind == "long" else 0.0
+    y = R[:, 1]
+    yaw = np.arctan2(-y[0], y[1])
+    k = YAW_SYMMETRY[kind]
+    return np.array([*position, cos_tilt, long_up, np.cos(k * yaw), np.sin(k * yaw),
+                     kind == "cube", kind == "long"], dtype=np.float32)

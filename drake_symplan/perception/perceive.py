@@ -1,0 +1,119 @@
+"""The perception system: station cameras -> perceived objects, features and contacts.
+
+`Perceiver.perceive(station)` renders the depth cameras, fuses their world-frame points,
+crops to the workspace, removes the table and the robot's own points (from its geometry at
+the current joint state, as a real robot self-filters), fits the known box models and
+builds the contact graph. Nothing here reads object poses from the simulator.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+
+from drake_symplan.perception import segmentation as seg
+from drake_symplan.perception.box_fitting import FittedBox, boxes_from_surface, hidden_supports
+from drake_symplan.perception.contacts import contact_graph
+from drake_symplan.perception.features import object_features
+from drake_symplan.structs import ObjectState
+
+
+@dc.dataclass
+class PerceivedObject:
+    name: str
+    type: str
+    position: np.ndarray
+    yaw: float
+    tilt: float
+    features: np.ndarray
+    uncertain: bool
+    R: np.ndarray  # box axes in world (columns x, y = long axis, z)
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "type": self.type,
+                "position": [round(float(v), 4) for v in self.position],
+                "yaw_deg": round(float(np.degrees(self.yaw)), 2),
+                "tilt_deg": round(float(np.degrees(self.tilt)), 2),
+                "features": [round(float(v), 4) for v in self.features],
+                "uncertain": self.uncertain}
+
+
+@dc.dataclass
+class PerceivedScene:
+    objects: list[PerceivedObject]
+    contacts: set[tuple[str, str]]
+
+    @property
+    def names(self) -> list[str]:
+        return [o.name for o in self.objects]
+
+    def object(self, name: str) -> PerceivedObject:
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise KeyError(f"no perceived object named {name!r} (perceived: {self.names})")
+
+    def object_states(self) -> dict[str, ObjectState]:
+        """What the skills take as beliefs."""
+        return {o.name: ObjectState(o.name, o.type, o.position.copy(), o.yaw, o.tilt)
+                for o in self.objects}
+
+    def features(self) -> np.ndarray:
+        return np.stack([o.features for o in self.objects]) if self.objects else \
+            np.zeros((0, 9), np.float32)
+
+
+def robot_shapes(station) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The robot's collision shapes at its current joint state (proprioception)."""
+    from pydrake.geometry import Box, Cylinder
+
+    query = station.scene_graph.get_query_output_port().Eval(
+        station.scene_graph.GetMyContextFromRoot(station.context))
+    inspector = query.inspector()
+    shapes = []
+    plant = station.plant
+    for body_index in plant.GetBodyIndices(station.arm):
+        for gid in plant.GetCollisionGeometriesForBody(plant.get_body(body_index)):
+            shape = inspector.GetShape(gid)
+            X = query.GetPoseInWorld(gid).GetAsMatrix4()
+            if isinstance(shape, Box):
+                shapes.append(("box", X, np.array([shape.width(), shape.depth(),
+                                                   shape.height()])))
+            elif isinstance(shape, Cylinder):
+                shapes.append(("cylinder", X, np.array([shape.radius(), shape.length()])))
+    return shapes
+
+
+class Perceiver:
+    """Turns the station's depth images into perceived objects."""
+
+    def perceive(self, station, noise=None, rng=None) -> PerceivedScene:
+        clouds = station.point_clouds(noise=noise, rng=rng, z_min=seg.CROP_Z[0])
+        points = seg.crop(np.vstack(clouds))
+        points = seg.remove_inside(points, [s for s in robot_shapes(station)
+                                            if _near_workspace(s[1])])
+        return self.perceive_points(points)
+
+    def perceive_points(self, points: np.ndarray) -> PerceivedScene:
+        hm = seg.height_map(points)
+        boxes: list[FittedBox] = []
+        for surface in seg.find_surfaces(hm):
+            boxes.extend(boxes_from_surface(surface, hm))
+        boxes.extend(hidden_supports(boxes, points))
+        # Stable names by position so a scene always gets the same names.
+        boxes.sort(key=lambda b: (round(b.center[0], 2), round(b.center[1], 2), b.center[2]))
+        objects = [
+            PerceivedObject(f"p{i}", b.type, b.center, b.yaw, b.tilt,
+                            object_features(b.type, b.center, b.R), b.uncertain, b.R)
+            for i, b in enumerate(boxes)
+        ]
+        contacts = contact_graph({o.name: (o.position, o.R, np.array(b.half_extents))
+                                  for o, b in zip(objects, boxes, strict=True)})
+        return PerceivedScene(objects, contacts)
+
+
+def _near_workspace(X: np.ndarray) -> bool:
+    p = X[:3, 3]
+    return bool(seg.CROP_X[0] - 0.3 < p[0] < seg.CROP_X[1] + 0.3
+                and seg.CROP_Y[0] - 0.3 < p[1] < seg.CROP_Y[1] + 0.3 and p[2] < 0.8)
