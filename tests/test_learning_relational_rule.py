@@ -2,8 +2,9 @@
 bits reproduce the rule on held-out scenes (up to a choice of head and a bit flip).
 
 Relation heads can collapse to constants early in training (every pair related, or
-none), as the DeepSym family is known to; as in practice, the test trains two
-restarts and keeps the one with the lower validation loss.
+none), as the DeepSym family is known to, and stay there for a while; as in
+practice, the test restarts (at most once) when the fit on validation scenes is poor,
+and keeps the restart with the lower validation loss.
 """
 
 from __future__ import annotations
@@ -41,9 +42,14 @@ def test_relation_bits_reproduce_same_group_rule():
     held_out, truth = same_group_rule(500, seed=2, n_groups=GROUPS)
     stats = normalization_stats(train)
     val_set = TensorSet.from_arrays(val)
-    models = [_fit(TensorSet.from_arrays(train), train.state.shape[2], stats, seed)
-              for seed in (0, 1)]
-    model = min(models, key=lambda m: evaluate_loss(m, val_set))
+    zero_val = float((val.effect ** 2).sum(-1).sum(-1).mean())  # loss of predicting 0
+    fits = []
+    for seed in (0, 1):
+        model = _fit(TensorSet.from_arrays(train), train.state.shape[2], stats, seed)
+        fits.append((evaluate_loss(model, val_set), seed, model))
+        if fits[-1][0] < 0.25 * zero_val:
+            break
+    model = min(fits, key=lambda fit: fit[0])[2]
 
     test = effect_metrics(model, TensorSet.from_arrays(held_out))
     zero_cm = 100 * abs(held_out.effect[held_out.mask]).mean()  # predicting no motion
