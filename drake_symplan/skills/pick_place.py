@@ -84,6 +84,45 @@ def grasp_yaw(o: ObjectState) -> float:
     return _fold_yaw(o.yaw, np.pi / 2 if o.type == "cube" else np.pi)
 
 
+@dc.dataclass
+class ActionGeometry:
+    """Where the gripper TCP goes for an action, from the caller's beliefs.
+
+    Shared by the arm planner and the simulated hand (skills/hand_place.py), so both
+    back-ends grasp, carry and release at the same points.
+    """
+
+    grasp: np.ndarray  # TCP at the grasp: source centre + grasp offset along world y
+    release: np.ndarray  # TCP at the release: above target + release offset
+    carry_z: float  # TCP height while carrying
+    yaw_grasp: float
+    yaw_release: float
+
+    @property
+    def carry_xy(self) -> np.ndarray:
+        """The TCP's lateral travel from grasp to release (world xy, m)."""
+        return (self.release - self.grasp)[:2]
+
+
+def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGeometry:
+    for name in (action.source, action.target):
+        if name not in objects:
+            raise ValueError(f"unknown object {name!r} (objects: {sorted(objects)})")
+    src, tgt = objects[action.source], objects[action.target]
+    grasp = src.position + np.array([0.0, OFFSET_METRES[action.grasp], 0.0])
+    release = tgt.position + np.array([0.0, OFFSET_METRES[action.release], 0.0])
+    release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
+    carry_z = max(MIN_CARRY_HEIGHT, max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
+    yaw_g = grasp_yaw(src)
+    yaw_r = yaw_g + _fold_yaw(tgt.yaw - src.yaw, np.pi / 2)
+    return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
+
+
+def carry_duration(distance: float, steps: int) -> float:
+    """Minimum carry time: >= 0.6 s per 30 cm so that boxes stacked on the load ride along."""
+    return 0.6 * distance / 0.3 + 0.05 * steps
+
+
 class PickPlacePlanner:
     """Turns an action and the caller's object states into a joint trajectory."""
 
@@ -100,17 +139,9 @@ class PickPlacePlanner:
     def plan(
         self, action: Action, objects: dict[str, ObjectState], q_start: np.ndarray = HOME_Q
     ) -> Motion:
-        for name in (action.source, action.target):
-            if name not in objects:
-                raise ValueError(f"unknown object {name!r} (objects: {sorted(objects)})")
-        src, tgt = objects[action.source], objects[action.target]
-        grasp = src.position + np.array([0.0, OFFSET_METRES[action.grasp], 0.0])
-        release = tgt.position + np.array([0.0, OFFSET_METRES[action.release], 0.0])
-        release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
-        carry_z = max(MIN_CARRY_HEIGHT,
-                      max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
-        yaw_g = grasp_yaw(src)
-        yaw_r = yaw_g + _fold_yaw(tgt.yaw - src.yaw, np.pi / 2)
+        g = action_geometry(action, objects)
+        grasp, release, carry_z = g.grasp, g.release, g.carry_z
+        yaw_g, yaw_r = g.yaw_grasp, g.yaw_release
         up = np.array([0.0, 0.0, APPROACH_HEIGHT])
 
         knots: list[tuple[np.ndarray, float, float]] = []  # (q_arm, finger, min duration)
@@ -130,7 +161,7 @@ class PickPlacePlanner:
         for k in range(1, steps + 1):
             f = k / steps
             q = self._solve("carry", lift + (above - lift) * f, yaw_g + (yaw_r - yaw_g) * f, q)
-            knots.append((q, FINGER_CLOSED, 0.6 * dist / 0.3 / steps + 0.05))
+            knots.append((q, FINGER_CLOSED, carry_duration(dist, steps) / steps))
         q = self._solve("release", release, yaw_r, q)
         knots.append((q, FINGER_CLOSED, 0.35))
         knots.append((q, FINGER_OPEN, 0.25))

@@ -1,0 +1,173 @@
+"""The paper's action executed by the collision-free hand (world/hand.py) on a "hand" station.
+
+Same geometry as the arm (`action_geometry`: grasp point = source + grasp offset along
+world y at the source's centre height, release point above target + release offset, the
+same carry height and a carry no faster than the arm's), but no IK and no finger contact:
+the simulator decides which box the fingers would close on (`grasp_catches`), welds it to
+the hand, lifts, carries and lowers it along the TCP's path, releases it and lets physics
+settle the scene. A box stacked on the held one rides along by friction, as with the arm.
+
+When nothing rests on or leans against the held box (the simulator checks its own contact
+state), carrying it cannot disturb anything: the hand then moves it kinematically (set
+straight to the lift pose, then to the release pose) and only the release and settling
+are simulated, which is most of the back-end's speed. Otherwise the timed carry runs in
+full physics.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.math import SpatialVelocity
+from pydrake.trajectories import PiecewisePolynomial
+
+from drake_symplan.skills.pick_place import action_geometry, carry_duration
+from drake_symplan.structs import Action, ObjectState
+from drake_symplan.world.hand import grasp_catches, hand_q_of_pose, hold
+from drake_symplan.world.scenes import HALF_EXTENTS
+from drake_symplan.world.station import Station
+
+VERTICAL_SPEED = 0.4  # m/s while lifting and lowering
+MIN_VERTICAL_TIME = 0.35  # s, as the arm's lift and release knots
+CARRY_STEP = 0.15  # m per carry segment, as the arm's
+SETTLE_MIN = 0.3  # s of physics after the release before checking for rest
+SETTLE_MAX = 1.2  # s
+SETTLE_CHECK = 0.1  # s between rest checks
+REST_SPEED = 0.02  # m/s (and 10x that in rad/s): the scene is at rest below this
+STACKED_DZ = 0.01  # m: a touching box whose centre is this much higher rides on the held one
+
+
+@dc.dataclass
+class HandMotion:
+    """The held box's scene name (None: the grasp caught nothing) and its timed path."""
+
+    held: str | None
+    trajectory: PiecewisePolynomial | None = None  # hand q, starting at the held box's pose
+    t_lift: float = 0.0
+    t_release: float = 0.0
+    kinematic: bool = False  # nothing rides on the held box: skip simulating the carry
+
+
+def plan_hand(
+    station: Station, action: Action, beliefs: dict[str, ObjectState],
+    allow_kinematic: bool = True,
+) -> HandMotion:
+    """Decides what the grasp catches (ground truth) and the hand's path from the beliefs."""
+    g = action_geometry(action, beliefs)
+    poses = station.object_poses()
+    half = {n: np.array(HALF_EXTENTS[station.types[n]]) for n in poses}
+    held = grasp_catches(poses, half, g.grasp)
+    if held is None:
+        return HandMotion(None)
+    X_WT0 = RigidTransform(RotationMatrix.MakeZRotation(g.yaw_grasp), g.grasp)
+    X_TB = X_WT0.inverse().multiply(poses[held])
+
+    lift = np.array([g.grasp[0], g.grasp[1], g.carry_z])
+    above = np.array([g.release[0], g.release[1], g.carry_z])
+    tcp = [(g.grasp, g.yaw_grasp, 0.0),
+           (lift, g.yaw_grasp, _vertical_time(g.carry_z - g.grasp[2]))]
+    dist = float(np.linalg.norm(above[:2] - lift[:2]))
+    steps = max(1, int(np.ceil(dist / CARRY_STEP)))
+    for k in range(1, steps + 1):
+        f = k / steps
+        tcp.append((lift + (above - lift) * f, g.yaw_grasp + (g.yaw_release - g.yaw_grasp) * f,
+                    carry_duration(dist, steps) / steps))
+    tcp.append((g.release, g.yaw_release, _vertical_time(g.carry_z - g.release[2])))
+
+    times = np.cumsum([dt for _, _, dt in tcp])
+    q = np.array([
+        hand_q_of_pose(RigidTransform(RotationMatrix.MakeZRotation(yaw), p).multiply(X_TB))
+        for p, yaw, _ in tcp
+    ])
+    q[:, 3:] = np.unwrap(q[:, 3:], axis=0)
+    trajectory = PiecewisePolynomial.CubicShapePreserving(
+        times, q.T, zero_end_point_derivatives=True)
+    kinematic = allow_kinematic and not _carries_others(station, held)
+    return HandMotion(held, trajectory, float(times[1]), float(times[-1]), kinematic)
+
+
+def _carries_others(station: Station, held: str) -> bool:
+    """Whether another box touches the held one from above its centre (rests or leans on it)."""
+    z = station.object_poses()
+    for a, b in station.contact_graph():
+        if held in (a, b):
+            other = b if a == held else a
+            if z[other].translation()[2] > z[held].translation()[2] + STACKED_DZ:
+                return True
+    return False
+
+
+def _pose_of_hand_q(q: np.ndarray) -> RigidTransform:
+    return RigidTransform(RollPitchYaw(q[5], q[4], q[3]), q[:3])
+
+
+def _vertical_time(dz: float) -> float:
+    return max(MIN_VERTICAL_TIME, abs(dz) / VERTICAL_SPEED)
+
+
+def hand_pick_place(
+    station: Station,
+    action: Action,
+    beliefs: dict[str, ObjectState],
+    at_lift: Callable[[], object] | None = None,
+    allow_kinematic: bool = True,
+) -> tuple[HandMotion, object]:
+    """Executes the action from the station's current time; returns (motion, at_lift()).
+
+    `at_lift` is called once the lift has ended (the held box is up), e.g. to perceive.
+    With nothing caught nothing moves, and `at_lift` is called on the unchanged scene.
+    """
+    if station.hand is None:
+        raise ValueError("hand_pick_place needs a station built with StationConfig(robot='hand')")
+    motion = plan_hand(station, action, beliefs, allow_kinematic)
+    if motion.held is None:
+        return motion, at_lift() if at_lift else None
+    ctx, hand = station.plant_context, station.hand
+    body = station.assigned[motion.held]
+    hand.grasp(ctx, body)
+    if motion.kinematic:
+        lifted = None
+        for t in (motion.t_lift, motion.t_release):
+            q = motion.trajectory.value(t).ravel()
+            hand.set_positions(ctx, q)
+            station.plant.SetFreeBodyPose(ctx, body, _pose_of_hand_q(q))
+            station.plant.SetFreeBodySpatialVelocity(ctx, body, SpatialVelocity.Zero())
+            station.command_source.UpdateTrajectory(hold(q))
+            if t == motion.t_lift and at_lift:
+                lifted = at_lift()
+        hand.release(ctx)
+        settle_until_rest(station)
+        return motion, lifted
+    t0 = station.context.get_time()
+    trajectory = motion.trajectory.Clone()
+    trajectory.shiftRight(t0)
+    station.command_source.UpdateTrajectory(trajectory)
+    station.simulator.AdvanceTo(t0 + motion.t_lift)
+    lifted = at_lift() if at_lift else None
+    station.simulator.AdvanceTo(t0 + motion.t_release)
+    hand.release(ctx)
+    station.command_source.UpdateTrajectory(hold(hand.positions(ctx)))
+    settle_until_rest(station)
+    return motion, lifted
+
+
+def settle_until_rest(station: Station) -> float:
+    """Runs physics until the scene's boxes are at rest (or SETTLE_MAX); returns seconds."""
+    t0 = station.context.get_time()
+    station.simulator.AdvanceTo(t0 + SETTLE_MIN)
+    plant, ctx = station.plant, station.plant_context
+    while station.context.get_time() - t0 < SETTLE_MAX - 1e-9:
+        moving = False
+        for body in station.assigned.values():
+            V = plant.EvalBodySpatialVelocityInWorld(ctx, body)
+            if (np.linalg.norm(V.translational()) > REST_SPEED
+                    or np.linalg.norm(V.rotational()) > 10 * REST_SPEED):
+                moving = True
+                break
+        if not moving:
+            break
+        station.simulator.AdvanceTo(station.context.get_time() + SETTLE_CHECK)
+    return station.context.get_time() - t0

@@ -1,0 +1,150 @@
+"""A collision-free simulated hand: the fast stand-in for the UR10 and its gripper.
+
+The hand is an invisible body without geometry, moved by six PD-actuated joints
+(prismatic x, y, z, then revolute yaw, pitch, roll: Drake's RollPitchYaw order), with
+gravity off. Every pool body has one weld constraint to the hand (identity frames),
+inactive unless that body is held. To grasp, the simulator puts the hand exactly at the
+held body's pose and activates its weld, so a grasp never makes the body jump; the hand
+then tracks a joint trajectory and the held body, with whatever rests on it, comes along
+through the physics (contact and friction). Releasing deactivates the weld.
+
+Which body a grasp catches is the simulator's business, decided on ground truth as the
+arm's fingers decide it physically: the box whose extent, inflated by the fingers' slack,
+contains the grasp point (`GRASP_SLACK`). A grasp beside a cube catches nothing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.tree import (
+    PdControllerGains,
+    PrismaticJoint,
+    RevoluteJoint,
+    SpatialInertia,
+)
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+# Joint order of the hand's configuration q = [x, y, z, yaw, pitch, roll].
+HAND_JOINTS = ("hand_x", "hand_y", "hand_z", "hand_yaw", "hand_pitch", "hand_roll")
+HAND_KP = [2e4, 2e4, 2e4, 300.0, 300.0, 300.0]
+HAND_KD = [600.0, 600.0, 600.0, 3.0, 3.0, 3.0]
+HAND_PARK = np.array([0.0, 0.0, 1.5, 0.0, 0.0, 0.0])
+
+# How far (m, box frame) outside a box the grasp point may lie and still catch it: the
+# open fingers are 8.5 cm apart across x (1.75 cm of slack on a 5 cm box), the finger pads
+# are 2 cm wide along y and reach 1.5 cm below the grasp point.
+GRASP_SLACK = np.array([0.0175, 0.008, 0.015])
+
+
+def hand_q_of_pose(X: RigidTransform) -> np.ndarray:
+    """Hand joint positions that put the hand frame at pose X."""
+    rpy = RollPitchYaw(X.rotation()).vector()
+    return np.concatenate([X.translation(), [rpy[2], rpy[1], rpy[0]]])
+
+
+def grasp_catches(
+    poses: dict[str, RigidTransform],
+    half_extents: dict[str, np.ndarray],
+    point: np.ndarray,
+    slack: np.ndarray = GRASP_SLACK,
+) -> str | None:
+    """The name of the box the fingers close on at `point`, or None.
+
+    A box is caught if `point`, in the box's frame, lies within its half extents inflated
+    by `slack`; among several, the one whose centre is nearest the point.
+    """
+    best, best_d = None, np.inf
+    for name, X in poses.items():
+        local = np.abs(X.inverse().multiply(np.asarray(point, float)))
+        h = np.asarray(half_extents[name], float)
+        if np.all(local <= h + slack):
+            d = float(np.linalg.norm(X.translation() - point))
+            if d < best_d:
+                best, best_d = name, d
+    return best
+
+
+class Hand:
+    """Handles to the hand's model instance, joints, weld constraints and command source."""
+
+    def __init__(self, plant, bodies: list):
+        self.plant = plant
+        self.instance = plant.AddModelInstance("hand")
+        links = []
+        for i in range(len(HAND_JOINTS)):
+            links.append(plant.AddRigidBody(
+                f"hand_link{i}", self.instance,
+                SpatialInertia.SolidBoxWithMass(0.5, 0.05, 0.05, 0.05)))
+        self.body = links[-1]
+        parent = plant.world_frame()
+        axes = [(PrismaticJoint, [1, 0, 0]), (PrismaticJoint, [0, 1, 0]),
+                (PrismaticJoint, [0, 0, 1]), (RevoluteJoint, [0, 0, 1]),
+                (RevoluteJoint, [0, 1, 0]), (RevoluteJoint, [1, 0, 0])]
+        self.joints = []
+        for name, (kind, axis), link, kp, kd in zip(
+                HAND_JOINTS, axes, links, HAND_KP, HAND_KD, strict=True):
+            joint = plant.AddJoint(kind(name, parent, link.body_frame(), axis))
+            plant.AddJointActuator(name + "_motor", joint).set_controller_gains(
+                PdControllerGains(p=kp, d=kd))
+            self.joints.append(joint)
+            parent = link.body_frame()
+        plant.set_gravity_enabled(self.instance, False)
+        self.welds = {
+            b.index(): plant.AddWeldConstraint(self.body, RigidTransform(), b, RigidTransform())
+            for b in bodies
+        }
+        self.held = None  # the pool body held now
+        self.command_source = None
+
+    def add_command_source(self, builder) -> TrajectorySource:
+        """After Finalize: the desired-state source driving the hand's PD actuators."""
+        self.command_source = builder.AddSystem(TrajectorySource(hold(HAND_PARK), 1))
+        builder.Connect(self.command_source.get_output_port(),
+                        self.plant.get_desired_state_input_port(self.instance))
+        return self.command_source
+
+    def positions(self, plant_context) -> np.ndarray:
+        return np.array([j.GetOnePosition(plant_context) for j in self.joints])
+
+    def set_positions(self, plant_context, q: np.ndarray) -> None:
+        for j, qj in zip(self.joints, q, strict=True):
+            if isinstance(j, PrismaticJoint):
+                j.set_translation(plant_context, float(qj))
+                j.set_translation_rate(plant_context, 0.0)
+            else:
+                j.set_angle(plant_context, float(qj))
+                j.set_angular_rate(plant_context, 0.0)
+
+    def reset(self, plant_context) -> None:
+        """Nothing held, hand parked above the table, holding still."""
+        for cid in self.welds.values():
+            self.plant.SetConstraintActiveStatus(plant_context, cid, False)
+        self.held = None
+        self.set_positions(plant_context, HAND_PARK)
+        self.command_source.UpdateTrajectory(hold(HAND_PARK))
+
+    def grasp(self, plant_context, body) -> np.ndarray:
+        """Puts the hand at `body`'s pose and welds them; returns that hand q."""
+        q = hand_q_of_pose(self.plant.EvalBodyPoseInWorld(plant_context, body))
+        self.set_positions(plant_context, q)
+        self.plant.SetConstraintActiveStatus(plant_context, self.welds[body.index()], True)
+        self.held = body
+        return q
+
+    def release(self, plant_context) -> None:
+        if self.held is not None:
+            self.plant.SetConstraintActiveStatus(
+                plant_context, self.welds[self.held.index()], False)
+        self.held = None
+
+
+def hold(q: np.ndarray) -> PiecewisePolynomial:
+    q = np.asarray(q, float)
+    return PiecewisePolynomial.FirstOrderHold([0.0, 1.0], np.column_stack([q, q]))
+
+
+def AddHand(plant, bodies: list) -> Hand:
+    """Adds the hand and one (inactive) weld constraint per body; call before Finalize."""
+    return Hand(plant, bodies)
