@@ -13,6 +13,7 @@ import sys
 # does not pay for importing Drake.
 COMMAND_MODULES = [
     "drake_symplan.cli.world_cmds",
+    "drake_symplan.cli.perception_cmds",
     "drake_symplan.cli.learning_cmds",
     "drake_symplan.cli.planning_cmds",
 ]

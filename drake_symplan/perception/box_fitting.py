@@ -14,6 +14,7 @@ import dataclasses as dc
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import ConvexHull, QhullError
 
 from drake_symplan.perception.segmentation import CELL, HeightMap, Surface
 from drake_symplan.world.scenes import HALF_EXTENTS
@@ -68,6 +69,11 @@ def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def min_area_rectangle(uv: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """(angle, lo, hi, axes 2x2) of the smallest enclosing rectangle of 2D points."""
+    if len(uv) > 8:
+        try:
+            uv = uv[ConvexHull(uv).vertices]  # the rectangle only depends on the hull
+        except QhullError:
+            pass
     best = None
     for angles in (_ANGLES, None):
         if angles is None:  # refine around the coarse optimum
@@ -118,10 +124,13 @@ def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
     boxes = []
     for k in range(n_strips):
         v0 = lo[1] + k * ext[1] / n_strips
-        in_strip = (pv >= v0 - 1e-9) & (pv <= v0 + ext[1] / n_strips + 1e-9)
-        if in_strip.sum() < 10:
+        width = ext[1] / n_strips
+        in_strip = (pv >= v0 - 1e-9) & (pv <= v0 + width + 1e-9)
+        # The strip's length from its core only: a neighbour's edge points lie on the border.
+        core = in_strip & (pv > v0 + 0.25 * width) & (pv < v0 + 0.75 * width)
+        if core.sum() < 10:
             continue
-        su = pu[in_strip]
+        su = pu[core]
         u_lo, u_hi = su.min(), su.max()
         v_mid = pv[in_strip].min() / 2 + pv[in_strip].max() / 2 if n_strips > 1 \
             else (lo[1] + hi[1]) / 2

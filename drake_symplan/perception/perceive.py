@@ -15,7 +15,7 @@ import numpy as np
 from drake_symplan.perception import segmentation as seg
 from drake_symplan.perception.box_fitting import FittedBox, boxes_from_surface, hidden_supports
 from drake_symplan.perception.contacts import contact_graph
-from drake_symplan.perception.features import object_features
+from drake_symplan.perception.features import YAW_SYMMETRY, object_features
 from drake_symplan.structs import ObjectState
 
 
@@ -36,7 +36,7 @@ class PerceivedObject:
                 "yaw_deg": round(float(np.degrees(self.yaw)), 2),
                 "tilt_deg": round(float(np.degrees(self.tilt)), 2),
                 "features": [round(float(v), 4) for v in self.features],
-                "uncertain": self.uncertain}
+                "uncertain": bool(self.uncertain)}
 
 
 @dc.dataclass
@@ -104,7 +104,7 @@ class Perceiver:
         # Stable names by position so a scene always gets the same names.
         boxes.sort(key=lambda b: (round(b.center[0], 2), round(b.center[1], 2), b.center[2]))
         objects = [
-            PerceivedObject(f"p{i}", b.type, b.center, b.yaw, b.tilt,
+            PerceivedObject(f"p{i}", b.type, b.center, _fold_yaw(b.type, b.yaw), b.tilt,
                             object_features(b.type, b.center, b.R), b.uncertain, b.R)
             for i, b in enumerate(boxes)
         ]
@@ -113,7 +113,16 @@ class Perceiver:
         return PerceivedScene(objects, contacts)
 
 
+def _fold_yaw(kind: str, yaw: float) -> float:
+    """Yaw in (-45, 45] deg for a cube, (-90, 90] deg for a long block."""
+    period = 2 * np.pi / YAW_SYMMETRY[kind]
+    return float((yaw + period / 2) % period - period / 2)
+
+
 def _near_workspace(X: np.ndarray) -> bool:
     p = X[:3, 3]
     return bool(seg.CROP_X[0] - 0.3 < p[0] < seg.CROP_X[1] + 0.3
                 and seg.CROP_Y[0] - 0.3 < p[1] < seg.CROP_Y[1] + 0.3 and p[2] < 0.8)
+
+
+from drake_symplan.perception.association import associate  # noqa: E402,F401  (public API)

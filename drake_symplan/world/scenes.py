@@ -205,3 +205,63 @@ def sample_scene(
         else:
             raise SceneError(f"could not place {num_objects} objects without overlap")
     return validate_scene(Scene(objects))
+
+
+# Arrangements for perception tests and benchmarks: (type, dx, dy, z) relative to a unit's
+# origin. "tipped" puts a long block over a cube's edge so that physics tips it.
+UNITS: dict[str, list[tuple[str, float, float, float]]] = {
+    "cube": [("cube", 0, 0, 0.025)],
+    "long": [("long", 0, 0, 0.025)],
+    "tower2": [("cube", 0, 0, 0.025), ("cube", 0, 0, 0.075)],
+    "tower3": [("cube", 0, 0, 0.025), ("cube", 0, 0, 0.075), ("cube", 0, 0, 0.125)],
+    "cube_on_end": [("long", 0, 0, 0.025), ("cube", 0, 0.1, 0.075)],
+    "cubes_on_ends": [("long", 0, 0, 0.025), ("cube", 0, -0.1, 0.075), ("cube", 0, 0.1, 0.075)],
+    "bridge": [("cube", 0, -0.1, 0.025), ("cube", 0, 0.1, 0.025), ("long", 0, 0, 0.075)],
+    "touching_x": [("cube", 0, 0, 0.025), ("cube", 0.05, 0, 0.025)],
+    "touching_y": [("cube", 0, 0, 0.025), ("cube", 0, 0.05, 0.025)],
+    "touching_long": [("long", 0, 0, 0.025), ("cube", 0.05, 0.05, 0.025)],
+    "tipped": [("cube", 0, -0.08, 0.025), ("long", 0, 0.01, 0.075)],
+}
+
+
+def _unit_extent(parts) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.array([min(dx - HALF_EXTENTS[t][0] for t, dx, _, _ in parts),
+                   min(dy - HALF_EXTENTS[t][1] for t, _, dy, _ in parts)])
+    hi = np.array([max(dx + HALF_EXTENTS[t][0] for t, dx, _, _ in parts),
+                   max(dy + HALF_EXTENTS[t][1] for t, _, dy, _ in parts)])
+    return lo, hi
+
+
+def sample_structured_scene(
+    rng: np.random.Generator,
+    num_objects: int,
+    units: tuple[str, ...] = tuple(UNITS),
+    gap: float = 0.03,
+    max_tries: int = 2000,
+) -> Scene:
+    """A random scene of exactly `num_objects` made of arrangement units (stacks, bridges,
+    touching pairs, blocks that will tip), placed apart from each other by `gap`."""
+    placed: list[tuple[np.ndarray, np.ndarray]] = []
+    objects: list[ObjectSpec] = []
+    tries = 0
+    while len(objects) < num_objects:
+        tries += 1
+        if tries > max_tries:
+            raise SceneError(f"could not place {num_objects} objects in arrangement units")
+        name = str(rng.choice(units))
+        parts = UNITS[name]
+        if len(objects) + len(parts) > num_objects:
+            continue
+        lo, hi = _unit_extent(parts)
+        if name == "tipped":
+            hi = hi + [0.0, 0.12]  # room for the block to fall towards +y
+        ox = rng.uniform(WORKSPACE_X[0] - lo[0], WORKSPACE_X[1] - hi[0])
+        oy = rng.uniform(WORKSPACE_Y[0] - lo[1], WORKSPACE_Y[1] - hi[1])
+        box = (np.array([ox, oy]) + lo - gap, np.array([ox, oy]) + hi + gap)
+        if any(np.all(box[0] < b[1]) and np.all(b[0] < box[1]) for b in placed):
+            continue
+        placed.append(box)
+        yaw = float(rng.uniform(-0.25, 0.25)) if len(parts) == 1 else 0.0
+        for t, dx, dy, z in parts:
+            objects.append(ObjectSpec(f"o{len(objects)}", t, [ox + dx, oy + dy, z], yaw))
+    return validate_scene(Scene(objects))
