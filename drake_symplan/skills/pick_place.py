@@ -24,7 +24,7 @@ MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
-JOINT_SPEED = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi]) * 0.8
+JOINT_SPEED = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi])  # UR10 limits
 
 
 @dc.dataclass

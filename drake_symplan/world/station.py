@@ -42,9 +42,9 @@ FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlie
 
 ROBOTS = ("ur10", "hand")  # StationConfig.robot
 
-# Home: TCP at (0.30, 0, 0.45) pointing down, behind the workspace (x >= 0.45) so the
-# cameras see the table unoccluded.
-HOME_Q = np.array([-0.5624, -2.3508, 2.2392, -1.4596, -1.5854, -2.1196])
+# Home: TCP at (0.35, 0, 0.30) pointing down, behind the workspace (x >= 0.45): the
+# cameras see every object unoccluded, and every pick starts close by.
+HOME_Q = np.array([-0.4757, -2.1928, 2.4549, -1.8312, -1.5838, -2.0314])
 
 
 @dc.dataclass
