@@ -2,9 +2,10 @@
 
     python tools/run_demo.py [--out out/demo.html] [--meshcat]
 
-It builds the station, executes three pick/place actions in full physics (stack a cube
-on a cube, lay a long block across two cubes, a long block grasped off-centre that tips),
-prints each outcome and writes one self-contained Meshcat recording of the episode.
+It builds the station with its depth cameras, perceives the scene, executes three
+pick/place actions in full physics on what it perceives (stack a cube on a cube, lay a long
+block on a cube, a long block grasped off-centre that tips), follows every object's identity
+through perception, prints each outcome and writes one self-contained Meshcat recording.
 """
 
 from __future__ import annotations
@@ -16,10 +17,15 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+import numpy as np  # noqa: E402
+
+from drake_symplan.perception.association import associate  # noqa: E402
+from drake_symplan.perception.perceive import Perceiver  # noqa: E402
 from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place  # noqa: E402
 from drake_symplan.structs import Action  # noqa: E402
+from drake_symplan.world.cameras import default_cameras  # noqa: E402
 from drake_symplan.world.scenes import load_scene  # noqa: E402
-from drake_symplan.world.station import Station  # noqa: E402
+from drake_symplan.world.station import Station, StationConfig  # noqa: E402
 from drake_symplan.world.visualization import StartMeshcat, recording  # noqa: E402
 
 DEMO_SCENE = REPO / "tools" / "demo_scene.yaml"
@@ -41,21 +47,35 @@ def main() -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
 
     meshcat = StartMeshcat()
-    station, planner = Station(meshcat=meshcat), PickPlacePlanner()
+    station = Station(StationConfig(cameras=default_cameras()), meshcat=meshcat)
+    planner, perceiver = PickPlacePlanner(), Perceiver()
     scene = load_scene(DEMO_SCENE)
     station.reset(scene)
+    station.settle(0.3)
+    perceived = perceiver.perceive(station)
+    # The user's names (from the scene file) -> perceived objects, by the stated positions.
+    names = {}
+    for spec in scene.objects:
+        d = [np.linalg.norm(o.position - spec.position) for o in perceived.objects]
+        names[spec.name] = perceived.objects[int(np.argmin(d))].name
+    print(f"perceived {len(perceived.objects)} objects: "
+          + ", ".join(f"{n}={names[n]}" for n in names))
     with recording(station, out):
-        for action in SCRIPT:
-            # Each action starts at time 0 in its own episode state; keep the objects where
-            # the last one left them by re-reading the world (perception replaces this later).
-            beliefs = station.object_states()
-            outcome = pick_place(station, planner, action, beliefs)
-            print(f"{action}: {outcome.status} ({outcome.seconds:.2f} s wall)")
-            for name, o in outcome.objects.items():
-                print(f"    {name:3s} {o.type:5s} end=({o.end[0]:.3f}, {o.end[1]:.3f}, "
-                      f"{o.end[2]:.3f}) tilt={o.tilt_deg:5.1f} deg lifted={o.lifted}")
+        for scripted in SCRIPT:
+            action = Action(names[scripted.source], scripted.grasp, names[scripted.target],
+                            scripted.release)
+            outcome = pick_place(station, planner, action, perceived.object_states())
+            print(f"{scripted}: {outcome.status} ({outcome.seconds:.2f} s wall)")
             if outcome.status != "ok":
                 return 1
+            after = perceiver.perceive(station)
+            track = associate(perceived, after, action)
+            names = {user: track[p] for user, p in names.items() if p in track}
+            for user, p in names.items():
+                o = after.object(p)
+                print(f"    {user:3s} {o.type:5s} at ({o.position[0]:.3f}, {o.position[1]:.3f}, "
+                      f"{o.position[2]:.3f}) tilt={np.degrees(o.tilt):5.1f} deg")
+            perceived = after
     print(f"recording written to {out}")
     if args.meshcat:
         input(f"Meshcat at {meshcat.web_url()}; press Enter to quit")
