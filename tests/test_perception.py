@@ -48,7 +48,7 @@ def test_known_scene(camera_station, case):
     perceived, report = perceive(camera_station, objects)
     assert report["count_ok"], [o.to_json() for o in perceived.objects]
     assert report["invented"] == 0 and report["missed"] == 0
-    for name, kind, position in objects:
+    for name, kind, _ in objects:
         err = report["errors"][name]
         assert err["type_ok"], (name, kind)
         assert err["position_mm"] < 5.0, (name, err)
