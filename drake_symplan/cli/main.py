@@ -14,6 +14,7 @@ import sys
 COMMAND_MODULES = [
     "drake_symplan.cli.world_cmds",
     "drake_symplan.cli.perception_cmds",
+    "drake_symplan.cli.data_cmds",
     "drake_symplan.cli.learning_cmds",
     "drake_symplan.cli.planning_cmds",
 ]

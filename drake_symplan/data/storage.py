@@ -33,8 +33,15 @@ def shard_path(out_dir: str | Path, index: int) -> Path:
     return Path(out_dir) / f"shard-{index:06d}.npz"
 
 
-def write_shard(out_dir: str | Path, index: int, arrays: TransitionArrays) -> Path:
-    """Write `arrays` as shard `index` of `out_dir` atomically; returns its path."""
+def write_shard(
+    out_dir: str | Path, index: int, arrays: TransitionArrays,
+    extra: dict[str, np.ndarray] | None = None,
+) -> Path:
+    """Write `arrays` as shard `index` of `out_dir` atomically; returns its path.
+
+    `extra` arrays (e.g. collection bookkeeping) are stored alongside under their own
+    names; `load_transitions` ignores them.
+    """
     if index < 0:
         raise ValueError(f"shard index must be non-negative, got {index}")
     out_dir = Path(out_dir)
@@ -49,6 +56,10 @@ def write_shard(out_dir: str | Path, index: int, arrays: TransitionArrays) -> Pa
     }
     if arrays.next_state is not None:
         fields["next_state"] = arrays.next_state.astype(np.float32, copy=False)
+    for key, value in (extra or {}).items():
+        if key in fields or key == "next_state":
+            raise ValueError(f"extra array {key!r} would overwrite a transition field")
+        fields[key] = np.asarray(value)
     tmp = out_dir / f".{path.name}.tmp-{os.getpid()}"
     try:
         with open(tmp, "wb") as f:
@@ -156,3 +167,48 @@ def fingerprint(data_dir: str | Path) -> str:
             for block in iter(lambda: f.read(1 << 20), b""):
                 h.update(block)
     return h.hexdigest()
+
+
+# --- collection support: resume and bookkeeping (data/collect.py) ----------------------
+
+
+def existing_shards(data_dir: str | Path) -> dict[int, Path]:
+    """Shard index -> path for the shards present (no manifest needed, may be empty)."""
+    out = {}
+    for path in Path(data_dir).glob(SHARD_GLOB):
+        stem = path.name[len("shard-"):-len(".npz")]
+        if stem.isdigit():
+            out[int(stem)] = path
+    return out
+
+
+def shard_length(path: str | Path) -> int:
+    """Number of transitions in a shard; -1 if the file cannot be read."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return int(z["episode"].shape[0])
+    except (OSError, ValueError, KeyError):
+        return -1
+
+
+def read_shard_arrays(path: str | Path, keys: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Only the named arrays of one shard (those it has)."""
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in keys if k in z.files}
+
+
+def remove_stale_tmp(data_dir: str | Path) -> list[Path]:
+    """Deletes temporary files left by writers that were killed mid-write."""
+    stale = [p for p in Path(data_dir).glob(".*.tmp-*") if p.is_file()]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale
+
+
+def write_json(out_dir: str | Path, name: str, data: dict) -> Path:
+    """Writes `data` as `out_dir/name` atomically."""
+    path = Path(out_dir) / name
+    tmp = Path(out_dir) / f".{name}.tmp-{os.getpid()}"
+    tmp.write_text(json.dumps(data, indent=2))
+    os.replace(tmp, path)
+    return path

@@ -33,10 +33,11 @@ from drake_symplan.world.station import Station
 VERTICAL_SPEED = 0.4  # m/s while lifting and lowering
 MIN_VERTICAL_TIME = 0.35  # s, as the arm's lift and release knots
 CARRY_STEP = 0.15  # m per carry segment, as the arm's
-SETTLE_MIN = 0.3  # s of physics after the release before checking for rest
+SETTLE_MIN = 0.15  # s of physics after the release before checking for rest
 SETTLE_MAX = 1.2  # s
-SETTLE_CHECK = 0.1  # s between rest checks
+SETTLE_CHECK = 0.05  # s between rest checks
 REST_SPEED = 0.02  # m/s (and 10x that in rad/s): the scene is at rest below this
+RELEASE_MIN_CLEARANCE = 0.001  # m: a release pose closer than this to anything is not free
 STACKED_DZ = 0.01  # m: a touching box whose centre is this much higher rides on the held one
 
 
@@ -100,6 +101,26 @@ def _carries_others(station: Station, held: str) -> bool:
     return False
 
 
+def _place(station: Station, body, q: np.ndarray) -> None:
+    """Kinematically puts the hand at q and the welded body with it, at rest."""
+    station.hand.set_positions(station.plant_context, q)
+    station.plant.SetFreeBodyPose(station.plant_context, body, _pose_of_hand_q(q))
+    station.plant.SetFreeBodySpatialVelocity(station.plant_context, body, SpatialVelocity.Zero())
+    station.command_source.UpdateTrajectory(hold(q))
+
+
+def _clearance(station: Station, body) -> float:
+    """Distance (m) from `body` to the nearest other geometry, capped at 1 cm."""
+    query = station.scene_graph.get_query_output_port().Eval(
+        station.scene_graph.GetMyContextFromRoot(station.context))
+    mine = set(station.plant.GetCollisionGeometriesForBody(body))
+    best = 0.01
+    for d in query.ComputeSignedDistancePairwiseClosestPoints(0.01):
+        if (d.id_A in mine) != (d.id_B in mine):
+            best = min(best, d.distance)
+    return best
+
+
 def _pose_of_hand_q(q: np.ndarray) -> RigidTransform:
     return RigidTransform(RollPitchYaw(q[5], q[4], q[3]), q[:3])
 
@@ -129,16 +150,24 @@ def hand_pick_place(
     body = station.assigned[motion.held]
     hand.grasp(ctx, body)
     if motion.kinematic:
-        lifted = None
-        for t in (motion.t_lift, motion.t_release):
-            q = motion.trajectory.value(t).ravel()
-            hand.set_positions(ctx, q)
-            station.plant.SetFreeBodyPose(ctx, body, _pose_of_hand_q(q))
-            station.plant.SetFreeBodySpatialVelocity(ctx, body, SpatialVelocity.Zero())
-            station.command_source.UpdateTrajectory(hold(q))
-            if t == motion.t_lift and at_lift:
-                lifted = at_lift()
+        _place(station, body, motion.trajectory.value(motion.t_lift).ravel())
+        lifted = at_lift() if at_lift else None
+        _place(station, body, motion.trajectory.value(motion.t_release).ravel())
+        if _clearance(station, body) >= RELEASE_MIN_CLEARANCE:
+            hand.release(ctx)
+            settle_until_rest(station)
+            return motion, lifted
+        # Something is in the way of the release pose: come down on it in physics, as the
+        # arm would, from where the carry ends.
+        t_above = float(motion.trajectory.get_segment_times()[-2])
+        _place(station, body, motion.trajectory.value(t_above).ravel())
+        t0 = station.context.get_time() - t_above
+        trajectory = motion.trajectory.Clone()
+        trajectory.shiftRight(t0)
+        station.command_source.UpdateTrajectory(trajectory)
+        station.simulator.AdvanceTo(t0 + motion.t_release)
         hand.release(ctx)
+        station.command_source.UpdateTrajectory(hold(hand.positions(ctx)))
         settle_until_rest(station)
         return motion, lifted
     t0 = station.context.get_time()

@@ -1,0 +1,173 @@
+"""Execution back-ends for data collection: one interface, two simulators of the action.
+
+- `arm`: the UR10 executes the IK-planned pick/place in full physics (skills/pick_place).
+- `hand`: the collision-free simulated hand (world/hand.py, skills/hand_place.py) holds the
+  grasped box with a weld constraint while carrying, then physics settles the scene; the
+  grasp and release geometry is the arm's.
+
+Both see the world only through the same perception: `reset` puts a scene on the table,
+`perceive` returns a `PerceivedScene`, and `execute(action, before)` plans from the
+perceived `before` (the beliefs) and returns the scenes perceived at the end of the lift
+and after the action. Simulator state is used by the simulators themselves only (the
+hand's grasp rule, settling) and by `ground_truth_states`, which is for bookkeeping and
+tests.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+
+from drake_symplan.structs import Action
+from drake_symplan.world.cameras import DepthNoise, default_cameras
+from drake_symplan.world.scenes import Scene
+
+BACKENDS = ("hand", "arm")
+# SAP's linear contact model with the boxes' 0.05 s relaxation time launches a box that
+# drops a few cm onto the table (both robots); Hunt-Crossley ("similar", still the SAP
+# solver, so weld constraints work) lands it. Random releases drop boxes all the time.
+CONTACT_APPROXIMATION = "similar"
+RESET_SETTLE = 0.1  # s of physics after putting a sampled scene on the table
+
+
+@dc.dataclass
+class Execution:
+    """What one action did, as perceived. status: "ok" | "infeasible" | "sim_failure"."""
+
+    status: str
+    lift: object = None  # PerceivedScene at the end of the lift
+    after: object = None  # PerceivedScene after the action
+    message: str = ""
+
+
+class Backend:
+    """A station with cameras, a perceiver and a way to execute the action."""
+
+    name = ""
+    robot = ""
+
+    def __init__(self, noise: DepthNoise | None = None, rng: np.random.Generator | None = None,
+                 time_step: float | None = None):
+        from drake_symplan.perception.perceive import Perceiver
+        from drake_symplan.world.station import Station, StationConfig
+
+        config = StationConfig(cameras=default_cameras(), robot=self.robot,
+                               discrete_contact_approximation=CONTACT_APPROXIMATION)
+        if time_step is not None:
+            config.time_step = time_step
+        self.station = Station(config)
+        self.perceiver = Perceiver()
+        self.noise = noise if noise is not None and (noise.sigma > 0 or noise.dropout > 0) \
+            else None
+        self.rng = rng or np.random.default_rng(0)
+
+    def reset(self, scene: Scene) -> None:
+        self.station.reset(scene)
+        self.station.settle(RESET_SETTLE)
+
+    def perceive(self):
+        return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng)
+
+    @property
+    def _seen(self):
+        return self.station
+
+    def execute(self, action: Action, before) -> Execution:
+        raise NotImplementedError
+
+    def ground_truth_states(self) -> dict:
+        """Simulator truth (tests and bookkeeping only; never a learning input)."""
+        return self.station.object_states()
+
+
+class HandBackend(Backend):
+    """The fast back-end: weld-constraint hand, kinematic carry when nothing rides along."""
+
+    name = "hand"
+    robot = "hand"
+
+    def __init__(self, *args, allow_kinematic: bool = True, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.allow_kinematic = allow_kinematic
+
+    def execute(self, action: Action, before) -> Execution:
+        from drake_symplan.skills.hand_place import hand_pick_place
+
+        try:
+            motion, lift = hand_pick_place(
+                self.station, action, before.object_states(),
+                at_lift=self._perceive_if_moved, allow_kinematic=self.allow_kinematic)
+        except RuntimeError as e:
+            # The state is unusable; the episode ends and the next reset starts afresh.
+            self.station.hand.release(self.station.plant_context)
+            return Execution("sim_failure", message=f"simulation failed: {e}")
+        if motion.held is None and self.noise is None:
+            # Nothing was caught, so nothing was simulated: the scene is exactly the one
+            # perceived before, and perceiving it again would return the same objects.
+            return Execution("ok", before, before)
+        if lift is None:
+            lift = before
+        return Execution("ok", lift, self.perceive())
+
+    @property
+    def _seen(self):
+        # Perception filters the robot's own points using its model instance (`arm`); the
+        # hand has no geometry, so it stands in for the arm there and filters nothing.
+        return _RobotView(self.station, self.station.hand.instance)
+
+    def _perceive_if_moved(self):
+        held = self.station.hand.held
+        return self.perceive() if held is not None or self.noise is not None else None
+
+
+class ArmBackend(Backend):
+    """The UR10 with the IK primitives in full physics."""
+
+    name = "arm"
+    robot = "ur10"
+
+    def __init__(self, *args, **kwargs):
+        from drake_symplan.skills.pick_place import PickPlacePlanner
+
+        super().__init__(*args, **kwargs)
+        self.planner = PickPlacePlanner()
+
+    def execute(self, action: Action, before) -> Execution:
+        from drake_symplan.skills.pick_place import InfeasibleAction
+
+        station = self.station
+        try:
+            motion = self.planner.plan(action, before.object_states(), station.arm_positions())
+        except InfeasibleAction as e:
+            return Execution("infeasible", message=str(e))
+        t0 = station.context.get_time()
+        trajectory = motion.trajectory.Clone()
+        trajectory.shiftRight(t0)
+        station.command_source.UpdateTrajectory(trajectory)
+        try:
+            station.simulator.AdvanceTo(t0 + motion.t_lift)
+            lift = self.perceive()
+            station.simulator.AdvanceTo(t0 + motion.t_end)
+        except RuntimeError as e:
+            # The state is unusable; the episode ends and the next reset starts afresh.
+            return Execution("sim_failure", message=f"simulation failed: {e}")
+        return Execution("ok", lift, self.perceive())
+
+
+class _RobotView:
+    """The station, with `arm` naming the hand's model instance (for robot self-filtering)."""
+
+    def __init__(self, station, instance):
+        self._station, self.arm = station, instance
+
+    def __getattr__(self, name):
+        return getattr(self._station, name)
+
+
+def make_backend(name: str, **kwargs) -> Backend:
+    if name == "hand":
+        return HandBackend(**kwargs)
+    if name == "arm":
+        return ArmBackend(**kwargs)
+    raise ValueError(f"unknown back-end {name!r}; expected one of {BACKENDS}")

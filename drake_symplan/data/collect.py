@@ -1,0 +1,280 @@
+"""`collect`: parallel, resumable collection of exploration transitions into shards.
+
+The N transitions are cut into chunks of `chunk_size` (the last one shorter, so the total
+is exactly N). Chunk c is one shard, `shard-{c:06d}.npz`, produced by whole episodes drawn
+from its own seed stream `default_rng([seed, c])` (episode ids c * EPISODE_STRIDE + k), so
+what a chunk holds depends on (config, seed, c) only, never on the number of workers or on
+which worker ran it. Shards are written atomically (storage.write_shard), so after a
+`kill -9` the same command finds the finished shards, deletes stray temporary files and
+produces only the missing chunks: it ends with exactly N transitions, none duplicated.
+
+Each worker process builds its own station (back-end) once and takes chunks from a pool;
+transitions are reported to the parent as they happen for a tqdm bar with rate and ETA.
+Workers exit if their parent dies. Each shard also stores its chunk's bookkeeping
+(outcome classes, why episodes ended, skipped transitions) so `stats` can summarise a data
+set from its files alone.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import json
+import math
+import multiprocessing as mp
+import os
+import queue as queue_lib
+import subprocess
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from drake_symplan.data import storage
+from drake_symplan.data.backends import BACKENDS
+from drake_symplan.data.exploration import OUTCOMES, EpisodeConfig, run_episode
+from drake_symplan.structs import TransitionArrays
+
+EPISODE_STRIDE = 100_000  # episode ids of chunk c are c * EPISODE_STRIDE + k
+MAX_EPISODES_PER_CHUNK = 20_000
+
+
+@dc.dataclass
+class CollectConfig:
+    """Everything that determines the data; stored in the manifest, checked on resume."""
+
+    backend: str = "hand"
+    transitions: int = 1000
+    seed: int = 0
+    min_objects: int = 2
+    max_objects: int = 4
+    episode_length: int = 10
+    long_fraction: float = 0.5
+    chunk_size: int = 100
+    noise_sigma: float = 0.0  # depth noise (m) along camera rays
+    noise_dropout: float = 0.0
+
+    def __post_init__(self):
+        if self.backend not in BACKENDS:
+            raise ValueError(f"unknown back-end {self.backend!r}; expected one of {BACKENDS}")
+        if self.transitions < 1 or self.chunk_size < 1 or self.episode_length < 1:
+            raise ValueError("transitions, chunk_size and episode_length must be positive")
+        if not 2 <= self.min_objects <= self.max_objects <= 8:
+            raise ValueError(f"objects must satisfy 2 <= min <= max <= 8, got "
+                             f"{self.min_objects}-{self.max_objects}")
+
+    @property
+    def num_chunks(self) -> int:
+        return math.ceil(self.transitions / self.chunk_size)
+
+    def chunk_count(self, c: int) -> int:
+        return min(self.chunk_size, self.transitions - c * self.chunk_size)
+
+    def episode_config(self) -> EpisodeConfig:
+        return EpisodeConfig(self.min_objects, self.max_objects, self.episode_length,
+                             self.long_fraction)
+
+
+def code_version() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for pkg in ("drake_symplan", "drake", "numpy"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = None
+    try:
+        root = Path(__file__).resolve().parents[2]
+        out["git_commit"] = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True,
+            timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        out["git_commit"] = None
+    return out
+
+
+# --- one chunk -------------------------------------------------------------------------
+
+
+def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
+    """Produces chunk c: (TransitionArrays, extra arrays, bookkeeping dict)."""
+    from drake_symplan.world.cameras import DepthNoise
+
+    target = config.chunk_count(c)
+    rng = np.random.default_rng([config.seed, c])
+    backend.rng = np.random.default_rng([config.seed, c, 1])  # perception noise
+    backend.noise = (DepthNoise(config.noise_sigma, config.noise_dropout)
+                     if config.noise_sigma > 0 or config.noise_dropout > 0 else None)
+    transitions, ends, outcomes, skipped = [], Counter(), Counter(), Counter()
+    infeasible, episodes = 0, 0
+    t0 = time.perf_counter()
+    while len(transitions) < target:
+        if episodes >= MAX_EPISODES_PER_CHUNK:
+            raise RuntimeError(f"chunk {c}: {episodes} episodes gave only {len(transitions)} "
+                               f"transitions (ends: {dict(ends)})")
+        log = run_episode(backend, rng, config.episode_config(), c * EPISODE_STRIDE + episodes,
+                          target - len(transitions), on_transition)
+        episodes += 1
+        transitions.extend(log.transitions)
+        ends[log.end] += 1
+        outcomes.update(log.outcomes)
+        skipped.update(log.skipped)
+        infeasible += log.infeasible
+    arrays, extra = pack(transitions)
+    info = {"chunk": c, "transitions": len(transitions), "episodes": episodes,
+            "episode_ends": dict(ends), "executed_outcomes": dict(outcomes),
+            "skipped_transitions": dict(skipped), "infeasible_actions": infeasible,
+            "seconds": round(time.perf_counter() - t0, 3)}
+    return arrays, extra, info
+
+
+def pack(transitions) -> tuple[TransitionArrays, dict[str, np.ndarray]]:
+    """Transitions padded to their largest object count, plus per-transition extras."""
+    n = max(len(t.names) for t in transitions)
+    d = transitions[0].state.shape[1]
+    T = len(transitions)
+    state = np.zeros((T, n, d), np.float32)
+    next_state = np.zeros((T, n, d), np.float32)
+    action = np.zeros((T, n, transitions[0].action.shape[1]), np.float32)
+    effect = np.zeros((T, n, transitions[0].effect.shape[1]), np.float32)
+    mask = np.zeros((T, n), bool)
+    for i, t in enumerate(transitions):
+        k = len(t.names)
+        state[i, :k], next_state[i, :k] = t.state, t.next_state
+        action[i, :k], effect[i, :k], mask[i, :k] = t.action, t.effect, True
+    arrays = TransitionArrays(state, action, effect, mask,
+                              np.array([t.episode for t in transitions], np.int64), next_state)
+    extra = {"outcome": np.array([OUTCOMES.index(t.outcome) for t in transitions], np.int8),
+             "step": np.array([t.step for t in transitions], np.int32)}
+    return arrays, extra
+
+
+# --- workers ---------------------------------------------------------------------------
+
+_worker: dict = {}
+
+
+def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
+    from drake_symplan.data.backends import make_backend
+
+    config = CollectConfig(**config_dict)
+    _worker.update(config=config, progress=progress, parent=parent_pid,
+                   backend=make_backend(config.backend))
+
+
+def _tick() -> None:
+    if os.getppid() != _worker["parent"]:  # the parent was killed: stop, write nothing
+        os._exit(1)
+    if _worker["progress"] is not None:
+        _worker["progress"].put(1)
+
+
+def _run_chunk_task(out_dir: str, c: int) -> dict:
+    arrays, extra, info = run_chunk(_worker["backend"], _worker["config"], c, _tick)
+    storage.write_shard(out_dir, c, arrays, extra={**extra, "info": _json_array(info)})
+    return info
+
+
+def _json_array(info: dict) -> np.ndarray:
+    return np.array(json.dumps(info))
+
+
+# --- the command -----------------------------------------------------------------------
+
+
+def collect(out_dir: str | Path, config: CollectConfig, workers: int = 1,
+            progress: bool = True) -> dict:
+    """Collects (or finishes collecting) `config.transitions` into `out_dir`; the summary."""
+    from drake_symplan.data.stats import dataset_stats
+
+    out_dir = Path(out_dir)
+    workers = max(1, int(workers))
+    identity = dc.asdict(config)
+    if (out_dir / storage.MANIFEST).exists():
+        manifest = storage.read_manifest(out_dir)
+        if manifest.get("config") != identity:
+            raise ValueError(
+                f"{out_dir} holds a collection with a different configuration "
+                f"({manifest.get('config')}); use a new --out directory or the same options")
+    else:
+        manifest = {"config": identity, "seed": config.seed, "code_version": code_version(),
+                    "status": "collecting"}
+        storage.write_manifest(out_dir, manifest)
+    storage.remove_stale_tmp(out_dir)
+    done = storage.existing_shards(out_dir)
+    extra_shards = sorted(set(done) - set(range(config.num_chunks)))
+    if extra_shards:
+        raise ValueError(f"{out_dir} has shards {extra_shards} beyond this collection's "
+                         f"{config.num_chunks} chunks")
+    for c, path in list(done.items()):
+        if storage.shard_length(path) != config.chunk_count(c):
+            path.unlink()  # cannot happen with atomic writes; regenerate rather than trust
+            del done[c]
+    todo = [c for c in range(config.num_chunks) if c not in done]
+    already = sum(config.chunk_count(c) for c in done)
+
+    t0 = time.perf_counter()
+    bar = _progress_bar(config.transitions, already, progress)
+    if todo and workers == 1:
+        from drake_symplan.data.backends import make_backend
+
+        backend = make_backend(config.backend)
+        for c in todo:
+            arrays, extra, info = run_chunk(backend, config, c, lambda: bar.update(1))
+            storage.write_shard(out_dir, c, arrays, extra={**extra, "info": _json_array(info)})
+    elif todo:
+        _run_pool(out_dir, config, todo, min(workers, len(todo)), bar)
+    bar.close()
+    wall = time.perf_counter() - t0
+
+    summary = dataset_stats(out_dir)
+    summary["this_run"] = {"new_transitions": config.transitions - already,
+                           "wall_seconds": round(wall, 2), "workers": workers,
+                           "rate_per_s": round((config.transitions - already) / wall, 3)
+                           if wall > 0 else None}
+    manifest.update(status="complete", counts={
+        k: summary[k] for k in ("transitions", "episodes", "shards", "dropped_episodes")})
+    storage.write_manifest(out_dir, manifest)
+    storage.write_json(out_dir, "summary.json", summary)
+    return summary
+
+
+def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: int, bar):
+    ctx = mp.get_context("spawn")  # Drake and forked children do not mix
+    progress = ctx.Queue()
+    with ctx.Pool(workers, initializer=_init_worker,
+                  initargs=(dc.asdict(config), progress, os.getpid())) as pool:
+        pending = [pool.apply_async(_run_chunk_task, (str(out_dir), c)) for c in todo]
+        while pending:
+            try:
+                while True:
+                    bar.update(progress.get(timeout=0.2))
+            except queue_lib.Empty:
+                pass
+            still = []
+            for r in pending:
+                if r.ready():
+                    r.get()  # re-raises a worker's exception here
+                else:
+                    still.append(r)
+            pending = still
+        pool.close()
+        pool.join()
+
+
+class _NoBar:
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def _progress_bar(total: int, initial: int, enabled: bool):
+    if not enabled:
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, unit="tr", desc="collect", smoothing=0.05,
+                dynamic_ncols=True)

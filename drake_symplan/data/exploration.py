@@ -1,0 +1,218 @@
+"""Random exploration: episodes of random actions, recorded as perceived transitions.
+
+An episode puts a random scene on the table and executes up to `length` random actions
+(source != target, grasp and release offsets uniform), each chosen over the objects the
+robot perceives. Each action is perceived before, at the end of the lift and after; the
+'after' scene of one action is the 'before' of the next. A transition records the
+*relevant* objects only (paper, Experiment Setup):
+
+- Relevance: the action's arguments plus every object the perception finds in contact with
+  either of them in the scene *before* the action. This is what the robot knows when it
+  chooses the action, and what the planner can compute in a symbolic state; an object that
+  comes into contact only as a result of the action is left out.
+- State / next state: the perceived features of those objects before / after.
+- Effect per object (metres, structs.EFFECT_DIM): e_lift = p_lift - p_before and
+  e_release = p_after - p_lift - carry, where carry is the TCP's lateral travel (release
+  point - grasp point, from the action and the beliefs) for objects that went up with the
+  lift (e_lift z > LIFT_TOL) and 0 for the others.
+- Outcome class (for statistics and back-end parity, from perceived scenes): see `classify`.
+
+Episodes end after `length` actions, when an object leaves the table (or the cameras'
+workspace), or when something fails (the episode is then *dropped*: transitions recorded
+before the failure are kept, each having been checked on its own).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from collections import Counter
+from collections.abc import Callable
+
+import numpy as np
+
+from drake_symplan.structs import EFFECT_DIM, OFFSETS, Action, encode_action
+from drake_symplan.world.scenes import sample_scene
+
+OUTCOMES = ("no_effect", "placed", "tipped", "carried_along", "fell_off", "other")
+NO_EFFECT_TOL = 0.01  # m: nothing moved more than this
+LIFT_TOL = 0.05  # m of rise at the end of the lift: the object went up with the hand
+TIP_TOL = np.radians(15.0)  # tilt gained by an object that tipped over
+# Ends of an episode; the DROP_REASONS ones are failures.
+DROP_REASONS = ("sim_failure", "perception_count_mismatch", "perception_lost_object",
+                "too_many_infeasible")
+TABLE_X, TABLE_Y = (-0.3, 1.3), (-0.7, 0.7)  # the table top (models/table/table.sdf)
+
+
+@dc.dataclass
+class EpisodeConfig:
+    min_objects: int = 2
+    max_objects: int = 4
+    length: int = 10  # actions per episode before a new scene
+    long_fraction: float = 0.5
+    max_infeasible: int = 10  # unreachable actions in a row before giving up the episode
+
+
+@dc.dataclass
+class Transition:
+    names: list[str]  # perceived names of the relevant objects, in slot order
+    state: np.ndarray  # [k, d_o]
+    action: np.ndarray  # [k, ACTION_DIM]
+    effect: np.ndarray  # [k, EFFECT_DIM]
+    next_state: np.ndarray  # [k, d_o]
+    outcome: str
+    episode: int
+    step: int
+
+
+@dc.dataclass
+class EpisodeLog:
+    transitions: list[Transition] = dc.field(default_factory=list)
+    end: str = "length"  # "length" | "budget" | "left_table" | one of DROP_REASONS
+    outcomes: Counter = dc.field(default_factory=Counter)  # every executed action
+    infeasible: int = 0
+    skipped: Counter = dc.field(default_factory=Counter)  # executed, not recorded: why
+
+    @property
+    def dropped(self) -> bool:
+        return self.end in DROP_REASONS
+
+
+def random_action(rng: np.random.Generator, names: list[str]) -> Action:
+    s, t = rng.choice(len(names), size=2, replace=False)
+    return Action(names[s], OFFSETS[rng.integers(3)], names[t], OFFSETS[rng.integers(3)])
+
+
+def relevant_objects(scene, action: Action) -> list[str]:
+    """[source, target] + the objects in contact with either, in the perceived scene."""
+    args = (action.source, action.target)
+    touching = set()
+    for a, b in scene.contacts:
+        if a in args and b not in args:
+            touching.add(b)
+        elif b in args and a not in args:
+            touching.add(a)
+    return [*args, *sorted(touching)]
+
+
+def effects(before, lift, after, lift_map, after_map, names, carry_xy) -> np.ndarray:
+    """[len(names), EFFECT_DIM]: [p_lift - p_before ; p_after - p_lift - carry if lifted]."""
+    out = np.zeros((len(names), EFFECT_DIM), np.float32)
+    carry = np.array([carry_xy[0], carry_xy[1], 0.0])
+    for i, n in enumerate(names):
+        p0 = before.object(n).position
+        p1 = lift.object(lift_map[n]).position
+        p2 = after.object(after_map[n]).position
+        e_lift = p1 - p0
+        out[i, :3] = e_lift
+        out[i, 3:] = p2 - p1 - (carry if e_lift[2] > LIFT_TOL else 0.0)
+    return out
+
+
+def classify(before, lift, after, lift_map, after_map, left_table: bool = False) -> str:
+    """The outcome class of an action, from the perceived scenes (first match wins):
+
+    fell_off (an object left the table), carried_along (two or more objects went up with
+    the lift: a stacked object rode along), tipped (something went up and an object
+    ended >= 15 deg more tilted), placed (something went up and came down upright),
+    no_effect (nothing moved more than 1 cm), other (moved without a lift: pushed).
+    """
+    if left_table:
+        return "fell_off"
+    lifted = [n for n in before.names if n in lift_map
+              and lift.object(lift_map[n]).position[2] - before.object(n).position[2] > LIFT_TOL]
+    if len(lifted) >= 2:
+        return "carried_along"
+    if lifted:
+        tipped = any(after.object(after_map[n]).tilt - before.object(n).tilt > TIP_TOL
+                     for n in before.names if n in after_map)
+        return "tipped" if tipped else "placed"
+    moved = max((np.linalg.norm(after.object(after_map[n]).position - before.object(n).position)
+                 for n in before.names if n in after_map), default=0.0)
+    return "no_effect" if moved < NO_EFFECT_TOL else "other"
+
+
+def left_workspace(truth: dict) -> bool:
+    """Ground truth (bookkeeping): has an object left the table or the cameras' workspace?"""
+    from drake_symplan.perception.segmentation import CROP_X, CROP_Y
+
+    for s in truth.values():
+        x, y, z = s.position
+        if z < -0.01 or not (TABLE_X[0] < x < TABLE_X[1] and TABLE_Y[0] < y < TABLE_Y[1]):
+            return True
+        if not (CROP_X[0] < x < CROP_X[1] and CROP_Y[0] < y < CROP_Y[1]):
+            return True
+    return False
+
+
+def run_episode(
+    backend,
+    rng: np.random.Generator,
+    config: EpisodeConfig,
+    episode: int,
+    budget: int,
+    on_transition: Callable[[], None] | None = None,
+) -> EpisodeLog:
+    """Runs one episode on `backend`, recording at most `budget` transitions."""
+    from drake_symplan.perception.perceive import associate
+    from drake_symplan.skills.pick_place import action_geometry
+
+    log = EpisodeLog()
+    n = int(rng.integers(config.min_objects, config.max_objects + 1))
+    backend.reset(sample_scene(rng, n, long_fraction=config.long_fraction))
+    before = backend.perceive()
+    if len(before.objects) != n:
+        log.end = "perception_count_mismatch"
+        return log
+    step, infeasible_run = 0, 0
+    while step < config.length:
+        if len(log.transitions) >= budget:
+            log.end = "budget"
+            return log
+        action = random_action(rng, before.names)
+        result = backend.execute(action, before)
+        if result.status == "infeasible":
+            log.infeasible += 1
+            infeasible_run += 1
+            if infeasible_run >= config.max_infeasible:
+                log.end = "too_many_infeasible"
+                return log
+            continue
+        infeasible_run = 0
+        if result.status != "ok":
+            log.end = "sim_failure"
+            return log
+        step += 1
+        lift, after = result.lift, result.after
+        after_map = associate(before, after, action)
+        if len(after.objects) > len(before.objects):
+            log.end = "perception_count_mismatch"
+            return log
+        if len(after_map) < len(before.objects):
+            if left_workspace(backend.ground_truth_states()):
+                log.outcomes["fell_off"] += 1
+                log.skipped["left_table"] += 1
+                log.end = "left_table"
+            else:
+                log.end = "perception_lost_object"
+            return log
+        lift_map = associate(before, lift, action) if lift is not before else \
+            {k: k for k in before.names}
+        outcome = classify(before, lift, after, lift_map, after_map)
+        log.outcomes[outcome] += 1
+        names = relevant_objects(before, action)
+        if any(k not in lift_map for k in names):
+            log.skipped["lift_unobserved"] += 1
+        else:
+            carry_xy = action_geometry(action, before.object_states()).carry_xy
+            log.transitions.append(Transition(
+                names=names,
+                state=np.stack([before.object(k).features for k in names]),
+                action=encode_action(action, names),
+                effect=effects(before, lift, after, lift_map, after_map, names, carry_xy),
+                next_state=np.stack([after.object(after_map[k]).features for k in names]),
+                outcome=outcome, episode=episode, step=step - 1,
+            ))
+            if on_transition:
+                on_transition()
+        before = after
+    return log

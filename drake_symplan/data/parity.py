@@ -1,0 +1,107 @@
+"""Back-end parity: the same (scene, action) pairs on the `hand` and the `arm` back-ends.
+
+For each pair both back-ends reset to the scene and perceive it; the action is drawn over
+the hand's perceived names and mapped to the arm's by nearest perceived position. Both
+execute it; we compare the outcome classes (exploration.classify) and the effect vectors
+of the relevant objects (exploration.effects; per object the norm of the 6-d difference).
+Pairs the arm cannot reach, or whose scene either perception miscounts, are skipped and
+counted. Scenes come from `scenes.sample_scene` or, when given, a fixed list.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+from drake_symplan.data.exploration import classify, effects, random_action, relevant_objects
+from drake_symplan.structs import Action
+from drake_symplan.world.scenes import sample_scene
+
+
+def _map_names(src_scene, dst_scene) -> dict[str, str]:
+    out = {}
+    for o in src_scene.objects:
+        d = [np.linalg.norm(o.position - p.position) for p in dst_scene.objects]
+        out[o.name] = dst_scene.objects[int(np.argmin(d))].name
+    return out
+
+
+def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
+    """One pair: {'status', 'hand', 'arm', 'effect_diff'} (classes and per-object diffs)."""
+    from drake_symplan.perception.perceive import associate
+    from drake_symplan.skills.pick_place import action_geometry
+
+    out, results = {}, {}
+    hand.reset(scene)
+    hb = hand.perceive()
+    arm.reset(scene)
+    ab = arm.perceive()
+    n = len(scene.objects)
+    if len(hb.objects) != n or len(ab.objects) != n:
+        return {"status": "perception_count_mismatch"}
+    if action is None:
+        action = random_action(rng, hb.names)
+    to_arm = _map_names(hb, ab)
+    actions = {"hand": action, "arm": Action(to_arm[action.source], action.grasp,
+                                             to_arm[action.target], action.release)}
+    for name, backend, before in (("hand", hand, hb), ("arm", arm, ab)):
+        a = actions[name]
+        r = backend.execute(a, before)
+        if r.status != "ok":
+            return {"status": f"{name}_{r.status}", "message": r.message}
+        after_map = associate(before, r.after, a)
+        lift_map = associate(before, r.lift, a) if r.lift is not before else \
+            {k: k for k in before.names}
+        if len(after_map) < n or len(lift_map) < n:
+            return {"status": f"{name}_lost_object"}
+        names = relevant_objects(before, a)
+        carry = action_geometry(a, before.object_states()).carry_xy
+        results[name] = (
+            classify(before, r.lift, r.after, lift_map, after_map),
+            effects(before, r.lift, r.after, lift_map, after_map, names, carry), names)
+    out["status"] = "ok"
+    out["action"] = str(action)
+    out["hand"], out["arm"] = results["hand"][0], results["arm"][0]
+    # Compare effects object by object (hand names mapped to the arm's).
+    e_hand = dict(zip(results["hand"][2], results["hand"][1], strict=True))
+    e_arm = dict(zip(results["arm"][2], results["arm"][1], strict=True))
+    out["effect_diff"] = [float(np.linalg.norm(e - e_arm[to_arm[k]]))
+                          for k, e in e_hand.items() if to_arm[k] in e_arm]
+    return out
+
+
+def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
+                   scenes_actions: list | None = None, progress: bool = False) -> dict:
+    """Runs `pairs` random pairs (or the given (scene, action) list); the parity report."""
+    from drake_symplan.data.backends import make_backend
+
+    hand, arm = make_backend("hand"), make_backend("arm")
+    rng = np.random.default_rng(seed)
+    if scenes_actions is None:
+        scenes_actions = [(sample_scene(rng, int(rng.integers(objects[0], objects[1] + 1))), None)
+                          for _ in range(pairs)]
+    iterator = scenes_actions
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(scenes_actions, desc="parity", unit="pair")
+    rows, skipped, confusion = [], Counter(), Counter()
+    for scene, action in iterator:
+        r = compare_pair(hand, arm, scene, action, rng)
+        if r["status"] != "ok":
+            skipped[r["status"]] += 1
+            continue
+        rows.append(r)
+        confusion[f"{r['hand']}|{r['arm']}"] += 1
+    diffs = np.array([d for r in rows for d in r["effect_diff"]])
+    agree = sum(r["hand"] == r["arm"] for r in rows)
+    return {
+        "pairs": len(rows),
+        "skipped": dict(skipped),
+        "class_agreement": round(agree / len(rows), 4) if rows else None,
+        "effect_diff_median_m": round(float(np.median(diffs)), 5) if len(diffs) else None,
+        "effect_diff_p90_m": round(float(np.percentile(diffs, 90)), 5) if len(diffs) else None,
+        "confusion": dict(sorted(confusion.items())),
+        "rows": rows,
+    }

@@ -1,0 +1,115 @@
+"""Systems tests of collection: the hand back-end's physics, kill -9 resume, back-end parity."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from drake_symplan.structs import Action, ObjectState
+from drake_symplan.world.scenes import ObjectSpec, Scene
+
+CUBE_ON_CUBE = [("o0", "cube", (0.6, 0.2, 0.025)), ("o1", "cube", (0.7, 0.0, 0.025))]
+BLOCK_WITH_CUBE = [("o0", "long", (0.6, 0.2, 0.025)), ("o1", "cube", (0.6, 0.275, 0.075)),
+                   ("o2", "cube", (0.7, 0.0, 0.025))]
+BLOCK_AND_CUBE = [("o0", "long", (0.6, 0.2, 0.025)), ("o1", "cube", (0.7, 0.0, 0.025))]
+
+
+@pytest.fixture(scope="module")
+def hand_station():
+    from drake_symplan.world.station import Station, StationConfig
+
+    return Station(StationConfig(robot="hand", discrete_contact_approximation="similar"))
+
+
+def run_hand(station, objects, action):
+    from drake_symplan.skills.hand_place import hand_pick_place
+
+    station.reset(Scene([ObjectSpec(n, t, list(p), 0.0) for n, t, p in objects]))
+    beliefs = {n: ObjectState(n, t, np.array(p, float)) for n, t, p in objects}
+    start = station.object_states()
+    motion, lifted = hand_pick_place(station, action, beliefs, station.object_states)
+    return motion, start, lifted, station.object_states()
+
+
+def test_hand_stacks_tips_carries_and_misses(hand_station):
+    motion, _, _, end = run_hand(hand_station, CUBE_ON_CUBE, Action("o0", "center", "o1", "center"))
+    assert motion.held == "o0" and motion.kinematic
+    assert end["o0"].position[2] == pytest.approx(0.075, abs=0.005)
+    assert np.linalg.norm(end["o0"].position[:2] - end["o1"].position[:2]) < 0.01
+
+    motion, _, lifted, end = run_hand(hand_station, BLOCK_WITH_CUBE,
+                                      Action("o0", "center", "o2", "center"))
+    assert motion.held == "o0" and not motion.kinematic  # a cube rides on the block
+    assert lifted["o1"].position[2] > 0.2
+    assert end["o1"].position[2] == pytest.approx(end["o0"].position[2] + 0.05, abs=0.008)
+
+    _, _, _, end = run_hand(hand_station, BLOCK_AND_CUBE, Action("o0", "left", "o1", "center"))
+    assert np.degrees(end["o0"].tilt) > 10
+
+    motion, start, _, end = run_hand(hand_station, CUBE_ON_CUBE,
+                                     Action("o0", "right", "o1", "center"))
+    assert motion.held is None
+    assert np.allclose(end["o0"].position, start["o0"].position, atol=1e-4)
+
+
+def _collect_cmd(out, n):
+    return [sys.executable, "-m", "drake_symplan.cli.main", "collect", "--backend", "hand",
+            "--transitions", str(n), "--workers", "1", "--out", str(out), "--seed", "3",
+            "--objects", "2-3", "--chunk-size", "4", "--no-progress", "--json"]
+
+
+@pytest.mark.slow
+def test_kill_9_then_the_same_command_ends_with_exactly_n(tmp_path):
+    from drake_symplan.data.storage import existing_shards, load_transitions
+
+    out, n = tmp_path / "data", 22
+    proc = subprocess.Popen(_collect_cmd(out, n), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(existing_shards(out)) < 2:
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    interrupted = len(existing_shards(out))
+    assert 2 <= interrupted < 6, "kill landed before the first shards or after the end"
+    subprocess.run(_collect_cmd(out, n), check=True, capture_output=True, timeout=300)
+    data = load_transitions(out)
+    assert len(data) == n
+    keys = set()
+    for path in sorted(existing_shards(out).values()):
+        with np.load(path) as z:
+            keys.update(zip(z["episode"].tolist(), z["step"].tolist(), strict=True))
+    assert len(keys) == n  # no (episode, step) twice
+    assert not list(out.glob(".*tmp*"))
+    from drake_symplan.cli.main import main
+
+    assert main(["data", "stats", str(out), "--json"]) == 0
+
+
+@pytest.mark.slow
+def test_hand_and_arm_agree_on_a_fixed_set():
+    from drake_symplan.data.parity import measure_parity
+
+    # Perceived names follow position order (x, then y): p0 is the x = 0.6 object.
+    pairs = [
+        (Scene([ObjectSpec(n, t, list(p)) for n, t, p in CUBE_ON_CUBE]),
+         Action("p0", "center", "p1", "center")),
+        (Scene([ObjectSpec(n, t, list(p)) for n, t, p in BLOCK_AND_CUBE]),
+         Action("p0", "left", "p1", "center")),
+        (Scene([ObjectSpec(n, t, list(p)) for n, t, p in CUBE_ON_CUBE]),
+         Action("p0", "right", "p1", "center")),
+        (Scene([ObjectSpec(n, t, list(p)) for n, t, p in BLOCK_WITH_CUBE]),
+         Action("p0", "center", "p2", "center")),
+    ]
+    report = measure_parity(len(pairs), scenes_actions=pairs)
+    assert report["pairs"] == len(pairs), report["skipped"]
+    assert report["class_agreement"] == 1.0, report["confusion"]
+    assert report["effect_diff_median_m"] <= 0.01
+    assert {r["hand"] for r in report["rows"]} == {"placed", "tipped", "no_effect",
+                                                   "carried_along"}

@@ -1,0 +1,145 @@
+"""Exploration bookkeeping on hand-made perceived scenes (no simulator): relevance, effects
+with the carry subtracted, outcome classes, random actions, packing and stats."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+
+from drake_symplan.data import storage
+from drake_symplan.data.collect import CollectConfig, pack
+from drake_symplan.data.exploration import (
+    OUTCOMES,
+    Transition,
+    classify,
+    effects,
+    random_action,
+    relevant_objects,
+)
+from drake_symplan.data.stats import dataset_stats
+from drake_symplan.structs import ACTION_DIM, EFFECT_DIM, Action
+
+
+@dc.dataclass
+class Obj:
+    name: str
+    position: np.ndarray
+    tilt: float = 0.0
+    features: np.ndarray = None
+
+
+@dc.dataclass
+class Scene:
+    objects: list
+    contacts: set = dc.field(default_factory=set)
+
+    @property
+    def names(self):
+        return [o.name for o in self.objects]
+
+    def object(self, name):
+        return next(o for o in self.objects if o.name == name)
+
+
+def scene(positions: dict, contacts=(), tilts=None) -> Scene:
+    tilts = tilts or {}
+    return Scene([Obj(n, np.array(p, float), tilts.get(n, 0.0), np.zeros(9, np.float32))
+                  for n, p in positions.items()], set(contacts))
+
+
+IDENTITY = {"a": "a", "b": "b", "c": "c", "d": "d"}
+
+
+def test_relevance_is_arguments_plus_their_contacts_before():
+    s = scene({"a": (0.6, 0, 0.025), "b": (0.8, 0, 0.025), "c": (0.6, 0, 0.075),
+               "d": (0.9, 0.3, 0.025)}, contacts={("a", "c")})
+    assert relevant_objects(s, Action("a", "center", "b", "left")) == ["a", "b", "c"]
+    assert relevant_objects(s, Action("b", "center", "d", "left")) == ["b", "d"]
+
+
+def test_effect_subtracts_the_carry_from_lifted_objects_only():
+    before = scene({"a": (0.6, 0.0, 0.025), "b": (0.8, 0.1, 0.025), "c": (0.9, 0.3, 0.025)})
+    lift = scene({"a": (0.6, 0.0, 0.200), "b": (0.8, 0.1, 0.025), "c": (0.9, 0.3, 0.025)})
+    # a lands on b, 2 mm off where the carry put it; c is nudged by 3 cm.
+    after = scene({"a": (0.8, 0.102, 0.075), "b": (0.8, 0.1, 0.025), "c": (0.93, 0.3, 0.025)})
+    carry = np.array([0.2, 0.1])
+    e = effects(before, lift, after, IDENTITY, IDENTITY, ["a", "b", "c"], carry)
+    assert e.shape == (3, EFFECT_DIM)
+    np.testing.assert_allclose(e[0], [0, 0, 0.175, 0, 0.002, -0.125], atol=1e-6)
+    np.testing.assert_allclose(e[1], 0, atol=1e-6)
+    np.testing.assert_allclose(e[2], [0, 0, 0, 0.03, 0, 0], atol=1e-6)
+
+
+def test_outcome_classes():
+    before = scene({"a": (0.6, 0, 0.025), "b": (0.8, 0, 0.025), "c": (0.6, 0.1, 0.075)})
+    same = scene({"a": (0.6, 0, 0.025), "b": (0.8, 0, 0.025), "c": (0.6, 0.1, 0.075)})
+    up_a = scene({"a": (0.6, 0, 0.2), "b": (0.8, 0, 0.025), "c": (0.6, 0.1, 0.075)})
+    up_ac = scene({"a": (0.6, 0, 0.2), "b": (0.8, 0, 0.025), "c": (0.6, 0.1, 0.25)})
+    placed = scene({"a": (0.8, 0, 0.075), "b": (0.8, 0, 0.025), "c": (0.6, 0.1, 0.075)})
+    tipped = scene({"a": (0.8, 0.08, 0.06), "b": (0.8, 0, 0.025), "c": (0.6, 0.1, 0.075)},
+                   tilts={"a": np.radians(20)})
+    pushed = scene({"a": (0.63, 0, 0.025), "b": (0.8, 0, 0.025), "c": (0.6, 0.1, 0.075)})
+    m = IDENTITY
+    assert classify(before, same, same, m, m) == "no_effect"
+    assert classify(before, up_a, placed, m, m) == "placed"
+    assert classify(before, up_a, tipped, m, m) == "tipped"
+    assert classify(before, up_ac, placed, m, m) == "carried_along"
+    assert classify(before, same, pushed, m, m) == "other"
+    assert classify(before, up_a, placed, m, m, left_table=True) == "fell_off"
+
+
+def test_random_actions_cover_all_offsets_and_never_target_the_source():
+    rng = np.random.default_rng(0)
+    names = ["p0", "p1", "p2"]
+    actions = [random_action(rng, names) for _ in range(300)]
+    assert all(a.source != a.target for a in actions)
+    assert {a.grasp for a in actions} == {"left", "center", "right"}
+    assert {a.release for a in actions} == {"left", "center", "right"}
+    assert {a.source for a in actions} == set(names)
+
+
+def _transitions(k_list, episode0=0):
+    out = []
+    for i, k in enumerate(k_list):
+        names = [f"p{j}" for j in range(k)]
+        action = np.zeros((k, ACTION_DIM), np.float32)
+        action[0, 0] = action[1, 4] = 1.0
+        out.append(Transition(names, np.full((k, 9), i, np.float32), action,
+                              np.zeros((k, EFFECT_DIM), np.float32),
+                              np.full((k, 9), i + 1, np.float32),
+                              OUTCOMES[i % 3], episode0 + i // 2, i % 2))
+    return out
+
+
+def test_pack_pads_with_mask_and_stats_read_the_shards(tmp_path):
+    import json
+
+    config = CollectConfig(transitions=5, chunk_size=3)
+    storage.write_manifest(tmp_path, {"config": dc.asdict(config)})
+    for c, ks in enumerate(([2, 3, 2], [4, 2])):
+        arrays, extra = pack(_transitions(ks, episode0=10 * c))
+        info = {"executed_outcomes": {"no_effect": 2, "fell_off": 1}, "episode_ends":
+                {"length": 1, "perception_lost_object": 1}, "skipped_transitions": {},
+                "infeasible_actions": 0, "seconds": 1.0}
+        storage.write_shard(tmp_path, c, arrays, extra={**extra, "info": np.array(json.dumps(
+            info))})
+    data = storage.load_transitions(tmp_path)
+    assert data.state.shape == (5, 4, 9)
+    np.testing.assert_array_equal(data.mask.sum(axis=1), [2, 3, 2, 4, 2])
+    assert not data.state[0, 2:].any() and data.next_state[1, 2, 0] == 2
+    stats = dataset_stats(tmp_path)
+    assert stats["transitions"] == 5 and stats["shards"] == 2
+    assert stats["objects_histogram"] == {"2": 3, "3": 1, "4": 1}
+    assert stats["dropped_episodes"] == 2 and stats["episodes"] == 4
+    assert stats["executed_outcome_fractions"]["fell_off"] == pytest.approx(1 / 3, abs=1e-3)
+    assert sum(stats["outcome_fractions"].values()) == pytest.approx(1.0)
+
+
+def test_chunks_sum_to_exactly_n():
+    config = CollectConfig(transitions=250, chunk_size=100)
+    assert config.num_chunks == 3
+    assert [config.chunk_count(c) for c in range(3)] == [100, 100, 50]
+    with pytest.raises(ValueError, match="objects"):
+        CollectConfig(min_objects=1)
