@@ -1,0 +1,93 @@
+"""Collection benchmark: transitions/s of the `hand` and `arm` back-ends, and their parity.
+
+For each back-end, `--runs` fresh collections of `--transitions` transitions on
+`--objects`-object scenes with `--workers` workers (perception included); reports the
+median end-to-end rate (worker start-up included) and the median steady rate (transitions
+per second of worker time, times the workers). `--parity-pairs N` also runs N identical
+(scene, action) pairs on both back-ends (data/parity.py).
+
+    .venv/bin/python tools/bench_collect.py --json [--out FILE] [--parity-pairs 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+
+def bench_backend(backend: str, transitions: int, workers: int, objects: int, runs: int,
+                  seed: int) -> dict:
+    from drake_symplan.data.collect import CollectConfig, collect
+
+    rates, steady, rows = [], [], []
+    for r in range(runs):
+        with tempfile.TemporaryDirectory() as tmp:
+            config = CollectConfig(backend=backend, transitions=transitions, seed=seed + r,
+                                   min_objects=objects, max_objects=objects,
+                                   chunk_size=max(1, transitions // (2 * workers)))
+            summary = collect(Path(tmp) / "data", config, workers=workers, progress=False)
+        run = summary["this_run"]
+        rates.append(run["rate_per_s"])
+        steady.append(transitions / (summary["worker_seconds"] / workers))
+        rows.append({"rate_per_s": run["rate_per_s"], "wall_seconds": run["wall_seconds"],
+                     "steady_rate_per_s": round(steady[-1], 3),
+                     "no_effect_fraction": summary["no_effect_fraction"],
+                     "dropped_fraction": summary["dropped_fraction"],
+                     "dropped_reasons": summary["dropped_reasons"],
+                     "outcome_fractions": summary["outcome_fractions"]})
+    return {"backend": backend, "workers": workers, "objects": objects,
+            "transitions_per_run": transitions, "runs": rows,
+            "median_rate_per_s": round(statistics.median(rates), 3),
+            "median_steady_rate_per_s": round(statistics.median(steady), 3)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--objects", type=int, default=4)
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--hand-transitions", type=int, default=200)
+    parser.add_argument("--arm-transitions", type=int, default=40)
+    parser.add_argument("--backends", default="hand,arm")
+    parser.add_argument("--parity-pairs", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--out", help="also write the JSON result here")
+    args = parser.parse_args(argv)
+
+    result: dict = {"backends": {}}
+    sizes = {"hand": args.hand_transitions, "arm": args.arm_transitions}
+    for backend in [b for b in args.backends.split(",") if b]:
+        result["backends"][backend] = bench_backend(
+            backend, sizes[backend], args.workers, args.objects, args.runs, args.seed)
+    if args.parity_pairs > 0:
+        from drake_symplan.data.parity import measure_parity
+
+        t0 = time.perf_counter()
+        parity = measure_parity(args.parity_pairs, seed=args.seed, progress=not args.json)
+        parity.pop("rows")
+        parity["seconds"] = round(time.perf_counter() - t0, 1)
+        result["parity"] = parity
+    text = json.dumps(result, indent=2)
+    if args.out:
+        Path(args.out).write_text(text)
+    if args.json:
+        print(text)
+    else:
+        for name, b in result["backends"].items():
+            print(f"{name}: {b['median_rate_per_s']}/s end to end, "
+                  f"{b['median_steady_rate_per_s']}/s steady ({b['workers']} workers)")
+        if "parity" in result:
+            p = result["parity"]
+            print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']}, "
+                  f"effect diff median {p['effect_diff_median_m']} m")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
