@@ -26,7 +26,8 @@ def register(subparsers) -> None:
     p.add_argument("--patience", type=int, default=20,
                    help="stop after this many epochs without a better validation loss")
     p.add_argument("--threads", type=int, default=None, help="torch.set_num_threads")
-    p.add_argument("--temperature", type=float, default=1.0, help="Gumbel-sigmoid temperature")
+    p.add_argument("--temperature", type=float, default=None,
+                   help="Gumbel-sigmoid temperature (default 3; see learning/gumbel.py)")
     p.add_argument("--soft", action="store_true",
                    help="soft Gumbel-sigmoid samples (default: straight-through hard bits)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out")
@@ -59,11 +60,11 @@ def cmd_train(args: argparse.Namespace) -> dict:
 
     if args.threads is not None and args.threads < 1:
         raise CommandError(f"--threads must be at least 1, got {args.threads}")
+    options = {} if args.temperature is None else {"temperature": args.temperature}
     cfg = TrainConfig(
         model=args.model, data=args.data, out=args.out, epochs=args.epochs,
         batch_size=args.batch_size, lr=args.lr, seed=args.seed, patience=args.patience,
-        threads=args.threads, temperature=args.temperature, hard=not args.soft,
-        progress=not args.no_progress,
+        threads=args.threads, hard=not args.soft, progress=not args.no_progress, **options,
     )
     return train(cfg, resume=args.resume)
 

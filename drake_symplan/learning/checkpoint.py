@@ -81,7 +81,8 @@ def load_run(run_dir: str | Path, which: str = BEST) -> tuple[EffectModel, dict]
     """
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
-        raise FileNotFoundError(f"run directory {run_dir} does not exist")
+        what = "is not a directory" if run_dir.exists() else "does not exist"
+        raise FileNotFoundError(f"run directory {run_dir} {what}")
     ckpt = read_checkpoint(run_dir / which)
     model = model_from_checkpoint(ckpt)
     model.eval()

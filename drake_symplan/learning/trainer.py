@@ -27,6 +27,7 @@ from drake_symplan.data.storage import fingerprint, load_transitions
 from drake_symplan.learning import checkpoint as ckpt_io
 from drake_symplan.learning.dataset import TensorSet, normalization_stats, split_by_episode
 from drake_symplan.learning.evaluate import effect_loss, effect_metrics, evaluate_loss
+from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE
 from drake_symplan.learning.models import MODELS, build_model
 
 LOG_FIELDS = ("epoch", "train_loss", "val_loss", "val_error_cm", "best_val_loss", "seconds")
@@ -46,8 +47,8 @@ class TrainConfig:
     patience: int = 20
     grad_clip: float = 10.0
     threads: int | None = None  # torch.set_num_threads; None leaves torch's default
-    temperature: float = 1.0
-    hard: bool = True
+    temperature: float = DEFAULT_TEMPERATURE  # Gumbel-sigmoid; see gumbel.py
+    hard: bool = DEFAULT_HARD
     model_kwargs: dict = field(default_factory=dict)
     progress: bool = True
 
@@ -160,6 +161,9 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
             total += train_step(model, optimizer, batch, cfg.grad_clip)
             batches += 1
         train_loss = float(total) / max(1, batches)
+        if not math.isfinite(train_loss):
+            raise ValueError(f"training diverged in epoch {progress['epoch'] + 1} "
+                             f"(loss {train_loss}); {last_path} holds the previous epoch")
         val = effect_metrics(model, sets["val"])
         progress["epoch"] += 1
         improved = val["loss"] < progress["best_val_loss"]
