@@ -123,7 +123,12 @@ def test_train_resume_eval_and_symbols(data_dir, tmp_path):
 
 
 def test_baseline_readout_has_no_relations(data_dir, tmp_path):
-    train(TrainConfig("deepsym", str(data_dir), str(tmp_path / "d"), **{**SMALL, "epochs": 1}))
+    args = _parse(["train", "--model", "deepsym", "--data", str(data_dir), "--out",
+                   str(tmp_path / "d"), "--epochs", "1", "--threads", "1", "--no-progress",
+                   "--temperature", "2", "--json"])
+    result = args.func(args)
+    assert result["model"] == "deepsym" and result["epochs"] == 1
+    assert load_run(tmp_path / "d")[1]["model_config"]["temperature"] == 2.0
     symbols = readout_dataset(tmp_path / "d", data_dir)
     assert symbols["unary"].shape == (300, 4, 4)
     assert symbols["relational"].shape == (300, 0, 4, 4)
@@ -139,3 +144,14 @@ def test_missing_run_and_data_errors_name_the_path(tmp_path):
               resume=True)
     with pytest.raises(FileNotFoundError, match="nowhere"):
         train(TrainConfig("relational", str(tmp_path / "nowhere"), str(tmp_path / "r"), **SMALL))
+
+
+def test_other_modules_can_add_eval_subcommands():
+    parser = argparse.ArgumentParser()
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    learning_cmds.register(subparsers)
+    planning = learning_cmds.eval_subparsers(subparsers).add_parser("planning")
+    planning.set_defaults(func=lambda args: {"planned": True})
+    args = parser.parse_args(["eval", "planning"])
+    assert args.func(args) == {"planned": True}
+    assert parser.parse_args(["eval", "effects", "run"]).runs == ["run"]

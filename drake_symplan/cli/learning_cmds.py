@@ -35,9 +35,8 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_train)
 
-    p = subparsers.add_parser("eval", help="evaluate trained runs")
-    eval_sub = p.add_subparsers(dest="eval_command", required=True)
-    p = eval_sub.add_parser("effects", help="test-set effect error (cm) of runs, per model")
+    p = eval_subparsers(subparsers).add_parser(
+        "effects", help="test-set effect error (cm) of runs, per model")
     p.add_argument("runs", nargs="+", help="run directories")
     p.add_argument("--data", default=None,
                    help="data set directory if it moved (must have the run's fingerprint)")
@@ -53,6 +52,20 @@ def register(subparsers) -> None:
                    help="a bit is uncertain when |logit| < margin (default 3.0)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_symbols)
+
+
+def eval_subparsers(subparsers):
+    """The sub-commands of `symplan eval`, creating `eval` on first use.
+
+    Other command modules add their evaluations (e.g. `eval planning`) with
+    `learning_cmds.eval_subparsers(subparsers).add_parser(...)`, in any order.
+    """
+    parser = subparsers.choices.get("eval")
+    if parser is None:
+        parser = subparsers.add_parser("eval", help="evaluate trained runs and plans")
+        parser.set_defaults(eval_subparsers=parser.add_subparsers(dest="eval_command",
+                                                                  required=True))
+    return parser.get_default("eval_subparsers")
 
 
 def cmd_train(args: argparse.Namespace) -> dict:
