@@ -82,6 +82,8 @@ def test_train_resume_eval_and_symbols(data_dir, tmp_path):
     with pytest.raises(ValueError, match="differ"):
         train(TrainConfig("relational", str(data_dir), str(tmp_path / "b"),
                           **{**SMALL, "lr": 0.5}), resume=True)
+    with open(tmp_path / "b" / "log.csv", "a") as f:  # a row of an epoch never saved
+        f.write("3,1,1,1,1,1\n")
     resumed = train(TrainConfig("relational", str(data_dir), str(tmp_path / "b"),
                                 **{**SMALL, "epochs": 3}), resume=True)
     # Two epochs and a resumed third give exactly the run of three straight epochs.

@@ -96,6 +96,16 @@ def _check_resumable(saved: dict, cfg: TrainConfig, data_fp: str, out: Path) -> 
         raise ValueError(f"cannot resume {out}: settings {diff} differ from the saved run")
 
 
+def _trim_log(path: Path, epoch: int) -> None:
+    """Drop log rows past `epoch` (written by a run stopped before it saved last.pt)."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    kept = [rows[0]] + [row for row in rows[1:] if row and int(row[0]) <= epoch]
+    if len(kept) != len(rows):
+        with open(path, "w", newline="") as f:
+            csv.writer(f).writerows(kept)
+
+
 def train(cfg: TrainConfig, resume: bool = False) -> dict:
     """Train `cfg.model` on `cfg.data` into run directory `cfg.out`; returns the metrics."""
     if cfg.threads is not None:
@@ -130,6 +140,7 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
         progress = saved["progress"]
         torch.set_rng_state(saved["rng"]["torch"])
         shuffle.set_state(saved["rng"]["shuffle"])
+        _trim_log(out / ckpt_io.LOG, progress["epoch"])
     else:
         out.mkdir(parents=True, exist_ok=True)
         with open(out / ckpt_io.LOG, "w", newline="") as f:
@@ -173,14 +184,14 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
             progress["bad_epochs"] += 1
         metrics = {"train_loss": train_loss, "val_loss": val["loss"],
                    "val_error_cm": val["error_cm"]}
-        if improved:
-            ckpt_io.save_checkpoint(best_path, payload(metrics))
-        ckpt_io.save_checkpoint(last_path, payload(metrics))
         seconds = time.perf_counter() - start
-        with open(out / ckpt_io.LOG, "a", newline="") as f:
+        with open(out / ckpt_io.LOG, "a", newline="") as f:  # before last.pt: see _trim_log
             csv.writer(f).writerow([progress["epoch"], f"{train_loss:.6g}", f"{val['loss']:.6g}",
                                     f"{val['error_cm']:.4f}", f"{progress['best_val_loss']:.6g}",
                                     f"{seconds:.3f}"])
+        if improved:
+            ckpt_io.save_checkpoint(best_path, payload(metrics))
+        ckpt_io.save_checkpoint(last_path, payload(metrics))
         bar.update(1)
         bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val['loss']:.3g}",
                         val_cm=f"{val['error_cm']:.2f}")
