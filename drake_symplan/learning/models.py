@@ -7,7 +7,9 @@ slots), through a binary bottleneck that can be read out as symbols:
 - `RelationalDeepSym` (the paper's model): unary bits per object from an encoder, K
   relation types from a value-less self-attention with Gumbel-sigmoid weights
   alpha^k_ij = GS(q^k_i . k^k_j), messages h^k_i = sum_j alpha^k_ij z_j with
-  z_j = MLP([unary_j; action_j]), decoder on [h^1_i; ...; h^K_i].
+  z_j = MLP([unary_j; action_j]), decoder on [h^1_i; ...; h^K_i]. (The paper's
+  equation 2 prints z_i inside the sum; its text, message passing over related
+  objects, needs z_j.) Self-pairs (i, i) are relations like any other.
   Permutation-equivariant; padded objects take part in no relation.
 - `DeepSym` (Ahmetoglu et al. 2022): unary bits per object, laid out in a fixed-size
   vector ordered [source, target, the other objects, padding]; one decoder predicts
