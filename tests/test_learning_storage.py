@@ -68,6 +68,10 @@ def test_errors_name_the_path(tmp_path):
     np.savez(tmp_path / "shard-000000.npz", state=np.zeros((1, 2, 3)))
     with pytest.raises(ValueError, match="lacks arrays"):
         load_transitions(tmp_path)
+    write_shard(tmp_path, 0, _arrays(2, 3, d=3))
+    write_shard(tmp_path, 1, _arrays(2, 3, d=4))
+    with pytest.raises(ValueError, match="feature width"):
+        load_transitions(tmp_path)
     (tmp_path / "manifest.json").write_text("{}")
     with pytest.raises(ValueError, match="schema_version"):
         load_transitions(tmp_path)

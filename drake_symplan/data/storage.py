@@ -143,6 +143,9 @@ def load_transitions(data_dir: str | Path) -> TransitionArrays:
     if any(with_next) and not all(with_next):
         lacking = [str(p) for (p, _), w in zip(shards, with_next, strict=True) if not w]
         raise ValueError(f"shards {lacking} lack next_state while others have it")
+    widths = {path.name: fields["state"].shape[2] for path, fields in shards}
+    if len(set(widths.values())) > 1:
+        raise ValueError(f"shards of {data_dir} differ in feature width: {widths}")
     n = max(fields["mask"].shape[1] for _, fields in shards)
     keys = [*REQUIRED_KEYS] + (["next_state"] if all(with_next) else [])
     cat = {}
