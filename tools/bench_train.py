@@ -96,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--out", default=None, help="also write the JSON to this file")
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--state-dim", type=int, default=16, help="object feature size d_o")
+    parser.add_argument("--state-dim", type=int, default=9,
+                        help="object feature size d_o (perception.features.FEATURE_DIM = 9)")
     parser.add_argument("--batch-size", type=int, default=128)
     parser.add_argument("--objects", type=int, default=4)
     parser.add_argument("--steps", type=int, default=60, help="timed steps per repeat")
