@@ -22,6 +22,7 @@ from tqdm import tqdm
 from drake_symplan.perception.association import associate
 from drake_symplan.perception.evaluation import compare, match_to_truth
 from drake_symplan.perception.perceive import Perceiver
+from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
 from drake_symplan.structs import OFFSETS, Action
 from drake_symplan.world.cameras import DepthNoise, default_cameras
@@ -75,7 +76,7 @@ def bench_association(station, perceiver, n: int, seed: int) -> dict:
     """Identity association on arm-executed transitions, checked against ground truth."""
     rng = np.random.default_rng(seed + 1)
     planner = PickPlacePlanner()
-    correct, total, skipped = 0, 0, 0
+    correct, total, skipped, left_view = 0, 0, 0, 0
     with tqdm(total=n, desc="transitions") as bar:
         while total < n:
             scene = sample_structured_scene(rng, int(rng.integers(2, 5)))
@@ -93,14 +94,23 @@ def bench_association(station, perceiver, n: int, seed: int) -> dict:
             if out.status != "ok":
                 skipped += 1
                 continue
+            truth = station.object_states()
+            if any(not _in_view(s.position) for s in truth.values()):
+                left_view += 1  # an object left the workspace: nothing to associate it with
+                continue
             after = perceiver.perceive(station)
-            truth_after = match_to_truth(after, station.object_states())
+            truth_after = match_to_truth(after, truth)
             mapping = associate(before, after, action)
             ok = all(truth_after.get(mapping.get(b)) == g for b, g in truth_before.items())
             correct += ok
             total += 1
             bar.update(1)
-    return {"transitions": total, "correct_fraction": correct / total, "skipped": skipped}
+    return {"transitions": total, "correct_fraction": correct / total,
+            "skipped_infeasible": skipped, "object_left_workspace": left_view}
+
+
+def _in_view(p) -> bool:
+    return CROP_X[0] < p[0] < CROP_X[1] and CROP_Y[0] < p[1] < CROP_Y[1] and p[2] > -0.01
 
 
 def main() -> None:

@@ -1,7 +1,8 @@
 """Identity across an action: which object perceived after it is which object before it.
 
-Two hypotheses are scored: the grasp held (the source moved from its grasp point to the
-release point, carrying whatever was stacked on it) or it did not (nothing moved). Each
+Hypotheses are scored: the grasp held an object (the source, or a neighbour under the
+grasp point) that moved from the grasp point to the release point carrying whatever was
+stacked on it, or it held nothing (nothing moved). Each
 predicts where every before-object should be; an optimal assignment (Hungarian) matches
 predictions to the after-objects, with a type mismatch costing extra. The cheaper
 hypothesis wins. No simulator state is used.
@@ -32,17 +33,33 @@ def stacked_on(scene, name: str) -> set[str]:
     return above
 
 
-def _predictions(before, action: Action, grasped: bool) -> np.ndarray:
+def _grasp_candidates(before, action: Action) -> list[str]:
+    """Objects the closing fingers could hold: the source, and any object whose footprint
+    contains the grasp point (an off-centre grasp can land on a touching neighbour)."""
+    src = before.object(action.source)
+    point = src.position[:2] + [0.0, OFFSET_METRES[action.grasp]]
+    names = [action.source]
+    for o in before.objects:
+        local = (point - o.position[:2]) @ o.R[:2, :2]
+        half = np.array([0.025, 0.125 if o.type == "long" else 0.025]) + 0.01
+        if o.name != action.source and np.all(np.abs(local) <= half):
+            names.append(o.name)
+    return names
+
+
+def _predictions(before, action: Action, grasped: str | None) -> np.ndarray:
     pred = np.stack([o.position for o in before.objects]).astype(float)
-    if not grasped:
+    if grasped is None:
         return pred
     src = before.object(action.source)
+    held = before.object(grasped)
     tgt = before.object(action.target)
     # TCP goes from source + grasp offset to target + release offset (skills/pick_place).
-    shift = (tgt.position + [0, OFFSET_METRES[action.release], 0]) \
-        - (src.position + [0, OFFSET_METRES[action.grasp], 0])
-    shift[2] = tgt.position[2] + 0.05 - src.position[2]  # lands on the target's top
-    moving = {action.source} | stacked_on(before, action.source)
+    tcp_grasp = src.position + [0, OFFSET_METRES[action.grasp], 0]
+    tcp_release = tgt.position + [0, OFFSET_METRES[action.release], 0]
+    shift = tcp_release - tcp_grasp
+    shift[2] = tgt.position[2] + 0.05 - held.position[2]  # lands on the target's top
+    moving = {grasped} | stacked_on(before, grasped)
     for i, o in enumerate(before.objects):
         if o.name in moving:
             pred[i] += shift
@@ -68,7 +85,7 @@ def _assign(before, after, pred: np.ndarray) -> tuple[float, dict[str, str]]:
 def associate(before, after, action: Action) -> dict[str, str]:
     """Maps before-names to after-names (objects lost from view are left out)."""
     best = None
-    for grasped in (True, False):
+    for grasped in [*_grasp_candidates(before, action), None]:
         total, mapping = _assign(before, after, _predictions(before, action, grasped))
         if best is None or total < best[0]:
             best = (total, mapping)

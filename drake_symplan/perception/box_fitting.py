@@ -138,9 +138,22 @@ def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
         origin = surface.centroid + v_dir * v_mid
         npts = int(in_strip.sum())
         if length > LONG - 0.015:  # the whole block is seen
-            centre_u = (u_lo + u_hi) / 2
-            boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "long",
-                                       length > 0.30, npts))
+            extra = int(round((length - LONG) / SIDE))
+            if extra <= 0:
+                centre_u = (u_lo + u_hi) / 2
+                boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "long",
+                                           False, npts))
+                continue
+            # A block with cubes touching its end: put the block at the end whose edge
+            # points are densest (the block's end face is seen), cubes along the rest.
+            at_lo = np.sum(su < u_lo + 0.006) >= np.sum(su > u_hi - 0.006)
+            block_u = u_lo + LONG / 2 if at_lo else u_hi - LONG / 2
+            boxes.append(_box_from_top(origin + u_dir * block_u, n, u_dir, "long", True,
+                                       npts))
+            for j in range(extra):
+                cu = (u_lo + LONG + SIDE * (j + 0.5)) if at_lo else (u_hi - LONG - SIDE * (j + 0.5))
+                boxes.append(_box_from_top(origin + u_dir * cu, n, u_dir, "cube", True,
+                                           npts // (extra + 5)))
             continue
         if length > 0.075:
             # Could be a long block partly hidden under something, or touching cubes:
@@ -171,6 +184,16 @@ def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
             boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "cube",
                                        length < 0.035, npts // count))
     return boxes
+
+
+def suppress_duplicates(boxes: list[FittedBox]) -> list[FittedBox]:
+    """Drops a box whose centre lies inside a better-supported box (one object fitted twice,
+    e.g. a block whose top is split in two by a cube standing on its middle)."""
+    kept: list[FittedBox] = []
+    for box in sorted(boxes, key=lambda b: -b.points):
+        if not any(k.contains(box.center[None], -0.005)[0] for k in kept):
+            kept.append(box)
+    return kept
 
 
 def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBox]:

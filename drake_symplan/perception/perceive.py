@@ -13,7 +13,12 @@ import dataclasses as dc
 import numpy as np
 
 from drake_symplan.perception import segmentation as seg
-from drake_symplan.perception.box_fitting import FittedBox, boxes_from_surface, hidden_supports
+from drake_symplan.perception.box_fitting import (
+    FittedBox,
+    boxes_from_surface,
+    hidden_supports,
+    suppress_duplicates,
+)
 from drake_symplan.perception.contacts import contact_graph
 from drake_symplan.perception.features import YAW_SYMMETRY, object_features
 from drake_symplan.structs import ObjectState
@@ -73,6 +78,8 @@ def robot_shapes(station) -> list[tuple[str, np.ndarray, np.ndarray]]:
     inspector = query.inspector()
     shapes = []
     plant = station.plant
+    if station.arm is None:
+        return shapes
     for body_index in plant.GetBodyIndices(station.arm):
         for gid in plant.GetCollisionGeometriesForBody(plant.get_body(body_index)):
             shape = inspector.GetShape(gid)
@@ -100,6 +107,7 @@ class Perceiver:
         boxes: list[FittedBox] = []
         for surface in seg.find_surfaces(hm):
             boxes.extend(boxes_from_surface(surface, hm))
+        boxes = suppress_duplicates(boxes)
         boxes.extend(hidden_supports(boxes, points))
         # Stable names by position so a scene always gets the same names.
         boxes.sort(key=lambda b: (round(b.center[0], 2), round(b.center[1], 2), b.center[2]))

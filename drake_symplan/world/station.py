@@ -53,7 +53,7 @@ class StationConfig:
 
     time_step: float = 5e-3
     contact_model: str = "hydroelastic_with_fallback"
-    discrete_contact_approximation: str = "sap"
+    discrete_contact_approximation: str = "similar"
     pool_cubes: int = 8
     pool_longs: int = 8
     arm_kp: list[float] = dc.field(default_factory=lambda: [4000, 4000, 2000, 500, 500, 300])
