@@ -4,7 +4,11 @@
     python tools/bench_operators.py --json [--transitions 50000] [--out bench_operators.json]
 
 The transitions come from the toy symbolic blocks world (drake_symplan.symbolic.synthetic:
-1 unary bit, K = 3 relations, 2-4 objects per scene, relevant objects only). Learning
+1 unary bit, K = 3 relations, 2-4 objects per scene, relevant objects only), or, with
+`--symbols symbols.npz` (from `symplan symbols RUN --data DIR`), from a trained model's
+read-out of real perceived transitions; problems are then that data's own 4-object
+transitions (start: the state before, goal: the state after, all relation atoms), those
+whose goal does not already hold. Learning
 time is the median of --runs runs (>= 3); planning time is the median over --problems
 (>= 10) non-trivial 4-object problems, per call, for Fast Downward (subprocess, its own
 temporary directory) and pyperplan (forked child), both optimal A* with LM-cut.
@@ -76,9 +80,48 @@ def bench_planning(ops, problems: int, objects: int, seed: int, timeout: float) 
             "plan_lengths_equal": lengths_equal, **out}
 
 
+def bench_planning_real(ops, data: dict, problems: int, objects: int, timeout: float) -> dict:
+    from drake_symplan.symbolic.states import SymbolicState
+
+    rows = np.flatnonzero(data["mask"].sum(axis=1) == objects)
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="bench-ops-") as tmp:
+        domain = Path(tmp) / "domain.pddl"
+        domain.write_text(domain_pddl(ops.operators, ops.n_unary, ops.n_relations))
+        files = []
+        for t in rows:
+            start = SymbolicState.from_arrays(data["unary"][t], data["relational"][t],
+                                              data["mask"][t])
+            goal = SymbolicState.from_arrays(data["next_unary"][t], data["next_relational"][t],
+                                             data["mask"][t])
+            if set(start.facts()) == set(goal.facts()):
+                continue  # trivially satisfied goals are not planning successes
+            files.append(Path(tmp) / f"p{len(files)}.pddl")
+            files[-1].write_text(problem_pddl(start, goal, None, name=f"p{len(files)}"))
+            if len(files) == problems:
+                break
+        if not files:
+            raise SystemExit(f"no non-trivial {objects}-object transitions in the symbols")
+        for name in ("fd", "pyperplan"):
+            plan(domain, files[0], name, timeout)
+            results = [plan(domain, f, name, timeout) for f in files]
+            statuses: dict[str, int] = {}
+            for r in results:
+                statuses[r.status] = statuses.get(r.status, 0) + 1
+            out[name] = {"problems": len(results),
+                         "median_s": statistics.median(r.seconds for r in results),
+                         "statuses": statuses,
+                         "plan_lengths": [len(r.plan) for r in results]}
+    return {"objects": objects, "operators": len(ops.operators),
+            "plan_lengths_equal": out["fd"]["plan_lengths"] == out["pyperplan"]["plan_lengths"],
+            **out}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--transitions", type=int, default=50_000)
+    parser.add_argument("--symbols", type=Path,
+                        help="learn from this read-out (symbols.npz) instead of synthetic data")
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--problems", type=int, default=10)
     parser.add_argument("--objects", type=int, default=4)
@@ -92,12 +135,23 @@ def main() -> int:
         parser.error("use --runs >= 3 and --problems >= 10 for medians worth reporting")
 
     t = time.perf_counter()
-    data = synthetic.random_transitions(args.transitions, seed=args.seed)
+    if args.symbols:
+        from drake_symplan.symbolic.operators import load_symbols
+
+        data = load_symbols(args.symbols)
+        args.transitions = int(data["mask"].shape[0])
+    else:
+        data = synthetic.random_transitions(args.transitions, seed=args.seed)
     generate_s = time.perf_counter() - t
     learning, ops = bench_learning(data, args.runs, args.min_count)
-    planning = bench_planning(ops, args.problems, args.objects, args.seed + 1, args.timeout)
+    if args.symbols:
+        planning = bench_planning_real(ops, data, args.problems, args.objects, args.timeout)
+    else:
+        planning = bench_planning(ops, args.problems, args.objects, args.seed + 1,
+                                  args.timeout)
     result = {
         "benchmark": "operators",
+        "source": str(args.symbols) if args.symbols else "synthetic",
         "transitions": args.transitions,
         "generate_s": generate_s,
         "learning": learning,
