@@ -246,12 +246,15 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
     grid[idx[:, 0], idx[:, 1]] = True
     labels, n = ndimage.label(ndimage.binary_dilation(grid, iterations=2))
     out = []
-    yaw = above.yaw
-    axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
     for lab in range(1, n + 1):
         pts = cand[labels[idx[:, 0], idx[:, 1]] == lab]
         if len(pts) < 40:
             continue
+        # The visible side faces (one face, or an L of two) give the box's own yaw; the
+        # box above may have been turned relative to it.
+        angle, *_ = min_area_rectangle(pts[:, :2] - pts[:, :2].mean(axis=0))
+        yaw = angle if np.ptp(pts[:, :2], axis=0).max() > 0.02 else above.yaw
+        axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
         uv = pts[:, :2] @ axes.T
         ext = np.ptp(uv, axis=0)
         kind = "long" if ext.max() > 0.08 else "cube"
