@@ -66,8 +66,10 @@ class Backend:
         self.station.reset(scene)
         self.station.settle(RESET_SETTLE)
 
-    def perceive(self):
-        return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng)
+    def perceive(self, prior=None):
+        """The scene as perceived now; `prior`: the scene perceived before the action."""
+        return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng,
+                                       prior=prior)
 
     @property
     def _seen(self):
@@ -97,7 +99,8 @@ class HandBackend(Backend):
         try:
             motion, lift = hand_pick_place(
                 self.station, action, before.object_states(),
-                at_lift=self._perceive_if_moved, allow_kinematic=self.allow_kinematic)
+                at_lift=lambda: self._perceive_if_moved(before),
+                allow_kinematic=self.allow_kinematic)
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             self.station.hand.release(self.station.plant_context)
@@ -108,7 +111,7 @@ class HandBackend(Backend):
             return Execution("ok", before, before)
         if lift is None:
             lift = before
-        return Execution("ok", lift, self.perceive())
+        return Execution("ok", lift, self.perceive(before))
 
     @property
     def _seen(self):
@@ -116,9 +119,9 @@ class HandBackend(Backend):
         # hand has no geometry, so it stands in for the arm there and filters nothing.
         return _RobotView(self.station, self.station.hand.instance)
 
-    def _perceive_if_moved(self):
+    def _perceive_if_moved(self, before):
         held = self.station.hand.held
-        return self.perceive() if held is not None or self.noise is not None else None
+        return self.perceive(before) if held is not None or self.noise is not None else None
 
 
 class ArmBackend(Backend):
@@ -147,12 +150,12 @@ class ArmBackend(Backend):
         station.command_source.UpdateTrajectory(trajectory)
         try:
             station.simulator.AdvanceTo(t0 + motion.t_lift)
-            lift = self.perceive()
+            lift = self.perceive(before)
             station.simulator.AdvanceTo(t0 + motion.t_end)
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             return Execution("sim_failure", message=f"simulation failed: {e}")
-        return Execution("ok", lift, self.perceive())
+        return Execution("ok", lift, self.perceive(before))
 
 
 class _RobotView:

@@ -11,6 +11,7 @@ to the leftover points below.
 from __future__ import annotations
 
 import dataclasses as dc
+from collections.abc import Sequence
 
 import numpy as np
 from scipy import ndimage
@@ -98,16 +99,24 @@ def _box_from_top(top_center: np.ndarray, n: np.ndarray, long_dir: np.ndarray, k
     return FittedBox(kind, top_center - n * HALF_EXTENTS[kind][2], R, uncertain, npts)
 
 
-def _hidden_fraction(hm: HeightMap, pts3: np.ndarray) -> float:
+def _hidden_fraction(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[FittedBox] = ()
+                     ) -> float:
     """Fraction of plane points `pts3` that are seen at that height or hidden under
     something higher; the rest are contradicted (the table or a lower surface is seen
-    there: the table is not in the map, so an empty cell counts as the table)."""
+    there: the table is not in the map, so an empty cell counts as the table; or the
+    space is taken by an `occupied` box). Beyond the map's edge nothing is known."""
     seen = hm.lookup(pts3[:, :2])
-    contradicted = np.isnan(seen) | (seen < pts3[:, 2] - 0.01)
+    contradicted = hm.inside(pts3[:, :2]) & (np.isnan(seen) | (seen < pts3[:, 2] - 0.01))
+    for box in occupied:
+        contradicted |= box.contains(pts3, 0.002)
     return float(1.0 - contradicted.mean())
 
 
-def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
+def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[FittedBox] = (),
+                       prior: Sequence[FittedBox] = ()) -> list[FittedBox]:
+    """The boxes whose top faces make up `surface`; `occupied`: boxes already known, whose
+    space a hidden part cannot take; `prior`: the boxes before the action, which decide
+    between layouts that look the same from above."""
     n = surface.normal
     b1, b2 = _plane_basis(n)
     rel = surface.points - surface.centroid
@@ -138,22 +147,32 @@ def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
         origin = surface.centroid + v_dir * v_mid
         npts = int(in_strip.sum())
         if length > LONG - 0.015:  # the whole block is seen
-            extra = int(round((length - LONG) / SIDE))
-            if extra <= 0:
+            n_long = int((length + 0.015) // LONG)
+            extra = max(0, int(round((length - n_long * LONG) / SIDE)))
+            if extra == 0 and n_long == 1:
                 centre_u = (u_lo + u_hi) / 2
                 boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "long",
                                            False, npts))
                 continue
-            # A block with cubes touching its end: put the block at the end whose edge
-            # points are densest (the block's end face is seen), cubes along the rest.
-            at_lo = np.sum(su < u_lo + 0.006) >= np.sum(su > u_hi - 0.006)
-            block_u = u_lo + LONG / 2 if at_lo else u_hi - LONG / 2
-            boxes.append(_box_from_top(origin + u_dir * block_u, n, u_dir, "long", True,
-                                       npts))
-            for j in range(extra):
-                cu = (u_lo + LONG + SIDE * (j + 0.5)) if at_lo else (u_hi - LONG - SIDE * (j + 0.5))
-                boxes.append(_box_from_top(origin + u_dir * cu, n, u_dir, "cube", True,
-                                           npts // (extra + 5)))
+            # Blocks end to end, with cubes touching an end: the blocks go at the end
+            # whose edge points are densest (a block's end face is seen), cubes along
+            # the rest. Which order is right is ambiguous from above: uncertain.
+            # With a prior (the scene before the action) the order nearer to it wins.
+            layouts = []
+            for at_lo in (True, False):
+                start, sign, layout = (u_lo, 1.0, []) if at_lo else (u_hi, -1.0, [])
+                for size in [LONG] * n_long + [SIDE] * extra:
+                    kind = "long" if size == LONG else "cube"
+                    layout.append(_box_from_top(
+                        origin + u_dir * (start + sign * size / 2), n, u_dir, kind, True,
+                        npts // n_long if kind == "long" else npts // 10))
+                    start += sign * size
+                layouts.append(layout)
+            if prior:
+                boxes.extend(min(layouts, key=lambda lay: _distance_to(lay, prior)))
+            else:
+                dense_lo = np.sum(su < u_lo + 0.006) >= np.sum(su > u_hi - 0.006)
+                boxes.extend(layouts[0] if dense_lo else layouts[1])
             continue
         if length > 0.075:
             # Could be a long block partly hidden under something, or touching cubes:
@@ -162,15 +181,16 @@ def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
             fracs = []
             for centre_u in centres:
                 samples = np.linspace(centre_u - LONG / 2 + 0.01, centre_u + LONG / 2 - 0.01, 24)
-                fracs.append(_hidden_fraction(hm, origin + np.outer(samples, u_dir)))
+                fracs.append(_hidden_fraction(hm, origin + np.outer(samples, u_dir),
+                                              occupied))
             fracs = np.array(fracs)
             if fracs.max() > 0.9:
                 good = centres[fracs >= fracs.max() - 1e-9]
                 centre_u = (good.min() + good.max()) / 2
                 # A visible end that borders the table is the block's real end.
                 beyond = origin + np.outer([u_lo - 0.008, u_hi + 0.008], u_dir)
-                lo_real, hi_real = _hidden_fraction(hm, beyond[:1]) == 0, \
-                    _hidden_fraction(hm, beyond[1:]) == 0
+                lo_real, hi_real = _hidden_fraction(hm, beyond[:1], occupied) == 0, \
+                    _hidden_fraction(hm, beyond[1:], occupied) == 0
                 if lo_real and not hi_real:
                     centre_u = u_lo + LONG / 2
                 elif hi_real and not lo_real:
@@ -184,6 +204,15 @@ def boxes_from_surface(surface: Surface, hm: HeightMap) -> list[FittedBox]:
             boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "cube",
                                        length < 0.035, npts // count))
     return boxes
+
+
+def _distance_to(layout: list[FittedBox], prior: Sequence[FittedBox]) -> float:
+    """Sum over `layout` of the distance to the nearest prior box of the same type."""
+    total = 0.0
+    for b in layout:
+        d = [np.linalg.norm(b.center - p.center) for p in prior if p.type == b.type]
+        total += min(min(d, default=0.1), 0.1)
+    return total
 
 
 def suppress_duplicates(boxes: list[FittedBox]) -> list[FittedBox]:
@@ -283,3 +312,36 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         out.append(_box_from_top(np.array([xy[0], xy[1], z_top]), n, y_dir, kind, uncertain,
                                  len(pts)))
     return out
+
+
+def upright_blocks(boxes: list[FittedBox]) -> list[FittedBox]:
+    """Five cubes stacked in one straight column are a long block standing on its end.
+
+    From the cameras the two look alike (the seams of a tower are invisible); a tipped
+    block standing up is far more common in these scenes than a tower of five.
+    """
+    cubes = sorted((b for b in boxes if b.type == "cube" and b.tilt < np.radians(10)),
+                   key=lambda b: b.center[2])
+    used: set[int] = set()
+    merged = []
+    for i, base in enumerate(cubes):
+        if id(base) in used:
+            continue
+        column = [base]
+        for other in cubes[i + 1:]:
+            top = column[-1]
+            if (id(other) not in used and abs(other.center[2] - top.center[2] - SIDE) < 0.012
+                    and np.linalg.norm(other.center[:2] - top.center[:2]) < 0.012):
+                column.append(other)
+            if len(column) == 5:
+                break
+        if len(column) < 5:
+            continue
+        used.update(id(c) for c in column)
+        x = base.R[:, 0] - base.R[2, 0] * np.array([0.0, 0.0, 1.0])
+        x /= np.linalg.norm(x)
+        up = np.array([0.0, 0.0, 1.0])
+        R = np.column_stack([x, up, np.cross(x, up)])
+        centre = np.mean([c.center for c in column], axis=0)
+        merged.append(FittedBox("long", centre, R, True, sum(c.points for c in column)))
+    return [b for b in boxes if id(b) not in used] + merged

@@ -13,11 +13,13 @@ import dataclasses as dc
 import numpy as np
 
 from drake_symplan.perception import segmentation as seg
+from drake_symplan.perception import tracking
 from drake_symplan.perception.box_fitting import (
     FittedBox,
     boxes_from_surface,
     hidden_supports,
     suppress_duplicates,
+    upright_blocks,
 )
 from drake_symplan.perception.contacts import contact_graph
 from drake_symplan.perception.features import YAW_SYMMETRY, object_features
@@ -93,22 +95,29 @@ def robot_shapes(station) -> list[tuple[str, np.ndarray, np.ndarray]]:
 
 
 class Perceiver:
-    """Turns the station's depth images into perceived objects."""
+    """Turns the station's depth images into perceived objects.
 
-    def perceive(self, station, noise=None, rng=None) -> PerceivedScene:
+    With a `prior` (the scene perceived before the action that led here) the objects the
+    action left alone anchor the fit (perception/tracking.py); without one every object
+    is fitted from the points alone.
+    """
+
+    def perceive(self, station, noise=None, rng=None, prior: PerceivedScene | None = None
+                 ) -> PerceivedScene:
         clouds = station.point_clouds(noise=noise, rng=rng, z_min=seg.CROP_Z[0])
         points = seg.crop(np.vstack(clouds))
         points = seg.remove_inside(points, [s for s in robot_shapes(station)
                                             if _near_workspace(s[1])])
-        return self.perceive_points(points)
+        return self.perceive_points(points, prior)
 
-    def perceive_points(self, points: np.ndarray) -> PerceivedScene:
+    def perceive_points(self, points: np.ndarray, prior: PerceivedScene | None = None
+                        ) -> PerceivedScene:
         hm = seg.height_map(points)
-        boxes: list[FittedBox] = []
-        for surface in seg.find_surfaces(hm):
-            boxes.extend(boxes_from_surface(surface, hm))
-        boxes = suppress_duplicates(boxes)
-        boxes.extend(hidden_supports(boxes, points))
+        old = [FittedBox(o.type, o.position, o.R, o.uncertain) for o in prior.objects] \
+            if prior is not None else []
+        boxes = fit_boxes(points, hm, prior=old)
+        if old:
+            boxes = tracking.track(old, boxes, points, hm, fit_boxes)
         # Stable names by position so a scene always gets the same names.
         boxes.sort(key=lambda b: (round(b.center[0], 2), round(b.center[1], 2), b.center[2]))
         objects = [
@@ -119,6 +128,20 @@ class Perceiver:
         contacts = contact_graph({o.name: (o.position, o.R, np.array(b.half_extents))
                                   for o, b in zip(objects, boxes, strict=True)})
         return PerceivedScene(objects, contacts)
+
+
+def fit_boxes(points: np.ndarray, hm: seg.HeightMap, known: list[FittedBox] = (),
+              surfaces_from: seg.HeightMap | None = None, prior: list[FittedBox] = ()
+              ) -> list[FittedBox]:
+    """Boxes for `points`: one or more per visible top surface (found in `surfaces_from`,
+    default `hm`), then supports seen only from the side. `known` boxes are already
+    placed: their space is taken and they need no new support. `prior`: the boxes before
+    the action, for layouts that look alike from above."""
+    boxes: list[FittedBox] = []
+    for surface in seg.find_surfaces(surfaces_from or hm):
+        boxes.extend(boxes_from_surface(surface, hm, known, prior))
+    boxes = suppress_duplicates(boxes)
+    return upright_blocks(boxes + hidden_supports([*known, *boxes], points))
 
 
 def _fold_yaw(kind: str, yaw: float) -> float:

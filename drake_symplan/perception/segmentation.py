@@ -48,11 +48,16 @@ class HeightMap:
     def cell_index(self, xy: np.ndarray) -> np.ndarray:
         return np.floor((xy - self.origin) / CELL).astype(int)
 
+    def inside(self, xy: np.ndarray) -> np.ndarray:
+        """Which world xy points [N, 2] fall on the map (inside the crop)."""
+        idx = self.cell_index(xy)
+        nx, ny = self.height.shape
+        return (idx[:, 0] >= 0) & (idx[:, 0] < nx) & (idx[:, 1] >= 0) & (idx[:, 1] < ny)
+
     def lookup(self, xy: np.ndarray) -> np.ndarray:
         """Height at world xy [N, 2]; NaN outside the map or where nothing was seen."""
         idx = self.cell_index(xy)
-        nx, ny = self.height.shape
-        ok = (idx[:, 0] >= 0) & (idx[:, 0] < nx) & (idx[:, 1] >= 0) & (idx[:, 1] < ny)
+        ok = self.inside(xy)
         out = np.full(len(xy), np.nan)
         out[ok] = self.height[idx[ok, 0], idx[ok, 1]]
         return out

@@ -1,0 +1,119 @@
+"""Perception with a prior: the scene perceived before an action anchors the fit after it.
+
+A pick and place moves a few objects and leaves the rest where they were. An object of the
+prior scene whose old pose the new depth data still supports (some of it is seen, and its
+top face is seen at its height or hidden under something higher, almost nowhere
+contradicted by the table or a lower surface) is kept, refined by a fresh fit of the same box when there is one. The
+points those anchored boxes do not explain are fitted bottom-up, with the anchored boxes'
+space unavailable to hidden parts. A pick and place creates no object, so fits beyond the
+prior's count of a type are surplus and the least supported go. No simulator state is used.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+from drake_symplan.perception import segmentation as seg
+from drake_symplan.perception.box_fitting import FittedBox
+
+ANCHOR_TOL = 0.008  # m: a top-face sample is contradicted if seen lower than this
+MAX_CONTRADICTED = 0.05  # fraction of top-face samples; ~5 mm of drift for a cube
+REFINE_DISTANCE = 0.015  # m: a fresh fit this close (same type, same yaw) refines an anchor
+REFINE_ANGLE = np.radians(8.0)
+MIN_OWN_POINTS = 30  # points on an anchored box's own surface
+POINT_MARGIN = 0.006  # m: points this close to an anchored box are its own
+
+
+def top_face_samples(box: FittedBox, inset: float = 0.004, step: float = 0.01) -> np.ndarray:
+    """World points [K, 3] on the box face that looks up the most, inset from its edges."""
+    k = int(np.argmax(np.abs(box.R[2, :])))
+    h = box.half_extents
+    axes = [i for i in range(3) if i != k]
+    grids = [np.linspace(-h[i] + inset, h[i] - inset,
+                         max(2, int(round(2 * (h[i] - inset) / step)) + 1)) for i in axes]
+    a, b = np.meshgrid(*grids, indexing="ij")
+    local = np.zeros((a.size, 3))
+    local[:, axes[0]], local[:, axes[1]] = a.ravel(), b.ravel()
+    local[:, k] = np.sign(box.R[2, k]) * h[k]
+    return box.center + local @ box.R.T
+
+
+def consistent_with(box: FittedBox, hm: seg.HeightMap) -> bool:
+    """Does the depth data still support `box` where it was? Some of its surface must be
+    seen (a box held right above its old place hides that place without being there)."""
+    if box.contains(hm.points, 0.003).sum() < MIN_OWN_POINTS:
+        return False
+    s = top_face_samples(box)
+    seen = hm.lookup(s[:, :2])
+    contradicted = hm.inside(s[:, :2]) & (np.isnan(seen) | (seen < s[:, 2] - ANCHOR_TOL))
+    return bool(contradicted.mean() <= MAX_CONTRADICTED)
+
+
+def _same_box(a: FittedBox, b: FittedBox) -> bool:
+    if a.type != b.type or np.linalg.norm(a.center - b.center) > REFINE_DISTANCE:
+        return False
+    # Compare the long axes up to the box's symmetry (a cube: any face axis).
+    cos = np.abs(a.R.T @ b.R).max(axis=0) if a.type == "cube" else [abs(a.R[:, 1] @ b.R[:, 1])]
+    return bool(np.min(cos) >= np.cos(REFINE_ANGLE))
+
+
+def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
+           ) -> list[FittedBox]:
+    """The prior boxes the data still supports, each replaced by its fresh fit if any.
+
+    A confident fresh fit of another box through the prior box's centre vetoes it: its
+    top face is then explained by that box (a block put down where a cube stood)."""
+    out = []
+    for box in prior:
+        if not consistent_with(box, hm):
+            continue
+        match = [b for b in fresh if _same_box(b, box)]
+        if match:
+            out.append(max(match, key=lambda b: b.points))
+        elif not any(not b.uncertain and (b.contains(box.center[None], -0.005)[0]
+                                          or box.contains(b.center[None], -0.005)[0])
+                     for b in fresh):
+            out.append(box)
+    return out
+
+
+def unexplained(points: np.ndarray, boxes: list[FittedBox]) -> np.ndarray:
+    keep = np.ones(len(points), bool)
+    for b in boxes:
+        keep &= ~b.contains(points, POINT_MARGIN)
+    return points[keep]
+
+
+def keep_inventory(anchored: list[FittedBox], new: list[FittedBox], inventory: Counter
+                   ) -> list[FittedBox]:
+    """`new` without the surplus over `inventory` (after the anchored boxes), dropping the
+    uncertain and least supported fits first."""
+    left = Counter(inventory)
+    left.subtract(Counter(b.type for b in anchored))
+    kept = []
+    for b in sorted(new, key=lambda b: (b.uncertain, -b.points)):
+        if left[b.type] > 0:
+            left[b.type] -= 1
+            kept.append(b)
+    return kept
+
+
+def track(prior: list[FittedBox], fresh: list[FittedBox], points: np.ndarray,
+          hm: seg.HeightMap, fit) -> list[FittedBox]:
+    """The boxes after an action, given the boxes before it and a fresh fit of `points`.
+
+    `fit(points, hm, known, surfaces_from, prior)` is the bottom-up fit. The tracked hypothesis
+    (anchors + a fit of the rest) wins if it keeps the prior's inventory of types; else
+    the fresh fit if that does; else the fresh fit too (nothing trimmed: a held object
+    cut up by the robot's self-filter is better left in pieces for association)."""
+    anchored = anchor(prior, fresh, hm)
+    rest = unexplained(points, anchored)
+    inventory = Counter(b.type for b in prior)
+    new = keep_inventory(anchored, fit(rest, hm, anchored, seg.height_map(rest), prior),
+                         inventory)
+    tracked = anchored + new
+    if Counter(b.type for b in tracked) == inventory:
+        return tracked
+    return fresh
