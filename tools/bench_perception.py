@@ -98,7 +98,7 @@ def bench_association(station, perceiver, n: int, seed: int) -> dict:
             if any(not _in_view(s.position) for s in truth.values()):
                 left_view += 1  # an object left the workspace: nothing to associate it with
                 continue
-            after = perceiver.perceive(station)
+            after = perceiver.perceive(station, prior=before)  # tracked, as in use
             truth_after = match_to_truth(after, truth)
             mapping = associate(before, after, action)
             ok = all(truth_after.get(mapping.get(b)) == g for b, g in truth_before.items())

@@ -68,7 +68,7 @@ def main() -> int:
             print(f"{scripted}: {outcome.status} ({outcome.seconds:.2f} s wall)")
             if outcome.status != "ok":
                 return 1
-            after = perceiver.perceive(station)
+            after = perceiver.perceive(station, prior=perceived)
             track = associate(perceived, after, action)
             names = {user: track[p] for user, p in names.items() if p in track}
             for user, p in names.items():

@@ -109,8 +109,11 @@ def track(prior: list[FittedBox], fresh: list[FittedBox], points: np.ndarray,
     the fresh fit if that does; else the fresh fit too (nothing trimmed: a held object
     cut up by the robot's self-filter is better left in pieces for association)."""
     anchored = anchor(prior, fresh, hm)
-    rest = unexplained(points, anchored)
     inventory = Counter(b.type for b in prior)
+    if Counter(b.type for b in fresh) == inventory and all(
+            any(a is b for b in fresh) for a in anchored):
+        return fresh  # the fresh fit agrees with the prior everywhere it is anchored
+    rest = unexplained(points, anchored)
     new = keep_inventory(anchored, fit(rest, hm, anchored, seg.height_map(rest), prior),
                          inventory)
     tracked = anchored + new

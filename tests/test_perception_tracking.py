@@ -1,0 +1,97 @@
+"""Perception across an action: anchoring on the prior scene, inventory, upright blocks."""
+
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from drake_symplan.perception import segmentation as seg
+from drake_symplan.perception import tracking
+from drake_symplan.perception.box_fitting import FittedBox, upright_blocks
+from drake_symplan.perception.evaluation import compare
+from drake_symplan.perception.perceive import Perceiver
+from drake_symplan.world.cameras import default_cameras
+from drake_symplan.world.scenes import ObjectSpec, Scene
+from drake_symplan.world.station import Station, StationConfig
+
+I3 = np.eye(3)
+
+
+def cube_surface_points(centre, step=0.004):
+    """Points on the top and the four sides of an axis-aligned 5 cm cube."""
+    g = np.arange(-0.025, 0.0251, step)
+    a, b = np.meshgrid(g, g)
+    a, b = a.ravel(), b.ravel()
+    faces = [np.column_stack([a, b, np.full_like(a, 0.025)])]
+    for sign in (-1, 1):
+        faces.append(np.column_stack([np.full_like(a, 0.025 * sign), a, b]))
+        faces.append(np.column_stack([a, np.full_like(a, 0.025 * sign), b]))
+    return np.vstack(faces) + centre
+
+
+def test_a_box_is_anchored_where_the_data_still_shows_it():
+    box = FittedBox("cube", np.array([0.7, 0.0, 0.025]), I3)
+    points = seg.crop(cube_surface_points(box.center))
+    assert tracking.consistent_with(box, seg.height_map(points))
+
+
+def test_a_box_held_above_its_old_place_is_not_anchored_there():
+    old = FittedBox("cube", np.array([0.7, 0.0, 0.025]), I3)
+    held = seg.crop(cube_surface_points(np.array([0.7, 0.0, 0.225])))
+    # Its old top is hidden under the held box, but none of its own surface is seen.
+    assert not tracking.consistent_with(old, seg.height_map(held))
+
+
+def test_a_box_moved_away_is_not_anchored():
+    old = FittedBox("cube", np.array([0.7, 0.0, 0.025]), I3)
+    moved = seg.crop(cube_surface_points(np.array([0.7, 0.04, 0.025])))
+    assert not tracking.consistent_with(old, seg.height_map(moved))
+
+
+def test_surplus_fits_beyond_the_inventory_go_least_supported_first():
+    anchored = [FittedBox("long", np.zeros(3), I3, points=900)]
+    new = [FittedBox("cube", np.zeros(3), I3, points=50),
+           FittedBox("cube", np.ones(3), I3, points=400),
+           FittedBox("cube", np.full(3, 2.0), I3, uncertain=True, points=1000)]
+    kept = tracking.keep_inventory(anchored, new, Counter({"long": 1, "cube": 1}))
+    assert kept == [new[1]]
+
+
+def test_five_stacked_cubes_are_one_upright_block():
+    column = [FittedBox("cube", np.array([0.7, 0.1, 0.025 + 0.05 * k]), I3, points=100)
+              for k in range(5)]
+    other = FittedBox("cube", np.array([0.5, 0.0, 0.025]), I3, points=100)
+    out = upright_blocks([other, *column])
+    assert len(out) == 2 and out[0] is other
+    block = out[1]
+    assert block.type == "long"
+    np.testing.assert_allclose(block.center, [0.7, 0.1, 0.125], atol=1e-9)
+    np.testing.assert_allclose(np.abs(block.R[:, 1]), [0, 0, 1], atol=1e-9)  # long axis up
+    assert upright_blocks(column[:4]) == column[:4]  # a tower of four stays a tower
+
+
+@pytest.fixture(scope="module")
+def camera_station():
+    return Station(StationConfig(cameras=default_cameras()))
+
+
+def _perceive(station, objects, prior=None):
+    station.reset(Scene([ObjectSpec(n, t, list(p), 0.0) for n, t, p in objects]))
+    station.settle(0.3)
+    perceived = Perceiver().perceive(station, prior=prior)
+    return perceived, compare(perceived, station.object_states(), station.contact_graph())
+
+
+@pytest.mark.parametrize("cube_y, long_y", [(0.15, 0.0), (-0.1, 0.05)])
+def test_a_cube_put_at_a_blocks_end_is_told_apart_with_the_prior(camera_station, cube_y,
+                                                                  long_y):
+    # Before: the cube stands apart. After: it touches the block's end, and from above
+    # the two make one 30 cm strip; the block that did not move decides the layout.
+    before, _ = _perceive(camera_station, [("a", "long", (0.7, long_y, 0.025)),
+                                           ("b", "cube", (0.55, 0.35, 0.025))])
+    after, report = _perceive(camera_station, [("a", "long", (0.7, long_y, 0.025)),
+                                               ("b", "cube", (0.7, cube_y, 0.025))], before)
+    assert report["count_ok"] and report["missed"] == 0, [o.to_json() for o in after.objects]
+    assert all(e["type_ok"] and e["position_mm"] < 5.0 for e in report["errors"].values()), \
+        report["errors"]
+    assert report["contacts_ok"]
