@@ -77,6 +77,7 @@ def bench_association(station, perceiver, n: int, seed: int) -> dict:
     rng = np.random.default_rng(seed + 1)
     planner = PickPlacePlanner()
     correct, total, skipped, left_view = 0, 0, 0, 0
+    failures = []
     with tqdm(total=n, desc="transitions") as bar:
         while total < n:
             scene = sample_structured_scene(rng, int(rng.integers(2, 5)))
@@ -103,10 +104,20 @@ def bench_association(station, perceiver, n: int, seed: int) -> dict:
             mapping = associate(before, after, action)
             ok = all(truth_after.get(mapping.get(b)) == g for b, g in truth_before.items())
             correct += ok
+            if not ok:
+                failures.append({
+                    "action": str(action),
+                    "before": {o.name: [o.type, *np.round(o.position, 3).tolist()]
+                               for o in before.objects},
+                    "after": {o.name: [o.type, *np.round(o.position, 3).tolist()]
+                              for o in after.objects},
+                    "mapping": mapping, "truth_before": truth_before,
+                    "truth_after": truth_after})
             total += 1
             bar.update(1)
     return {"transitions": total, "correct_fraction": correct / total,
-            "skipped_infeasible": skipped, "object_left_workspace": left_view}
+            "skipped_infeasible": skipped, "object_left_workspace": left_view,
+            "failures": failures}
 
 
 def _in_view(p) -> bool:
@@ -133,16 +144,18 @@ def main() -> None:
         "cameras": [c.name for c in station.config.cameras],
         "noise": {"sigma": args.noise, "dropout": args.dropout},
         "cpu_threads_env": os.environ.get("LP_NUM_THREADS"),
-        "scenes": bench_scenes(station, perceiver, args.scenes, args.seed,
-                               DepthNoise(args.noise, args.dropout)),
     }
+    if args.scenes:
+        result["scenes"] = bench_scenes(station, perceiver, args.scenes, args.seed,
+                                        DepthNoise(args.noise, args.dropout))
     if args.transitions:
         result["association"] = bench_association(station, perceiver, args.transitions,
                                                   args.seed)
     with open(args.out, "w") as f:
         json.dump(result, f, indent=2)
     print(json.dumps(result, indent=2) if args.json else
-          json.dumps({k: v for k, v in result["scenes"].items() if k != "failures"}))
+          json.dumps({part: {k: v for k, v in result[part].items() if k != "failures"}
+                      for part in ("scenes", "association") if part in result}))
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ class FittedBox:
     R: np.ndarray  # 3x3, columns: box x, y (long axis), z in world
     uncertain: bool = False
     points: int = 0  # how many points support it
+    from_side: bool = False  # fitted to side faces only (its top is hidden)
 
     @property
     def yaw(self) -> float:
@@ -198,12 +199,47 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
                 boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "long",
                                            fracs.max() < 0.97, npts))
                 continue
+        if length <= 0.075 and prior:
+            # A short piece may be the visible end of a block the prior knows, now mostly
+            # under something put on it.
+            block = _prior_block_through(origin + u_dir * (u_lo + u_hi) / 2, n, prior, hm,
+                                         occupied, npts)
+            if block is not None:
+                boxes.append(block)
+                continue
         count = max(1, int(round(length / SIDE)))
         for j in range(count):
             centre_u = u_lo + length * (j + 0.5) / count
             boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "cube",
                                        length < 0.035, npts // count))
     return boxes
+
+
+def _prior_block_through(piece: np.ndarray, n: np.ndarray, prior: Sequence[FittedBox],
+                         hm: HeightMap, occupied: Sequence[FittedBox], npts: int
+                         ) -> FittedBox | None:
+    """A long block along a nearby prior block's axis that covers the visible `piece`
+    (a point on its top) and is hidden everywhere else, placed nearest the prior one."""
+    best = None
+    for p in prior:
+        if p.type != "long" or np.linalg.norm(p.center[:2] - piece[:2]) > LONG / 2 + 0.03:
+            continue
+        d = p.R[:, 1] - (p.R[:, 1] @ n) * n
+        if np.linalg.norm(d) < 0.5:  # the prior block stood on its end
+            continue
+        d /= np.linalg.norm(d)
+        for t in np.linspace(-LONG / 2 + SIDE / 2, LONG / 2 - SIDE / 2, 21):
+            centre = piece + t * d
+            samples = centre + np.outer(np.linspace(-LONG / 2 + 0.01, LONG / 2 - 0.01, 24), d)
+            if _hidden_fraction(hm, samples, occupied) < 0.9:
+                continue
+            top_prior = p.center + n * HALF_EXTENTS["long"][2]
+            dist = float(np.linalg.norm(centre - top_prior))
+            if dist < 0.05 and (best is None or dist < best[0]):
+                best = (dist, centre, d)
+    if best is None:
+        return None
+    return _box_from_top(best[1], n, best[2], "long", True, npts)
 
 
 def _distance_to(layout: list[FittedBox], prior: Sequence[FittedBox]) -> float:
@@ -309,8 +345,10 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         y_dir = np.array([*axes_k[1], 0.0])
         n = np.array([0.0, 0.0, 1.0])
         z_top = top if top is not None else max(SIDE, SIDE * round(pts[:, 2].max() / SIDE))
-        out.append(_box_from_top(np.array([xy[0], xy[1], z_top]), n, y_dir, kind, uncertain,
-                                 len(pts)))
+        box = _box_from_top(np.array([xy[0], xy[1], z_top]), n, y_dir, kind, uncertain,
+                            len(pts))
+        box.from_side = True
+        out.append(box)
     return out
 
 

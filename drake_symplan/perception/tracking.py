@@ -63,8 +63,10 @@ def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
            ) -> list[FittedBox]:
     """The prior boxes the data still supports, each replaced by its fresh fit if any.
 
-    A confident fresh fit of another box through the prior box's centre vetoes it: its
-    top face is then explained by that box (a block put down where a cube stood)."""
+    A confident fresh fit of another box, seen from above, through the prior box's centre
+    vetoes it: its top face is then explained by that box (a block put down where a cube
+    stood). Boxes fitted to side faces only do not veto: that is what hidden anchors
+    look like."""
     out = []
     for box in prior:
         if not consistent_with(box, hm):
@@ -72,7 +74,7 @@ def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
         match = [b for b in fresh if _same_box(b, box)]
         if match:
             out.append(max(match, key=lambda b: b.points))
-        elif not any(not b.uncertain and (b.contains(box.center[None], -0.005)[0]
+        elif not any(not b.uncertain and not b.from_side and (b.contains(box.center[None], -0.005)[0]
                                           or box.contains(b.center[None], -0.005)[0])
                      for b in fresh):
             out.append(box)
