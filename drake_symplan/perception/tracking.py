@@ -22,7 +22,8 @@ ANCHOR_TOL = 0.008  # m: a top-face sample is contradicted if seen lower than th
 MAX_CONTRADICTED = 0.05  # fraction of top-face samples; ~5 mm of drift for a cube
 REFINE_DISTANCE = 0.015  # m: a fresh fit this close (same type, same yaw) refines an anchor
 REFINE_ANGLE = np.radians(8.0)
-MIN_OWN_POINTS = 30  # points on an anchored box's own surface
+MIN_TOP_SEEN = 0.2  # fraction of top-face samples seen at the box's height
+MIN_OWN_POINTS = 30  # else: side points only this box explains
 POINT_MARGIN = 0.006  # m: points this close to an anchored box are its own
 
 
@@ -40,15 +41,22 @@ def top_face_samples(box: FittedBox, inset: float = 0.004, step: float = 0.01) -
     return box.center + local @ box.R.T
 
 
-def consistent_with(box: FittedBox, hm: seg.HeightMap) -> bool:
-    """Does the depth data still support `box` where it was? Some of its surface must be
-    seen (a box held right above its old place hides that place without being there)."""
-    if box.contains(hm.points, 0.003).sum() < MIN_OWN_POINTS:
-        return False
+def consistent_with(box: FittedBox, hm: seg.HeightMap, others: list[FittedBox] = ()) -> bool:
+    """Does the depth data still support `box` where it was? Almost none of its top face
+    may be contradicted, and some of the box must be seen: part of its top at its height,
+    or points on its sides that no other prior box (`others`) can claim. A box held right
+    above its old place hides that place without being there."""
     s = top_face_samples(box)
     seen = hm.lookup(s[:, :2])
     contradicted = hm.inside(s[:, :2]) & (np.isnan(seen) | (seen < s[:, 2] - ANCHOR_TOL))
-    return bool(contradicted.mean() <= MAX_CONTRADICTED)
+    if contradicted.mean() > MAX_CONTRADICTED:
+        return False
+    if np.mean(np.abs(seen - s[:, 2]) < ANCHOR_TOL) >= MIN_TOP_SEEN:
+        return True
+    own = box.contains(hm.points, 0.003)
+    for other in others:
+        own[own] &= ~other.contains(hm.points[own], 0.003)
+    return bool(own.sum() >= MIN_OWN_POINTS)
 
 
 def _same_box(a: FittedBox, b: FittedBox) -> bool:
@@ -69,7 +77,7 @@ def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
     look like."""
     out = []
     for box in prior:
-        if not consistent_with(box, hm):
+        if not consistent_with(box, hm, [b for b in prior if b is not box]):
             continue
         match = [b for b in fresh if _same_box(b, box)]
         if match:
