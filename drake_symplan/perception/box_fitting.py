@@ -1,7 +1,7 @@
 """Fit the known box models (5 cm cube, 5x25x5 cm long block) to surfaces and leftover points.
 
-Each visible top surface is explained by one or more boxes: a minimum-area rectangle gives
-its axes and extents; a 25 cm extent is a long block, a 5 cm square a cube, and anything in
+`fit_boxes` is the bottom-up fit. Each visible top surface is explained by one or more
+boxes: a minimum-area rectangle gives its axes and extents; a 25 cm extent is a long block, a 5 cm square a cube, and anything in
 between is a long block only if the rest of its length is hidden under something higher
 (else a row of touching cubes). Boxes whose bottoms float with nothing fitted under them
 are supported by objects seen only from the side (a cube under a bridge): those are fitted
@@ -17,7 +17,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import ConvexHull, QhullError
 
-from drake_symplan.perception.segmentation import CELL, HeightMap, Surface
+from drake_symplan.perception.segmentation import CELL, HeightMap, Surface, find_surfaces
 from drake_symplan.world.scenes import HALF_EXTENTS
 
 SIDE = 0.05
@@ -113,6 +113,27 @@ def _hidden_fraction(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[FittedB
     return float(1.0 - contradicted.mean())
 
 
+def _block_hidden_fraction(hm: HeightMap, top_centre: np.ndarray, d: np.ndarray,
+                           occupied: Sequence[FittedBox]) -> float:
+    """`_hidden_fraction` along the top centre line of a long block with axis `d`."""
+    samples = np.linspace(-LONG / 2 + 0.01, LONG / 2 - 0.01, 24)
+    return _hidden_fraction(hm, top_centre + np.outer(samples, d), occupied)
+
+
+def fit_boxes(points: np.ndarray, hm: HeightMap, known: list[FittedBox] = (),
+              surfaces_from: HeightMap | None = None, prior: list[FittedBox] = ()
+              ) -> list[FittedBox]:
+    """Boxes for `points`: one or more per visible top surface (found in `surfaces_from`,
+    default `hm`), then supports seen only from the side. `known` boxes are already
+    placed: their space is taken and they need no new support. `prior`: the boxes before
+    the action, for layouts that look alike from above."""
+    boxes: list[FittedBox] = []
+    for surface in find_surfaces(surfaces_from or hm):
+        boxes.extend(boxes_from_surface(surface, hm, known, prior))
+    boxes = suppress_duplicates(boxes)
+    return upright_blocks(boxes + hidden_supports([*known, *boxes], points))
+
+
 def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[FittedBox] = (),
                        prior: Sequence[FittedBox] = ()) -> list[FittedBox]:
     """The boxes whose top faces make up `surface`; `occupied`: boxes already known, whose
@@ -179,12 +200,8 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
             # Could be a long block partly hidden under something, or touching cubes:
             # slide a 25 cm block over every placement that covers what is seen.
             centres = np.linspace(u_hi - LONG / 2, u_lo + LONG / 2, 21)
-            fracs = []
-            for centre_u in centres:
-                samples = np.linspace(centre_u - LONG / 2 + 0.01, centre_u + LONG / 2 - 0.01, 24)
-                fracs.append(_hidden_fraction(hm, origin + np.outer(samples, u_dir),
-                                              occupied))
-            fracs = np.array(fracs)
+            fracs = np.array([_block_hidden_fraction(hm, origin + u_dir * c, u_dir, occupied)
+                              for c in centres])
             if fracs.max() > 0.9:
                 good = centres[fracs >= fracs.max() - 1e-9]
                 centre_u = (good.min() + good.max()) / 2
@@ -230,8 +247,7 @@ def _prior_block_through(piece: np.ndarray, n: np.ndarray, prior: Sequence[Fitte
         d /= np.linalg.norm(d)
         for t in np.linspace(-LONG / 2 + SIDE / 2, LONG / 2 - SIDE / 2, 21):
             centre = piece + t * d
-            samples = centre + np.outer(np.linspace(-LONG / 2 + 0.01, LONG / 2 - 0.01, 24), d)
-            if _hidden_fraction(hm, samples, occupied) < 0.9:
+            if _block_hidden_fraction(hm, centre, d, occupied) < 0.9:
                 continue
             top_prior = p.center + n * HALF_EXTENTS["long"][2]
             dist = float(np.linalg.norm(centre - top_prior))

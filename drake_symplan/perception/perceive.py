@@ -14,13 +14,7 @@ import numpy as np
 
 from drake_symplan.perception import segmentation as seg
 from drake_symplan.perception import tracking
-from drake_symplan.perception.box_fitting import (
-    FittedBox,
-    boxes_from_surface,
-    hidden_supports,
-    suppress_duplicates,
-    upright_blocks,
-)
+from drake_symplan.perception.box_fitting import FittedBox, fit_boxes
 from drake_symplan.perception.contacts import contact_graph
 from drake_symplan.perception.features import YAW_SYMMETRY, object_features
 from drake_symplan.structs import ObjectState
@@ -117,7 +111,7 @@ class Perceiver:
             if prior is not None else []
         boxes = fit_boxes(points, hm, prior=old)
         if old:
-            boxes = tracking.track(old, boxes, points, hm, fit_boxes)
+            boxes = tracking.track(old, boxes, points, hm)
         # Stable names by position so a scene always gets the same names.
         boxes.sort(key=lambda b: (round(b.center[0], 2), round(b.center[1], 2), b.center[2]))
         objects = [
@@ -128,20 +122,6 @@ class Perceiver:
         contacts = contact_graph({o.name: (o.position, o.R, np.array(b.half_extents))
                                   for o, b in zip(objects, boxes, strict=True)})
         return PerceivedScene(objects, contacts)
-
-
-def fit_boxes(points: np.ndarray, hm: seg.HeightMap, known: list[FittedBox] = (),
-              surfaces_from: seg.HeightMap | None = None, prior: list[FittedBox] = ()
-              ) -> list[FittedBox]:
-    """Boxes for `points`: one or more per visible top surface (found in `surfaces_from`,
-    default `hm`), then supports seen only from the side. `known` boxes are already
-    placed: their space is taken and they need no new support. `prior`: the boxes before
-    the action, for layouts that look alike from above."""
-    boxes: list[FittedBox] = []
-    for surface in seg.find_surfaces(surfaces_from or hm):
-        boxes.extend(boxes_from_surface(surface, hm, known, prior))
-    boxes = suppress_duplicates(boxes)
-    return upright_blocks(boxes + hidden_supports([*known, *boxes], points))
 
 
 def _fold_yaw(kind: str, yaw: float) -> float:

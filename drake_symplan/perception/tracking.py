@@ -3,10 +3,11 @@
 A pick and place moves a few objects and leaves the rest where they were. An object of the
 prior scene whose old pose the new depth data still supports (some of it is seen, and its
 top face is seen at its height or hidden under something higher, almost nowhere
-contradicted by the table or a lower surface) is kept, refined by a fresh fit of the same box when there is one. The
-points those anchored boxes do not explain are fitted bottom-up, with the anchored boxes'
-space unavailable to hidden parts. A pick and place creates no object, so fits beyond the
-prior's count of a type are surplus and the least supported go. No simulator state is used.
+contradicted by the table or a lower surface) is kept, refined by a fresh fit of the same
+box when there is one. The points those anchored boxes do not explain are fitted
+bottom-up, with the anchored boxes' space unavailable to hidden parts. A pick and place
+creates no object, so fits beyond the prior's count of a type are surplus and the least
+supported go. No simulator state is used.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from collections import Counter
 import numpy as np
 
 from drake_symplan.perception import segmentation as seg
-from drake_symplan.perception.box_fitting import FittedBox
+from drake_symplan.perception.box_fitting import FittedBox, fit_boxes
 
 ANCHOR_TOL = 0.008  # m: a top-face sample is contradicted if seen lower than this
 MAX_CONTRADICTED = 0.05  # fraction of top-face samples; ~5 mm of drift for a cube
@@ -111,22 +112,20 @@ def keep_inventory(anchored: list[FittedBox], new: list[FittedBox], inventory: C
 
 
 def track(prior: list[FittedBox], fresh: list[FittedBox], points: np.ndarray,
-          hm: seg.HeightMap, fit) -> list[FittedBox]:
-    """The boxes after an action, given the boxes before it and a fresh fit of `points`.
+          hm: seg.HeightMap) -> list[FittedBox]:
+    """The boxes after an action, given the boxes before it and a fresh (bottom-up) fit
+    of `points`.
 
-    `fit(points, hm, known, surfaces_from, prior)` is the bottom-up fit. The tracked hypothesis
-    (anchors + a fit of the rest) wins if it keeps the prior's inventory of types; else
-    the fresh fit if that does; else the fresh fit too (nothing trimmed: a held object
-    cut up by the robot's self-filter is better left in pieces for association)."""
+    The tracked hypothesis (anchors + a fit of the rest) wins if it keeps the prior's
+    inventory of types; else the fresh fit (nothing trimmed: a held object cut up by the
+    robot's self-filter is better left in pieces for association)."""
     anchored = anchor(prior, fresh, hm)
     inventory = Counter(b.type for b in prior)
     if Counter(b.type for b in fresh) == inventory and all(
             any(a is b for b in fresh) for a in anchored):
         return fresh  # the fresh fit agrees with the prior everywhere it is anchored
     rest = unexplained(points, anchored)
-    new = keep_inventory(anchored, fit(rest, hm, anchored, seg.height_map(rest), prior),
+    new = keep_inventory(anchored, fit_boxes(rest, hm, anchored, seg.height_map(rest), prior),
                          inventory)
     tracked = anchored + new
-    if Counter(b.type for b in tracked) == inventory:
-        return tracked
-    return fresh
+    return tracked if Counter(b.type for b in tracked) == inventory else fresh

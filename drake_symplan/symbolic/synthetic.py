@@ -154,14 +154,7 @@ def random_transitions(
     """
     rng = np.random.default_rng(seed)
     n_max = max_objects
-    out = {
-        "unary": np.zeros((n_transitions, n_max, N_UNARY), np.uint8),
-        "relational": np.zeros((n_transitions, N_RELATIONS, n_max, n_max), np.uint8),
-        "action": np.zeros((n_transitions, n_max, ACTION_DIM), np.float32),
-        "mask": np.zeros((n_transitions, n_max), bool),
-    }
-    out["next_unary"] = np.zeros_like(out["unary"])
-    out["next_relational"] = np.zeros_like(out["relational"])
+    out = _empty_dataset(n_transitions, n_max, N_UNARY, N_RELATIONS)
     world = None
     for i in range(n_transitions):
         if i % episode_length == 0:
@@ -225,13 +218,8 @@ class Row:
     next_rel: frozenset | set | None = None
 
 
-def dataset_from_rows(
-    rows: list[Row], n_relations: int = N_RELATIONS, max_objects: int | None = None
-) -> dict:
-    """A symbolic data set (the read-out contract) from hand-written transitions."""
-    n_max = max_objects or max(len(r.unary) for r in rows)
-    n_unary = len(np.atleast_1d(rows[0].unary[0]))
-    t = len(rows)
+def _empty_dataset(t: int, n_max: int, n_unary: int, n_relations: int) -> dict:
+    """Zeroed arrays of the symbolic read-out contract for `t` transitions."""
     out = {
         "unary": np.zeros((t, n_max, n_unary), np.uint8),
         "relational": np.zeros((t, n_relations, n_max, n_max), np.uint8),
@@ -240,6 +228,16 @@ def dataset_from_rows(
     }
     out["next_unary"] = np.zeros_like(out["unary"])
     out["next_relational"] = np.zeros_like(out["relational"])
+    return out
+
+
+def dataset_from_rows(
+    rows: list[Row], n_relations: int = N_RELATIONS, max_objects: int | None = None
+) -> dict:
+    """A symbolic data set (the read-out contract) from hand-written transitions."""
+    n_max = max_objects or max(len(r.unary) for r in rows)
+    n_unary = len(np.atleast_1d(rows[0].unary[0]))
+    out = _empty_dataset(len(rows), n_max, n_unary, n_relations)
     for i, row in enumerate(rows):
         n = len(row.unary)
         out["mask"][i, :n] = True
