@@ -68,7 +68,10 @@ def read_checkpoint(path: str | Path) -> dict:
 
 
 def model_from_checkpoint(ckpt: dict) -> EffectModel:
-    model = build_model(ckpt["model"], **ckpt["model_config"])
+    config = dict(ckpt["model_config"])
+    if ckpt["model"] == "relational":
+        config.setdefault("own_message", False)  # checkpoints from before the option
+    model = build_model(ckpt["model"], **config)
     model.load_state_dict(ckpt["model_state"])
     return model
 
