@@ -158,3 +158,19 @@ def test_training_mode_gradients_reach_every_parameter(name):
 def test_unknown_model_name():
     with pytest.raises(ValueError, match="unknown model"):
         build_model("transformer", state_dim=D)
+
+
+@torch.no_grad()
+def test_relational_checkpoint_from_before_own_message_loads_unchanged():
+    from drake_symplan.learning.checkpoint import model_from_checkpoint
+
+    torch.manual_seed(0)
+    old = build_model("relational", state_dim=D, own_message=False).eval()
+    config = old.config()
+    del config["own_message"]  # what checkpoints written before the option hold
+    ckpt = {"model": "relational", "model_config": config, "model_state": old.state_dict()}
+    loaded = model_from_checkpoint(ckpt).eval()
+    assert loaded.own_message is False
+    state, action, mask = _batch()
+    torch.testing.assert_close(loaded(state, action, mask), old(state, action, mask))
+    assert build_model("relational", state_dim=D).own_message  # the default
