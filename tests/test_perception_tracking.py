@@ -32,20 +32,38 @@ def cube_surface_points(centre, step=0.004):
 def test_a_box_is_anchored_where_the_data_still_shows_it():
     box = FittedBox("cube", np.array([0.7, 0.0, 0.025]), I3)
     points = seg.crop(cube_surface_points(box.center))
-    assert tracking.consistent_with(box, seg.height_map(points))
+    assert tracking.supported(box, seg.height_map(points)) is box
 
 
 def test_a_box_held_above_its_old_place_is_not_anchored_there():
     old = FittedBox("cube", np.array([0.7, 0.0, 0.025]), I3)
     held = seg.crop(cube_surface_points(np.array([0.7, 0.0, 0.225])))
     # Its old top is hidden under the held box, but none of its own surface is seen.
-    assert not tracking.consistent_with(old, seg.height_map(held))
+    assert tracking.supported(old, seg.height_map(held)) is None
 
 
 def test_a_box_moved_away_is_not_anchored():
     old = FittedBox("cube", np.array([0.7, 0.0, 0.025]), I3)
     moved = seg.crop(cube_surface_points(np.array([0.7, 0.04, 0.025])))
-    assert not tracking.consistent_with(old, seg.height_map(moved))
+    assert tracking.supported(old, seg.height_map(moved)) is None
+
+
+def test_a_box_pushed_a_little_is_anchored_where_it_went():
+    old = FittedBox("cube", np.array([0.7, 0.0, 0.025]), I3)
+    pushed = seg.crop(cube_surface_points(np.array([0.707, 0.0, 0.025])))
+    found = tracking.supported(old, seg.height_map(pushed))
+    assert found is not None
+    assert abs(found.center[0] - 0.707) <= 0.0025 and found.center[1] == 0.0
+
+
+def test_a_cube_sized_piece_of_a_prior_block_does_not_veto_it():
+    block = FittedBox("long", np.array([0.6, 0.25, 0.025]), I3)
+    end_piece = FittedBox("cube", np.array([0.6, 0.35, 0.025]), I3, points=300)
+    elsewhere = FittedBox("cube", np.array([0.6, 0.40, 0.025]), I3, points=300)
+    assert not tracking._vetoes(end_piece, block)
+    assert tracking._vetoes(FittedBox("long", block.center, I3, points=300),
+                            FittedBox("cube", block.center, I3))
+    assert not tracking._vetoes(elsewhere, block)
 
 
 def test_surplus_fits_beyond_the_inventory_go_least_supported_first():

@@ -1,10 +1,10 @@
 """Perception with a prior: the scene perceived before an action anchors the fit after it.
 
 A pick and place moves a few objects and leaves the rest where they were. An object of the
-prior scene whose old pose the new depth data still supports (some of it is seen, and its
-top face is seen at its height or hidden under something higher, almost nowhere
-contradicted by the table or a lower surface) is kept, refined by a fresh fit of the same
-box when there is one. The points those anchored boxes do not explain are fitted
+prior scene whose old pose, or one nudged by up to 1 cm, the new depth data still supports
+(some of it is seen, and its top face is seen at its height or hidden under something
+higher, almost nowhere contradicted by the table or a lower surface) is kept, refined by a
+fresh fit of the same box when there is one. The points those anchored boxes do not explain are fitted
 bottom-up, with the anchored boxes' space unavailable to hidden parts. A pick and place
 creates no object, so fits beyond the prior's count of a type are surplus and the least
 supported go. No simulator state is used.
@@ -12,6 +12,7 @@ supported go. No simulator state is used.
 
 from __future__ import annotations
 
+import dataclasses as dc
 from collections import Counter
 
 import numpy as np
@@ -25,6 +26,10 @@ REFINE_DISTANCE = 0.015  # m: a fresh fit this close (same type, same yaw) refin
 REFINE_ANGLE = np.radians(8.0)
 MIN_TOP_SEEN = 0.2  # fraction of top-face samples seen at the box's height
 MIN_OWN_POINTS = 30  # else: side points only this box explains
+NUDGE, NUDGE_STEP = 0.01, 0.005  # m: how far a prior box may have been pushed in x, y
+_steps = np.arange(-NUDGE, NUDGE + 1e-9, NUDGE_STEP)
+_NUDGES = sorted((np.array([x, y, 0.0]) for x in _steps for y in _steps),
+                 key=lambda d: (float(np.linalg.norm(d)), tuple(d)))  # smallest first
 POINT_MARGIN = 0.006  # m: points this close to an anchored box are its own
 
 
@@ -42,22 +47,28 @@ def top_face_samples(box: FittedBox, inset: float = 0.004, step: float = 0.01) -
     return box.center + local @ box.R.T
 
 
-def consistent_with(box: FittedBox, hm: seg.HeightMap, others: list[FittedBox] = ()) -> bool:
-    """Does the depth data still support `box` where it was? Almost none of its top face
-    may be contradicted, and some of the box must be seen: part of its top at its height,
-    or points on its sides that no other prior box (`others`) can claim. A box held right
-    above its old place hides that place without being there."""
-    s = top_face_samples(box)
-    seen = hm.lookup(s[:, :2])
-    contradicted = hm.inside(s[:, :2]) & (np.isnan(seen) | (seen < s[:, 2] - ANCHOR_TOL))
-    if contradicted.mean() > MAX_CONTRADICTED:
-        return False
+def supported(box: FittedBox, hm: seg.HeightMap, others: list[FittedBox] = ()
+              ) -> FittedBox | None:
+    """`box` where the depth data still supports it, or None. Almost none of its top face
+    may be contradicted, where it was or nudged by up to NUDGE (a placement pushes what it
+    lands on), and some of the box must be seen: part of its top at its height, or points
+    on its sides that no other prior box (`others`) can claim. A box held right above its
+    old place hides that place without being there."""
+    for shift in _NUDGES:
+        moved = dc.replace(box, center=box.center + shift) if shift.any() else box
+        s = top_face_samples(moved)
+        seen = hm.lookup(s[:, :2])
+        contradicted = hm.inside(s[:, :2]) & (np.isnan(seen) | (seen < s[:, 2] - ANCHOR_TOL))
+        if contradicted.mean() <= MAX_CONTRADICTED:
+            break
+    else:
+        return None
     if np.mean(np.abs(seen - s[:, 2]) < ANCHOR_TOL) >= MIN_TOP_SEEN:
-        return True
-    own = box.contains(hm.points, 0.003)
+        return moved
+    own = moved.contains(hm.points, 0.003)
     for other in others:
         own[own] &= ~other.contains(hm.points[own], 0.003)
-    return bool(own.sum() >= MIN_OWN_POINTS)
+    return moved if own.sum() >= MIN_OWN_POINTS else None
 
 
 def _same_box(a: FittedBox, b: FittedBox) -> bool:
@@ -72,22 +83,39 @@ def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
            ) -> list[FittedBox]:
     """The prior boxes the data still supports, each replaced by its fresh fit if any.
 
-    A confident fresh fit of another box, seen from above, through the prior box's centre
-    vetoes it: its top face is then explained by that box (a block put down where a cube
-    stood). Boxes fitted to side faces only do not veto: that is what hidden anchors
-    look like."""
+    A confident fresh fit of another box seen from above through the prior box's centre
+    vetoes it (`_vetoes`): its top face is then explained by that box (a block put down
+    where a cube stood). Boxes fitted to side faces only do not veto: that is what hidden
+    anchors look like."""
     out = []
     for box in prior:
-        if not consistent_with(box, hm, [b for b in prior if b is not box]):
+        box = supported(box, hm, [b for b in prior if b is not box])
+        if box is None:
             continue
         match = [b for b in fresh if _same_box(b, box)]
         if match:
             out.append(max(match, key=lambda b: b.points))
-        elif not any(not b.uncertain and not b.from_side and (b.contains(box.center[None], -0.005)[0]
-                                          or box.contains(b.center[None], -0.005)[0])
-                     for b in fresh):
+        elif not any(_vetoes(b, box) for b in fresh):
             out.append(box)
     return out
+
+
+def _vetoes(fit: FittedBox, box: FittedBox) -> bool:
+    """Does the fresh `fit` say that prior `box` is gone? It must be confident, seen from
+    above, and overlap the box's centre, but not be a piece of the box: a cube-sized fit
+    wholly inside a prior block is the visible end of that block (the rest hidden under
+    something put on it), not another object."""
+    if fit.uncertain or fit.from_side:
+        return False
+    if fit.contains(box.center[None], -0.005)[0]:
+        return True
+    return bool(box.contains(fit.center[None], -0.005)[0]) and not _piece_of(fit, box)
+
+
+def _piece_of(fit: FittedBox, box: FittedBox, margin: float = 0.01) -> bool:
+    if fit.type != "cube" or box.type != "long":
+        return False
+    return bool(box.contains(fit.corners(), margin).all())
 
 
 def unexplained(points: np.ndarray, boxes: list[FittedBox]) -> np.ndarray:
