@@ -106,8 +106,7 @@ def _hidden_fraction(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[FittedB
     something higher; the rest are contradicted (the table or a lower surface is seen
     there: the table is not in the map, so an empty cell counts as the table; or the
     space is taken by an `occupied` box). Beyond the map's edge nothing is known."""
-    seen = hm.lookup(pts3[:, :2])
-    contradicted = hm.inside(pts3[:, :2]) & (np.isnan(seen) | (seen < pts3[:, 2] - 0.01))
+    contradicted = hm.contradicts(pts3, 0.01)
     for box in occupied:
         contradicted |= box.contains(pts3, 0.002)
     return float(1.0 - contradicted.mean())

@@ -54,6 +54,12 @@ class HeightMap:
         nx, ny = self.height.shape
         return (idx[:, 0] >= 0) & (idx[:, 0] < nx) & (idx[:, 1] >= 0) & (idx[:, 1] < ny)
 
+    def contradicts(self, pts3: np.ndarray, tol: float) -> np.ndarray:
+        """Which world points [N, 3] the map rules out: on the map, with nothing seen there
+        (the table is not in the map) or only a surface more than `tol` below them."""
+        seen = self.lookup(pts3[:, :2])
+        return self.inside(pts3[:, :2]) & (np.isnan(seen) | (seen < pts3[:, 2] - tol))
+
     def lookup(self, xy: np.ndarray) -> np.ndarray:
         """Height at world xy [N, 2]; NaN outside the map or where nothing was seen."""
         idx = self.cell_index(xy)

@@ -54,16 +54,15 @@ def supported(box: FittedBox, hm: seg.HeightMap, others: list[FittedBox] = ()
     lands on), and some of the box must be seen: part of its top at its height, or points
     on its sides that no other prior box (`others`) can claim. A box held right above its
     old place hides that place without being there."""
+    top = top_face_samples(box)
     for shift in _NUDGES:
-        moved = dc.replace(box, center=box.center + shift) if shift.any() else box
-        s = top_face_samples(moved)
-        seen = hm.lookup(s[:, :2])
-        contradicted = hm.inside(s[:, :2]) & (np.isnan(seen) | (seen < s[:, 2] - ANCHOR_TOL))
-        if contradicted.mean() <= MAX_CONTRADICTED:
+        if hm.contradicts(top + shift, ANCHOR_TOL).mean() <= MAX_CONTRADICTED:
             break
     else:
         return None
-    if np.mean(np.abs(seen - s[:, 2]) < ANCHOR_TOL) >= MIN_TOP_SEEN:
+    moved = dc.replace(box, center=box.center + shift) if shift.any() else box
+    s = top + shift
+    if np.mean(np.abs(hm.lookup(s[:, :2]) - s[:, 2]) < ANCHOR_TOL) >= MIN_TOP_SEEN:
         return moved
     own = moved.contains(hm.points, 0.003)
     for other in others:
