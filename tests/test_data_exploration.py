@@ -121,7 +121,7 @@ def test_pack_pads_with_mask_and_stats_read_the_shards(tmp_path):
     for c, ks in enumerate(([2, 3, 2], [4, 2])):
         arrays, extra = pack(_transitions(ks, episode0=10 * c))
         info = {"executed_outcomes": {"no_effect": 2, "fell_off": 1}, "episode_ends":
-                {"length": 1, "perception_lost_object": 1}, "skipped_transitions": {},
+                {"length": 1, "perception_unrecovered": 1}, "skipped_transitions": {},
                 "infeasible_actions": 0, "seconds": 1.0}
         storage.write_shard(tmp_path, c, arrays, extra={**extra, "info": np.array(json.dumps(
             info))})
@@ -143,3 +143,50 @@ def test_chunks_sum_to_exactly_n():
     assert [config.chunk_count(c) for c in range(3)] == [100, 100, 50]
     with pytest.raises(ValueError, match="objects"):
         CollectConfig(min_objects=1)
+
+
+class ScriptedBackend:
+    """Returns scripted perceived scenes: `perceive()` pops `seen`, `execute` pops `after`."""
+
+    def __init__(self, seen: list, after: list):
+        self.seen, self.after = list(seen), list(after)
+
+    def reset(self, scene):
+        pass
+
+    def perceive(self, prior=None):
+        return self.seen.pop(0)
+
+    def execute(self, action, before):
+        from drake_symplan.data.backends import Execution
+
+        return Execution("ok", before, self.after.pop(0))
+
+    def ground_truth_states(self):
+        return {}  # nothing left the table
+
+
+def cubes(*xs: float):
+    from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
+
+    return PerceivedScene([PerceivedObject(f"p{i}", "cube", np.array([x, 0.0, 0.025]), 0.0,
+                                           0.0, np.zeros(9, np.float32), False, np.eye(3))
+                           for i, x in enumerate(xs)], set())
+
+
+def test_a_misperceived_scene_is_skipped_and_the_episode_goes_on_once_all_are_seen():
+    from drake_symplan.data.exploration import EpisodeConfig, run_episode
+
+    config = EpisodeConfig(min_objects=2, max_objects=2, length=4)
+    two, three = cubes(0.5, 0.7), cubes(0.5, 0.6, 0.7)
+    # Action 1 ends in a phantom third box: skipped, track lost. Action 2 is perceived
+    # from scratch and sees both boxes again: skipped (its 'before' was wrong), recovered.
+    backend = ScriptedBackend(seen=[two, two], after=[three, three, two, two])
+    log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
+    assert log.end == "length" and not log.dropped
+    assert [t.step for t in log.transitions] == [2, 3]
+    assert log.skipped == {"perception_count_mismatch": 1, "perception_recovering": 1}
+
+    backend = ScriptedBackend(seen=[two, three, three, three], after=[three] * 4)
+    log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
+    assert log.end == "perception_unrecovered" and log.dropped and not log.transitions

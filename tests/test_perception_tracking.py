@@ -66,6 +66,14 @@ def test_a_cube_sized_piece_of_a_prior_block_does_not_veto_it():
     assert not tracking._vetoes(elsewhere, block)
 
 
+def test_a_block_merged_with_a_touching_cube_does_not_veto_the_block():
+    # A cube put against a block's end: the fresh fit of the 30 cm strip is one block
+    # 2.5 cm off, over the prior block's centre. It is that block, not a new one.
+    block = FittedBox("long", np.array([0.6, 0.25, 0.025]), I3)
+    merged = FittedBox("long", np.array([0.6, 0.225, 0.025]), I3, points=900)
+    assert not tracking._vetoes(merged, block)
+
+
 def test_surplus_fits_beyond_the_inventory_go_least_supported_first():
     anchored = [FittedBox("long", np.zeros(3), I3, points=900)]
     new = [FittedBox("cube", np.zeros(3), I3, points=50),

@@ -17,9 +17,17 @@ robot perceives. Each action is perceived before, at the end of the lift and aft
   lift (e_lift z > LIFT_TOL) and 0 for the others.
 - Outcome class (for statistics and back-end parity, from perceived scenes): see `classify`.
 
+Perception failures: the robot knows how many boxes it put on the table. When the scene
+perceived after an action holds more boxes, or loses one that did not leave the table, the
+action is not recorded (`skipped`, by reason) and the robot has lost track: it goes on
+acting on what it sees, perceiving each new scene from scratch (no prior), and records
+again once it sees every box. Dropping the episode instead would lose the rest of it, and
+bias the data against the cluttered, stacked scenes that late steps build.
+
 Episodes end after `length` actions, when an object leaves the table (or the cameras'
 workspace), or when something fails (the episode is then *dropped*: transitions recorded
-before the failure are kept, each having been checked on its own).
+before the failure are kept, each having been checked on its own). Perception that has not
+recovered by the end of the episode counts as a failure.
 """
 
 from __future__ import annotations
@@ -38,7 +46,7 @@ NO_EFFECT_TOL = 0.01  # m: nothing moved more than this
 LIFT_TOL = 0.05  # m of rise at the end of the lift: the object went up with the hand
 TIP_TOL = np.radians(15.0)  # tilt gained by an object that tipped over
 # Ends of an episode; the DROP_REASONS ones are failures.
-DROP_REASONS = ("sim_failure", "perception_count_mismatch", "perception_lost_object",
+DROP_REASONS = ("sim_failure", "perception_initial_count", "perception_unrecovered",
                 "too_many_infeasible")
 TABLE_X, TABLE_Y = (-0.3, 1.3), (-0.7, 0.7)  # the table top (models/table/table.sdf)
 
@@ -161,9 +169,9 @@ def run_episode(
     backend.reset(sample_scene(rng, n, long_fraction=config.long_fraction))
     before = backend.perceive()
     if len(before.objects) != n:
-        log.end = "perception_count_mismatch"
+        log.end = "perception_initial_count"
         return log
-    step, infeasible_run = 0, 0
+    step, infeasible_run, lost = 0, 0, False
     while step < config.length:
         if len(log.transitions) >= budget:
             log.end = "budget"
@@ -183,18 +191,24 @@ def run_episode(
             return log
         step += 1
         lift, after = result.lift, result.after
+        if lost:
+            after = backend.perceive()  # `before` is wrong: it must not anchor this one
         after_map = associate(before, after, action)
-        if len(after.objects) > len(before.objects):
-            log.end = "perception_count_mismatch"
+        missing = len(after.objects) < n
+        if missing and left_workspace(backend.ground_truth_states()):
+            log.outcomes["fell_off"] += 1
+            log.skipped["left_table"] += 1
+            log.end = "left_table"
             return log
-        if len(after_map) < len(before.objects):
-            if left_workspace(backend.ground_truth_states()):
-                log.outcomes["fell_off"] += 1
-                log.skipped["left_table"] += 1
-                log.end = "left_table"
+        if lost or len(after.objects) != n:
+            if not lost:
+                log.skipped["perception_lost_object" if missing
+                            else "perception_count_mismatch"] += 1
             else:
-                log.end = "perception_lost_object"
-            return log
+                log.skipped["perception_recovering"] += 1
+            lost = len(after.objects) != n
+            before = after
+            continue
         lift_map = associate(before, lift, action) if lift is not before else \
             {k: k for k in before.names}
         outcome = classify(before, lift, after, lift_map, after_map)
@@ -215,4 +229,6 @@ def run_episode(
             if on_transition:
                 on_transition()
         before = after
+    if lost:
+        log.end = "perception_unrecovered"
     return log

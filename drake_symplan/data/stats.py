@@ -6,7 +6,9 @@
 - no_effect_fraction (the peer's random exploration wastes 44 % of its actions);
 - objects_histogram: relevant objects per transition;
 - dropped episodes (ended by a failure) and why, how every episode ended, skipped
-  transitions and unreachable actions.
+  transitions and unreachable actions;
+- perception_failures_per_action: executed actions whose resulting scene perception got
+  wrong (a box too many or lost), which the episode skipped and recovered from.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ import numpy as np
 
 from drake_symplan.data import storage
 from drake_symplan.data.exploration import DROP_REASONS, OUTCOMES
+
+PERCEPTION_FAILURES = ("perception_count_mismatch", "perception_lost_object")
 
 
 def _fractions(counts: Counter, keys) -> dict[str, float]:
@@ -49,6 +53,8 @@ def dataset_stats(data_dir: str | Path) -> dict:
             seconds += info["seconds"]
     num_episodes = sum(ends.values()) or len(episodes)
     dropped = {k: ends[k] for k in DROP_REASONS if ends[k]}
+    failures = sum(skipped[k] for k in PERCEPTION_FAILURES)
+    actions = sum(executed.values()) + failures + skipped["perception_recovering"]
     return {
         "dir": str(data_dir),
         "config": manifest.get("config"),
@@ -67,6 +73,7 @@ def dataset_stats(data_dir: str | Path) -> dict:
         "dropped_reasons": dropped,
         "episode_ends": dict(sorted(ends.items())),
         "skipped_transitions": dict(skipped),
+        "perception_failures_per_action": round(failures / actions, 4) if actions else 0.0,
         "infeasible_actions": infeasible,
         "worker_seconds": round(seconds, 1),
     }
@@ -80,5 +87,7 @@ def format_stats(stats: dict) -> str:
              "objects per transition: " + ", ".join(
                  f"{k}: {v}" for k, v in stats["objects_histogram"].items()),
              f"dropped episodes: {stats['dropped_episodes']} ({stats['dropped_fraction']:.2%}) "
-             f"{stats['dropped_reasons']}"]
+             f"{stats['dropped_reasons']}",
+             f"perception failures per action: {stats['perception_failures_per_action']:.2%} "
+             "(skipped, recovered)"]
     return "\n".join(lines)

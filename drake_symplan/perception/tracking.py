@@ -30,6 +30,7 @@ NUDGE, NUDGE_STEP = 0.01, 0.005  # m: how far a prior box may have been pushed i
 _steps = np.arange(-NUDGE, NUDGE + 1e-9, NUDGE_STEP)
 _NUDGES = sorted((np.array([x, y, 0.0]) for x in _steps for y in _steps),
                  key=lambda d: (float(np.linalg.norm(d)), tuple(d)))  # smallest first
+VETO_DEPTH = 0.02  # m: how far inside a fresh fit a prior box's centre must lie to veto it
 POINT_MARGIN = 0.006  # m: points this close to an anchored box are its own
 
 
@@ -78,8 +79,8 @@ def _same_box(a: FittedBox, b: FittedBox) -> bool:
     return bool(np.min(cos) >= np.cos(REFINE_ANGLE))
 
 
-def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
-           ) -> list[FittedBox]:
+def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap,
+           vetoes: bool = True) -> list[FittedBox]:
     """The prior boxes the data still supports, each replaced by its fresh fit if any.
 
     A confident fresh fit of another box seen from above through the prior box's centre
@@ -94,7 +95,7 @@ def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
         match = [b for b in fresh if _same_box(b, box)]
         if match:
             out.append(max(match, key=lambda b: b.points))
-        elif not any(_vetoes(b, box) for b in fresh):
+        elif not vetoes or not any(_vetoes(b, box) for b in fresh):
             out.append(box)
     return out
 
@@ -103,12 +104,15 @@ def _vetoes(fit: FittedBox, box: FittedBox) -> bool:
     """Does the fresh `fit` say that prior `box` is gone? It must be confident, seen from
     above, and overlap the box's centre, but not be a piece of the box: a cube-sized fit
     wholly inside a prior block is the visible end of that block (the rest hidden under
-    something put on it), not another object."""
-    if fit.uncertain or fit.from_side:
+    something put on it), not another object. Nor does a fit of the box's own type: a pick
+    and place moves one box (and what rides on it) away from its place and onto a target,
+    so no other box of that type ends up where a box still supported by the data stood;
+    such a fit is this box merged with a neighbour (a cube touching a block's end)."""
+    if fit.uncertain or fit.from_side or fit.type == box.type:
         return False
-    if fit.contains(box.center[None], -0.005)[0]:
+    if fit.contains(box.center[None], -VETO_DEPTH)[0]:
         return True
-    return bool(box.contains(fit.center[None], -0.005)[0]) and not _piece_of(fit, box)
+    return bool(box.contains(fit.center[None], -VETO_DEPTH)[0]) and not _piece_of(fit, box)
 
 
 def _piece_of(fit: FittedBox, box: FittedBox, margin: float = 0.01) -> bool:
@@ -143,16 +147,27 @@ def track(prior: list[FittedBox], fresh: list[FittedBox], points: np.ndarray,
     """The boxes after an action, given the boxes before it and a fresh (bottom-up) fit
     of `points`.
 
-    The tracked hypothesis (anchors + a fit of the rest) wins if it keeps the prior's
-    inventory of types; else the fresh fit (nothing trimmed: a held object cut up by the
-    robot's self-filter is better left in pieces for association)."""
-    anchored = anchor(prior, fresh, hm)
+    Hypotheses, in order: the fresh fit if it agrees with the prior everywhere it is
+    anchored; anchors (with vetoes) + a fit of the rest; every supported prior box
+    anchored (a fresh fit that cut touching boxes into wrong pieces vetoes wrongly) + a fit
+    of the rest. The first that keeps the prior's inventory of types wins; else the fresh
+    fit (nothing trimmed: a held object cut up by the robot's self-filter is better left
+    in pieces for association)."""
     inventory = Counter(b.type for b in prior)
+    anchored = anchor(prior, fresh, hm)
     if Counter(b.type for b in fresh) == inventory and all(
             any(a is b for b in fresh) for a in anchored):
         return fresh  # the fresh fit agrees with the prior everywhere it is anchored
-    rest = unexplained(points, anchored)
-    new = keep_inventory(anchored, fit_boxes(rest, hm, anchored, seg.height_map(rest), prior),
-                         inventory)
-    tracked = anchored + new
-    return tracked if Counter(b.type for b in tracked) == inventory else fresh
+    for vetoes in (True, False):
+        if not vetoes:
+            unvetoed = anchor(prior, fresh, hm, vetoes=False)
+            if len(unvetoed) == len(anchored):
+                break  # nothing was vetoed: the same hypothesis
+            anchored = unvetoed
+        rest = unexplained(points, anchored)
+        new = keep_inventory(anchored, fit_boxes(rest, hm, anchored, seg.height_map(rest),
+                                                 prior), inventory)
+        tracked = anchored + new
+        if Counter(b.type for b in tracked) == inventory:
+            return tracked
+    return fresh

@@ -51,6 +51,7 @@ HOME_Q = np.array([-0.4757, -2.1928, 2.4549, -1.8312, -1.5838, -2.0314])
 class StationConfig:
     """Everything that shapes the diagram; loadable with yaml_load_typed."""
 
+    # 5 ms: at 10 ms a cube released 4 mm above another slides ~1 cm off it on landing.
     time_step: float = 5e-3
     contact_model: str = "hydroelastic_with_fallback"
     discrete_contact_approximation: str = "similar"
