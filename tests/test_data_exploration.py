@@ -190,3 +190,9 @@ def test_a_misperceived_scene_is_skipped_and_the_episode_goes_on_once_all_are_se
     backend = ScriptedBackend(seen=[two, three, three, three], after=[three] * 4)
     log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
     assert log.end == "perception_unrecovered" and log.dropped and not log.transitions
+
+    # Lost track and seeing a single box: no action to draw, the episode ends dropped.
+    backend = ScriptedBackend(seen=[two], after=[cubes(0.5)])
+    log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
+    assert log.end == "perception_unrecovered" and log.skipped == {
+        "perception_lost_object": 1}

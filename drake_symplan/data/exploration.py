@@ -176,6 +176,9 @@ def run_episode(
         if len(log.transitions) >= budget:
             log.end = "budget"
             return log
+        if len(before.objects) < 2:  # lost track, and no action to try on what is seen
+            log.end = "perception_unrecovered"
+            return log
         action = random_action(rng, before.names)
         result = backend.execute(action, before)
         if result.status == "infeasible":
