@@ -196,7 +196,6 @@ def run_episode(
         lift, after = result.lift, result.after
         if lost:
             after = backend.perceive()  # `before` is wrong: it must not anchor this one
-        after_map = associate(before, after, action)
         missing = len(after.objects) < n
         if missing and left_workspace(backend.ground_truth_states()):
             log.outcomes["fell_off"] += 1
@@ -204,14 +203,12 @@ def run_episode(
             log.end = "left_table"
             return log
         if lost or len(after.objects) != n:
-            if not lost:
-                log.skipped["perception_lost_object" if missing
-                            else "perception_count_mismatch"] += 1
-            else:
-                log.skipped["perception_recovering"] += 1
+            log.skipped["perception_recovering" if lost else "perception_lost_object"
+                        if missing else "perception_count_mismatch"] += 1
             lost = len(after.objects) != n
             before = after
             continue
+        after_map = associate(before, after, action)
         lift_map = associate(before, lift, action) if lift is not before else \
             {k: k for k in before.names}
         outcome = classify(before, lift, after, lift_map, after_map)

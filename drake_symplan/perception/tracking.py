@@ -79,25 +79,28 @@ def _same_box(a: FittedBox, b: FittedBox) -> bool:
     return bool(np.min(cos) >= np.cos(REFINE_ANGLE))
 
 
-def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap,
-           vetoes: bool = True) -> list[FittedBox]:
-    """The prior boxes the data still supports, each replaced by its fresh fit if any.
+def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
+           ) -> tuple[list[FittedBox], list[FittedBox]]:
+    """The prior boxes the data still supports, each replaced by its fresh fit if any:
+    (those that no fresh fit vetoes, all of them), in prior order.
 
     A confident fresh fit of another box seen from above through the prior box's centre
     vetoes it (`_vetoes`): its top face is then explained by that box (a block put down
     where a cube stood). Boxes fitted to side faces only do not veto: that is what hidden
     anchors look like."""
-    out = []
+    kept, every = [], []
     for box in prior:
         box = supported(box, hm, [b for b in prior if b is not box])
         if box is None:
             continue
         match = [b for b in fresh if _same_box(b, box)]
         if match:
-            out.append(max(match, key=lambda b: b.points))
-        elif not vetoes or not any(_vetoes(b, box) for b in fresh):
-            out.append(box)
-    return out
+            box = max(match, key=lambda b: b.points)
+            kept.append(box)
+        elif not any(_vetoes(b, box) for b in fresh):
+            kept.append(box)
+        every.append(box)
+    return kept, every
 
 
 def _vetoes(fit: FittedBox, box: FittedBox) -> bool:
@@ -154,16 +157,12 @@ def track(prior: list[FittedBox], fresh: list[FittedBox], points: np.ndarray,
     fit (nothing trimmed: a held object cut up by the robot's self-filter is better left
     in pieces for association)."""
     inventory = Counter(b.type for b in prior)
-    anchored = anchor(prior, fresh, hm)
+    anchored, unvetoed = anchor(prior, fresh, hm)
     if Counter(b.type for b in fresh) == inventory and all(
             any(a is b for b in fresh) for a in anchored):
         return fresh  # the fresh fit agrees with the prior everywhere it is anchored
-    for vetoes in (True, False):
-        if not vetoes:
-            unvetoed = anchor(prior, fresh, hm, vetoes=False)
-            if len(unvetoed) == len(anchored):
-                break  # nothing was vetoed: the same hypothesis
-            anchored = unvetoed
+    hypotheses = [anchored] + ([unvetoed] if len(unvetoed) > len(anchored) else [])
+    for anchored in hypotheses:
         rest = unexplained(points, anchored)
         new = keep_inventory(anchored, fit_boxes(rest, hm, anchored, seg.height_map(rest),
                                                  prior), inventory)
