@@ -10,8 +10,9 @@ settle the scene. A box stacked on the held one rides along by friction, as with
 When nothing rests on or leans against the held box (the simulator checks its own contact
 state), carrying it cannot disturb anything: the hand then moves it kinematically (set
 straight to the lift pose, then to the release pose) and only the release and settling
-are simulated, which is most of the back-end's speed. Otherwise the timed carry runs in
-full physics.
+are simulated, which is most of the back-end's speed. Otherwise the lift runs in full
+physics (what it raises rides along), the load then moves rigidly to above the release
+point, and the descent, release and settling run in full physics again.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ REST_TURN = np.radians(0.5)  # and turned less than this
 RELEASE_MIN_CLEARANCE = 0.001  # m: a release pose closer than this to anything is not free
 OFF_TABLE_Z = -0.02  # m: a box whose centre is below the table top has fallen off it
 STACKED_DZ = 0.01  # m: a touching box whose centre is this much higher rides on the held one
+RIDER_DZ = 0.01  # m: a box the lift raised this much rides on the load
 
 
 @dc.dataclass
@@ -51,6 +53,7 @@ class HandMotion:
     trajectory: PiecewisePolynomial | None = None  # hand q, starting at the held box's pose
     t_lift: float = 0.0
     t_release: float = 0.0
+    t_above: float = 0.0  # end of the lateral carry, above the release point
     kinematic: bool = False  # nothing rides on the held box: skip simulating the carry
 
 
@@ -89,7 +92,8 @@ def plan_hand(
     trajectory = PiecewisePolynomial.CubicShapePreserving(
         times, q.T, zero_end_point_derivatives=True)
     kinematic = allow_kinematic and not _carries_others(station, held)
-    return HandMotion(held, trajectory, float(times[1]), float(times[-1]), kinematic)
+    return HandMotion(held, trajectory, float(times[1]), float(times[-1]), float(times[-2]),
+                      kinematic)
 
 
 def _carries_others(station: Station, held: str) -> bool:
@@ -161,28 +165,51 @@ def hand_pick_place(
             return motion, lifted
         # Something is in the way of the release pose: come down on it in physics, as the
         # arm would, from where the carry ends.
-        t_above = float(motion.trajectory.get_segment_times()[-2])
-        _place(station, body, motion.trajectory.value(t_above).ravel())
-        t0 = station.context.get_time() - t_above
-        trajectory = motion.trajectory.Clone()
-        trajectory.shiftRight(t0)
-        station.command_source.UpdateTrajectory(trajectory)
-        station.simulator.AdvanceTo(t0 + motion.t_release)
-        hand.release(ctx)
-        station.command_source.UpdateTrajectory(hold(hand.positions(ctx)))
-        settle_until_rest(station)
-        return motion, lifted
-    t0 = station.context.get_time()
-    trajectory = motion.trajectory.Clone()
-    trajectory.shiftRight(t0)
-    station.command_source.UpdateTrajectory(trajectory)
-    station.simulator.AdvanceTo(t0 + motion.t_lift)
-    lifted = at_lift() if at_lift else None
-    station.simulator.AdvanceTo(t0 + motion.t_release)
+        _place(station, body, motion.trajectory.value(motion.t_above).ravel())
+        _follow(station, motion, motion.t_above, motion.t_release)
+    else:
+        before = {n: X.translation()[2] for n, X in station.object_poses().items()}
+        _follow(station, motion, 0.0, motion.t_lift)
+        lifted = at_lift() if at_lift else None
+        if allow_kinematic:
+            _carry_rigidly(station, motion, before)
+            _follow(station, motion, motion.t_above, motion.t_release)
+        else:
+            _follow(station, motion, motion.t_lift, motion.t_release)
     hand.release(ctx)
     station.command_source.UpdateTrajectory(hold(hand.positions(ctx)))
     settle_until_rest(station)
     return motion, lifted
+
+
+def _follow(station: Station, motion: HandMotion, t_from: float, t_to: float) -> None:
+    """Simulates the hand tracking its path from path time t_from (now) to t_to."""
+    t0 = station.context.get_time() - t_from
+    trajectory = motion.trajectory.Clone()
+    trajectory.shiftRight(t0)
+    station.command_source.UpdateTrajectory(trajectory)
+    station.simulator.AdvanceTo(t0 + t_to)
+
+
+def _carry_rigidly(station: Station, motion: HandMotion, z_before: dict[str, float]) -> None:
+    """Moves the lifted load (held box and the boxes it lifted) to above the release point.
+
+    The path is at rest at both ends of the lateral carry (its knots are flat), and a
+    carry no faster than the arm's keeps a rider where it sits, so the load moves as one
+    rigid body: the motion of the hand's path from its lift pose to its pose above the
+    release is applied to every box the lift raised by more than RIDER_DZ.
+    """
+    plant, ctx = station.plant, station.plant_context
+    q_lift = motion.trajectory.value(motion.t_lift).ravel()
+    q_above = motion.trajectory.value(motion.t_above).ravel()
+    X_move = _pose_of_hand_q(q_above).multiply(_pose_of_hand_q(q_lift).inverse())
+    for name, X in station.object_poses().items():
+        body = station.assigned[name]
+        if body is station.hand.held or X.translation()[2] - z_before[name] < RIDER_DZ:
+            continue
+        plant.SetFreeBodyPose(ctx, body, X_move.multiply(X))
+        plant.SetFreeBodySpatialVelocity(ctx, body, SpatialVelocity.Zero())
+    _place(station, station.hand.held, q_above)
 
 
 def settle_until_rest(station: Station) -> float:
