@@ -84,7 +84,7 @@ class Backend:
 
 
 class HandBackend(Backend):
-    """The fast back-end: weld-constraint hand, kinematic carry when nothing rides along."""
+    """The fast back-end: weld-constraint hand; carries are kinematic or rigid (hand_place)."""
 
     name = "hand"
     robot = "hand"

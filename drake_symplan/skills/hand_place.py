@@ -146,6 +146,8 @@ def hand_pick_place(
 
     `at_lift` is called once the lift has ended (the held box is up), e.g. to perceive.
     With nothing caught nothing moves, and `at_lift` is called on the unchanged scene.
+    `allow_kinematic=False` simulates every carry in full physics (no kinematic carry of
+    a free box, no rigid carry of a loaded one).
     """
     if station.hand is None:
         raise ValueError("hand_pick_place needs a station built with StationConfig(robot='hand')")
