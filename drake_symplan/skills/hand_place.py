@@ -11,8 +11,9 @@ When nothing rests on or leans against the held box (the simulator checks its ow
 state), carrying it cannot disturb anything: the hand then moves it kinematically (set
 straight to the lift pose, then to the release pose) and only the release and settling
 are simulated, which is most of the back-end's speed. Otherwise the lift runs in full
-physics (what it raises rides along), the load then moves rigidly to above the release
-point, and the descent, release and settling run in full physics again.
+physics (what it raises rides along, what leaned on the box falls), and the load then
+moves rigidly to the release pose. Either way, a release pose that is not clear of the
+rest of the scene is reached by a descent in full physics from above it, as the arm's.
 """
 
 from __future__ import annotations
@@ -115,11 +116,11 @@ def _place(station: Station, body, q: np.ndarray) -> None:
     station.command_source.UpdateTrajectory(hold(q))
 
 
-def _clearance(station: Station, body) -> float:
-    """Distance (m) from `body` to the nearest other geometry, capped at 1 cm."""
+def _clearance(station: Station, bodies: list) -> float:
+    """Distance (m) from `bodies` to the nearest geometry not theirs, capped at 1 cm."""
     query = station.scene_graph.get_query_output_port().Eval(
         station.scene_graph.GetMyContextFromRoot(station.context))
-    mine = set(station.plant.GetCollisionGeometriesForBody(body))
+    mine = {g for body in bodies for g in station.plant.GetCollisionGeometriesForBody(body)}
     best = 0.01
     for d in query.ComputeSignedDistancePairwiseClosestPoints(0.01):
         if (d.id_A in mine) != (d.id_B in mine):
@@ -158,26 +159,22 @@ def hand_pick_place(
     body = station.assigned[motion.held]
     hand.grasp(ctx, body)
     if motion.kinematic:
-        _place(station, body, motion.trajectory.value(motion.t_lift).ravel())
-        lifted = at_lift() if at_lift else None
-        _place(station, body, motion.trajectory.value(motion.t_release).ravel())
-        if _clearance(station, body) >= RELEASE_MIN_CLEARANCE:
-            hand.release(ctx)
-            settle_until_rest(station)
-            return motion, lifted
-        # Something is in the way of the release pose: come down on it in physics, as the
-        # arm would, from where the carry ends.
-        _place(station, body, motion.trajectory.value(motion.t_above).ravel())
-        _follow(station, motion, motion.t_above, motion.t_release)
+        riders = []
+        _move_load(station, motion, riders, 0.0, motion.t_lift)
     else:
-        before = {n: X.translation()[2] for n, X in station.object_poses().items()}
+        z_before = {n: X.translation()[2] for n, X in station.object_poses().items()}
         _follow(station, motion, 0.0, motion.t_lift)
-        lifted = at_lift() if at_lift else None
-        if allow_kinematic:
-            _carry_rigidly(station, motion, before)
+        riders = _riders(station, z_before) if allow_kinematic else None
+    lifted = at_lift() if at_lift else None
+    if riders is None:
+        _follow(station, motion, motion.t_lift, motion.t_release)
+    else:
+        _move_load(station, motion, riders, motion.t_lift, motion.t_release)
+        if _clearance(station, [body, *riders]) < RELEASE_MIN_CLEARANCE:
+            # Something is in the way of the release pose: come down on it in physics, as
+            # the arm would, from where the carry ends.
+            _move_load(station, motion, riders, motion.t_release, motion.t_above)
             _follow(station, motion, motion.t_above, motion.t_release)
-        else:
-            _follow(station, motion, motion.t_lift, motion.t_release)
     hand.release(ctx)
     station.command_source.UpdateTrajectory(hold(hand.positions(ctx)))
     settle_until_rest(station)
@@ -193,25 +190,29 @@ def _follow(station: Station, motion: HandMotion, t_from: float, t_to: float) ->
     station.simulator.AdvanceTo(t0 + t_to)
 
 
-def _carry_rigidly(station: Station, motion: HandMotion, z_before: dict[str, float]) -> None:
-    """Moves the lifted load (held box and the boxes it lifted) to above the release point.
+def _riders(station: Station, z_before: dict[str, float]) -> list:
+    """The bodies besides the held one that the lift raised by more than RIDER_DZ."""
+    held = station.hand.held
+    return [station.assigned[n] for n, X in station.object_poses().items()
+            if station.assigned[n] is not held and X.translation()[2] - z_before[n] >= RIDER_DZ]
 
-    The path is at rest at both ends of the lateral carry (its knots are flat), and a
-    carry no faster than the arm's keeps a rider where it sits, so the load moves as one
-    rigid body: the motion of the hand's path from its lift pose to its pose above the
-    release is applied to every box the lift raised by more than RIDER_DZ.
+
+def _move_load(station: Station, motion: HandMotion, riders: list, t_from: float,
+               t_to: float) -> None:
+    """Moves the load (held box and riders) rigidly from path time t_from to t_to, at rest.
+
+    Used between knots where the path is at rest (the end of the lift, above the release
+    point, the release): a carry no faster than the arm's keeps a rider where it sits, so
+    the load moves as one rigid body, as the hand's path moves between the two knots.
     """
     plant, ctx = station.plant, station.plant_context
-    q_lift = motion.trajectory.value(motion.t_lift).ravel()
-    q_above = motion.trajectory.value(motion.t_above).ravel()
-    X_move = _pose_of_hand_q(q_above).multiply(_pose_of_hand_q(q_lift).inverse())
-    for name, X in station.object_poses().items():
-        body = station.assigned[name]
-        if body is station.hand.held or X.translation()[2] - z_before[name] < RIDER_DZ:
-            continue
-        plant.SetFreeBodyPose(ctx, body, X_move.multiply(X))
+    q_from = motion.trajectory.value(t_from).ravel()
+    q_to = motion.trajectory.value(t_to).ravel()
+    X_move = _pose_of_hand_q(q_to).multiply(_pose_of_hand_q(q_from).inverse())
+    for body in riders:
+        plant.SetFreeBodyPose(ctx, body, X_move.multiply(plant.EvalBodyPoseInWorld(ctx, body)))
         plant.SetFreeBodySpatialVelocity(ctx, body, SpatialVelocity.Zero())
-    _place(station, station.hand.held, q_above)
+    _place(station, station.hand.held, q_to)
 
 
 def settle_until_rest(station: Station) -> float:
