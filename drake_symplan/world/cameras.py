@@ -1,7 +1,7 @@
 """Depth cameras around the table: RgbdSensors rendered headless by VTK (EGL) + point clouds.
 
-`AddDepthCameras` adds one RgbdSensor and one DepthImageToPointCloud per camera config;
-`read_point_clouds` evaluates them into world-frame xyz arrays, with optional noise.
+`AddDepthCameras` adds one RgbdSensor per camera config; `read_point_clouds` renders their
+depth images and back-projects them into world-frame xyz arrays, with optional noise.
 """
 
 from __future__ import annotations
@@ -18,8 +18,7 @@ from pydrake.geometry import (
     RenderEngineVtkParams,
 )
 from pydrake.math import RigidTransform, RotationMatrix
-from pydrake.perception import BaseField, DepthImageToPointCloud
-from pydrake.systems.sensors import CameraInfo, PixelType, RgbdSensor
+from pydrake.systems.sensors import CameraInfo, RgbdSensor
 
 RENDERER = "vtk_depth"
 
@@ -62,12 +61,22 @@ def look_at(position, target) -> RigidTransform:
 class DepthCamera:
     config: CameraConfig
     sensor: RgbdSensor
-    to_cloud: DepthImageToPointCloud
     X_WC: RigidTransform
+    rays: np.ndarray  # [H * W, 3] world-frame ray per pixel, scaled to unit depth
+
+
+def pixel_rays(info: CameraInfo, X_WC: RigidTransform) -> np.ndarray:
+    """World-frame direction of each pixel's ray (row-major), scaled so that a point at
+    depth d (along the optical axis) is X_WC.translation() + d * ray."""
+    v, u = np.mgrid[0:info.height(), 0:info.width()]
+    local = np.stack([(u.ravel() - info.center_x()) / info.focal_x(),
+                      (v.ravel() - info.center_y()) / info.focal_y(),
+                      np.ones(u.size)], axis=1)
+    return local @ X_WC.rotation().matrix().T
 
 
 def AddDepthCameras(builder, scene_graph, configs: list[CameraConfig]) -> list[DepthCamera]:
-    """Adds the VTK (EGL, headless) renderer, the sensors and the point-cloud converters."""
+    """Adds the VTK (EGL, headless) renderer and the sensors."""
     if not configs:
         return []
     if not scene_graph.HasRenderer(RENDERER):
@@ -83,14 +92,7 @@ def AddDepthCameras(builder, scene_graph, configs: list[CameraConfig]) -> list[D
         sensor = builder.AddSystem(RgbdSensor(world_id, X_WC, depth))
         sensor.set_name(f"camera_{cfg.name}")
         builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
-        to_cloud = builder.AddSystem(DepthImageToPointCloud(
-            info, PixelType.kDepth32F, 1.0, BaseField.kXYZs))
-        to_cloud.set_name(f"cloud_{cfg.name}")
-        builder.Connect(sensor.depth_image_32F_output_port(),
-                        to_cloud.depth_image_input_port())
-        builder.Connect(sensor.body_pose_in_world_output_port(),
-                        to_cloud.camera_pose_input_port())
-        cameras.append(DepthCamera(cfg, sensor, to_cloud, X_WC))
+        cameras.append(DepthCamera(cfg, sensor, X_WC, pixel_rays(info, X_WC)))
     return cameras
 
 
@@ -121,20 +123,23 @@ def read_point_clouds(
     """World-frame points [M, 3] per camera (invalid depths dropped).
 
     `z_min` drops points at or below that height (after noise) early, which saves most of
-    the work when only what stands on the table matters.
+    the work when only what stands on the table matters: without noise, only the pixels
+    that see something above z_min are back-projected.
     """
     clouds = []
     for cam in cameras:
-        ctx = cam.to_cloud.GetMyContextFromRoot(root_context)
-        xyzs = cam.to_cloud.point_cloud_output_port().Eval(ctx).xyzs()
-        if noise is not None and (noise.sigma > 0 or noise.dropout > 0):
-            xyz = xyzs.T[np.isfinite(xyzs[2])]
-            xyz = noise.apply(xyz, cam.X_WC.translation(), rng or np.random.default_rng())
+        ctx = cam.sensor.GetMyContextFromRoot(root_context)
+        depth = cam.sensor.depth_image_32F_output_port().Eval(ctx).data.reshape(-1)
+        origin = cam.X_WC.translation()
+        keep = np.isfinite(depth) & (depth > 0)  # 0: nearer than depth_min; inf: beyond max
+        noisy = noise is not None and (noise.sigma > 0 or noise.dropout > 0)
+        if z_min is not None and not noisy:
+            keep &= origin[2] + depth * cam.rays[:, 2] > z_min
+        idx = np.flatnonzero(keep)
+        xyz = origin + depth[idx, None].astype(float) * cam.rays[idx]
+        if noisy:
+            xyz = noise.apply(xyz, origin, rng or np.random.default_rng())
             if z_min is not None:
                 xyz = xyz[xyz[:, 2] > z_min]
-        else:
-            z = xyzs[2]
-            keep = z > z_min if z_min is not None else np.isfinite(z)
-            xyz = xyzs[:, keep].T
-        clouds.append(np.ascontiguousarray(xyz))
+        clouds.append(xyz)
     return clouds
