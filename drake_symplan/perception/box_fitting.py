@@ -100,23 +100,35 @@ def _box_from_top(top_center: np.ndarray, n: np.ndarray, long_dir: np.ndarray, k
     return FittedBox(kind, top_center - n * HALF_EXTENTS[kind][2], R, uncertain, npts)
 
 
+def _hidden_fractions(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[FittedBox] = ()
+                      ) -> np.ndarray:
+    """For each set of plane points in `pts3` [K, S, 3], the fraction that are seen at that
+    height or hidden under something higher; the rest are contradicted (the table or a
+    lower surface is seen there: the table is not in the map, so an empty cell counts as
+    the table; or the space is taken by an `occupied` box). Beyond the map's edge nothing
+    is known."""
+    flat = pts3.reshape(-1, 3)
+    contradicted = hm.contradicts(flat, 0.01)
+    for box in occupied:
+        contradicted |= box.contains(flat, 0.002)
+    return 1.0 - contradicted.reshape(pts3.shape[:-1]).mean(axis=-1)
+
+
 def _hidden_fraction(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[FittedBox] = ()
                      ) -> float:
-    """Fraction of plane points `pts3` that are seen at that height or hidden under
-    something higher; the rest are contradicted (the table or a lower surface is seen
-    there: the table is not in the map, so an empty cell counts as the table; or the
-    space is taken by an `occupied` box). Beyond the map's edge nothing is known."""
-    contradicted = hm.contradicts(pts3, 0.01)
-    for box in occupied:
-        contradicted |= box.contains(pts3, 0.002)
-    return float(1.0 - contradicted.mean())
+    """`_hidden_fractions` of one set of plane points [S, 3]."""
+    return float(_hidden_fractions(hm, pts3[None], occupied)[0])
 
 
-def _block_hidden_fraction(hm: HeightMap, top_centre: np.ndarray, d: np.ndarray,
-                           occupied: Sequence[FittedBox]) -> float:
-    """`_hidden_fraction` along the top centre line of a long block with axis `d`."""
-    samples = np.linspace(-LONG / 2 + 0.01, LONG / 2 - 0.01, 24)
-    return _hidden_fraction(hm, top_centre + np.outer(samples, d), occupied)
+_BLOCK_SAMPLES = np.linspace(-LONG / 2 + 0.01, LONG / 2 - 0.01, 24)
+
+
+def _block_hidden_fractions(hm: HeightMap, top_centres: np.ndarray, d: np.ndarray,
+                            occupied: Sequence[FittedBox]) -> np.ndarray:
+    """`_hidden_fractions` along the top centre line of long blocks with axis `d` and top
+    centres `top_centres` [K, 3]."""
+    pts = top_centres[:, None, :] + _BLOCK_SAMPLES[None, :, None] * d
+    return _hidden_fractions(hm, pts, occupied)
 
 
 def fit_boxes(points: np.ndarray, hm: HeightMap, known: list[FittedBox] = (),
@@ -199,8 +211,8 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
             # Could be a long block partly hidden under something, or touching cubes:
             # slide a 25 cm block over every placement that covers what is seen.
             centres = np.linspace(u_hi - LONG / 2, u_lo + LONG / 2, 21)
-            fracs = np.array([_block_hidden_fraction(hm, origin + u_dir * c, u_dir, occupied)
-                              for c in centres])
+            fracs = _block_hidden_fractions(hm, origin + np.outer(centres, u_dir), u_dir,
+                                            occupied)
             if fracs.max() > 0.9:
                 good = centres[fracs >= fracs.max() - 1e-9]
                 centre_u = (good.min() + good.max()) / 2
@@ -244,10 +256,8 @@ def _prior_block_through(piece: np.ndarray, n: np.ndarray, prior: Sequence[Fitte
         if np.linalg.norm(d) < 0.5:  # the prior block stood on its end
             continue
         d /= np.linalg.norm(d)
-        for t in np.linspace(-LONG / 2 + SIDE / 2, LONG / 2 - SIDE / 2, 21):
-            centre = piece + t * d
-            if _block_hidden_fraction(hm, centre, d, occupied) < 0.9:
-                continue
+        centres = piece + np.outer(np.linspace(-LONG / 2 + SIDE / 2, LONG / 2 - SIDE / 2, 21), d)
+        for centre in centres[_block_hidden_fractions(hm, centres, d, occupied) >= 0.9]:
             top_prior = p.center + n * HALF_EXTENTS["long"][2]
             dist = float(np.linalg.norm(centre - top_prior))
             if dist < 0.05 and (best is None or dist < best[0]):

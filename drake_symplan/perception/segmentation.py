@@ -50,23 +50,28 @@ class HeightMap:
 
     def inside(self, xy: np.ndarray) -> np.ndarray:
         """Which world xy points [N, 2] fall on the map (inside the crop)."""
-        idx = self.cell_index(xy)
-        nx, ny = self.height.shape
-        return (idx[:, 0] >= 0) & (idx[:, 0] < nx) & (idx[:, 1] >= 0) & (idx[:, 1] < ny)
+        return self._on_map(self.cell_index(xy))
 
     def contradicts(self, pts3: np.ndarray, tol: float) -> np.ndarray:
         """Which world points [N, 3] the map rules out: on the map, with nothing seen there
         (the table is not in the map) or only a surface more than `tol` below them."""
-        seen = self.lookup(pts3[:, :2])
-        return self.inside(pts3[:, :2]) & (np.isnan(seen) | (seen < pts3[:, 2] - tol))
+        ok, seen = self._lookup(pts3[:, :2])
+        return ok & (np.isnan(seen) | (seen < pts3[:, 2] - tol))
 
     def lookup(self, xy: np.ndarray) -> np.ndarray:
         """Height at world xy [N, 2]; NaN outside the map or where nothing was seen."""
+        return self._lookup(xy)[1]
+
+    def _on_map(self, idx: np.ndarray) -> np.ndarray:
+        nx, ny = self.height.shape
+        return (idx[:, 0] >= 0) & (idx[:, 0] < nx) & (idx[:, 1] >= 0) & (idx[:, 1] < ny)
+
+    def _lookup(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         idx = self.cell_index(xy)
-        ok = self.inside(xy)
+        ok = self._on_map(idx)
         out = np.full(len(xy), np.nan)
         out[ok] = self.height[idx[ok, 0], idx[ok, 1]]
-        return out
+        return ok, out
 
 
 def crop(points: np.ndarray) -> np.ndarray:

@@ -64,6 +64,9 @@ class DepthCamera:
     X_WC: RigidTransform
     rays: np.ndarray  # [H * W, 3] world-frame ray per pixel, scaled to unit depth
 
+    def __post_init__(self):
+        self.ray_z = np.ascontiguousarray(self.rays[:, 2], dtype=np.float32)
+
 
 def pixel_rays(info: CameraInfo, X_WC: RigidTransform) -> np.ndarray:
     """World-frame direction of each pixel's ray (row-major), scaled so that a point at
@@ -131,10 +134,12 @@ def read_point_clouds(
         ctx = cam.sensor.GetMyContextFromRoot(root_context)
         depth = cam.sensor.depth_image_32F_output_port().Eval(ctx).data.reshape(-1)
         origin = cam.X_WC.translation()
-        keep = np.isfinite(depth) & (depth > 0)  # 0: nearer than depth_min; inf: beyond max
+        keep = depth > 0  # 0: nearer than depth_min; inf: beyond depth_max
         noisy = noise is not None and (noise.sigma > 0 or noise.dropout > 0)
         if z_min is not None and not noisy:
-            keep &= origin[2] + depth * cam.rays[:, 2] > z_min
+            keep &= depth * cam.ray_z > np.float32(z_min - origin[2])  # false for inf
+        else:
+            keep &= np.isfinite(depth)
         idx = np.flatnonzero(keep)
         xyz = origin + depth[idx, None].astype(float) * cam.rays[idx]
         if noisy:
