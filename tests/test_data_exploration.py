@@ -121,7 +121,9 @@ def test_pack_pads_with_mask_and_stats_read_the_shards(tmp_path):
     for c, ks in enumerate(([2, 3, 2], [4, 2])):
         arrays, extra = pack(_transitions(ks, episode0=10 * c))
         info = {"executed_outcomes": {"no_effect": 2, "fell_off": 1}, "episode_ends":
-                {"length": 1, "perception_unrecovered": 1}, "skipped_transitions": {},
+                {"length_unrecovered": 1, "perception_unrecovered": 1},
+                "skipped_transitions": {"perception_count_mismatch": 1,
+                                        "perception_recovering": 2},
                 "infeasible_actions": 0, "seconds": 1.0}
         storage.write_shard(tmp_path, c, arrays, extra={**extra, "info": np.array(json.dumps(
             info))})
@@ -132,7 +134,12 @@ def test_pack_pads_with_mask_and_stats_read_the_shards(tmp_path):
     stats = dataset_stats(tmp_path)
     assert stats["transitions"] == 5 and stats["shards"] == 2
     assert stats["objects_histogram"] == {"2": 3, "3": 1, "4": 1}
+    # Only the episodes that ended early are dropped; one that ran its length lost is not.
     assert stats["dropped_episodes"] == 2 and stats["episodes"] == 4
+    assert stats["dropped_reasons"] == {"perception_unrecovered": 2}
+    # Per shard: 3 executed actions stored or classified, 1 misperceived, 2 run while lost.
+    assert stats["perception_failures_per_action"] == pytest.approx(2 / 12, abs=1e-4)
+    assert stats["perception_unrecorded_per_action"] == pytest.approx(6 / 12, abs=1e-4)
     assert stats["executed_outcome_fractions"]["fell_off"] == pytest.approx(1 / 3, abs=1e-3)
     assert sum(stats["outcome_fractions"].values()) == pytest.approx(1.0)
 
@@ -189,7 +196,9 @@ def test_a_misperceived_scene_is_skipped_and_the_episode_goes_on_once_all_are_se
 
     backend = ScriptedBackend(seen=[two, three, three, three], after=[three] * 4)
     log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
-    assert log.end == "perception_unrecovered" and log.dropped and not log.transitions
+    # All four actions ran, none could be recorded: not dropped, four skipped.
+    assert log.end == "length_unrecovered" and not log.dropped and not log.transitions
+    assert sum(log.skipped.values()) == 4
 
     # Lost track and seeing a single box: no action to draw, the episode ends dropped.
     backend = ScriptedBackend(seen=[two], after=[cubes(0.5)])

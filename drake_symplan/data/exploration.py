@@ -25,9 +25,12 @@ again once it sees every box. Dropping the episode instead would lose the rest o
 bias the data against the cluttered, stacked scenes that late steps build.
 
 Episodes end after `length` actions, when an object leaves the table (or the cameras'
-workspace), or when something fails (the episode is then *dropped*: transitions recorded
-before the failure are kept, each having been checked on its own). Perception that has not
-recovered by the end of the episode counts as a failure.
+workspace), or when something fails before that (the episode is then *dropped*: its
+remaining actions are never run; transitions recorded before the failure are kept, each
+having been checked on its own). An episode that runs all `length` actions but is still
+lost at the end ends "length_unrecovered": it is not dropped, and the actions it could not
+record are counted in `skipped` like those of an episode that recovered. Running out of
+boxes to act on while lost (fewer than two seen) ends it early: "perception_unrecovered".
 """
 
 from __future__ import annotations
@@ -75,7 +78,7 @@ class Transition:
 @dc.dataclass
 class EpisodeLog:
     transitions: list[Transition] = dc.field(default_factory=list)
-    end: str = "length"  # "length" | "budget" | "left_table" | one of DROP_REASONS
+    end: str = "length"  # "length" | "length_unrecovered" | "budget" | "left_table" | DROP_REASONS
     outcomes: Counter = dc.field(default_factory=Counter)  # every executed action
     infeasible: int = 0
     skipped: Counter = dc.field(default_factory=Counter)  # executed, not recorded: why
@@ -230,5 +233,5 @@ def run_episode(
                 on_transition()
         before = after
     if lost:
-        log.end = "perception_unrecovered"
+        log.end = "length_unrecovered"
     return log

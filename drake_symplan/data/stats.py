@@ -8,7 +8,9 @@
 - dropped episodes (ended by a failure) and why, how every episode ended, skipped
   transitions and unreachable actions;
 - perception_failures_per_action: executed actions whose resulting scene perception got
-  wrong (a box too many or lost), which the episode skipped and recovered from.
+  wrong (a box too many or lost), which the episode skipped and recovered from;
+  perception_unrecorded_per_action adds the actions run while track was lost: every
+  executed action that perception kept out of the data set.
 """
 
 from __future__ import annotations
@@ -54,7 +56,8 @@ def dataset_stats(data_dir: str | Path) -> dict:
     num_episodes = sum(ends.values()) or len(episodes)
     dropped = {k: ends[k] for k in DROP_REASONS if ends[k]}
     failures = sum(skipped[k] for k in PERCEPTION_FAILURES)
-    actions = sum(executed.values()) + failures + skipped["perception_recovering"]
+    unrecorded = failures + skipped["perception_recovering"]
+    actions = sum(executed.values()) + unrecorded
     return {
         "dir": str(data_dir),
         "config": manifest.get("config"),
@@ -74,6 +77,7 @@ def dataset_stats(data_dir: str | Path) -> dict:
         "episode_ends": dict(sorted(ends.items())),
         "skipped_transitions": dict(skipped),
         "perception_failures_per_action": round(failures / actions, 4) if actions else 0.0,
+        "perception_unrecorded_per_action": round(unrecorded / actions, 4) if actions else 0.0,
         "infeasible_actions": infeasible,
         "worker_seconds": round(seconds, 1),
     }
@@ -89,5 +93,6 @@ def format_stats(stats: dict) -> str:
              f"dropped episodes: {stats['dropped_episodes']} ({stats['dropped_fraction']:.2%}) "
              f"{stats['dropped_reasons']}",
              f"perception failures per action: {stats['perception_failures_per_action']:.2%} "
-             "(skipped, recovered)"]
+             f"(skipped, recovered); actions unrecorded because of perception: "
+             f"{stats['perception_unrecorded_per_action']:.2%}"]
     return "\n".join(lines)
