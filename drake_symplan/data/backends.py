@@ -58,8 +58,7 @@ class Backend:
             config.time_step = time_step
         self.station = Station(config)
         self.perceiver = Perceiver()
-        self.noise = noise if noise is not None and (noise.sigma > 0 or noise.dropout > 0) \
-            else None
+        self.noise = noise if noise is not None and noise.active else None
         self.rng = rng or np.random.default_rng(0)
 
     def reset(self, scene: Scene) -> None:

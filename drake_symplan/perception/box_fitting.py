@@ -114,12 +114,6 @@ def _hidden_fractions(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[Fitted
     return 1.0 - contradicted.reshape(pts3.shape[:-1]).mean(axis=-1)
 
 
-def _hidden_fraction(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[FittedBox] = ()
-                     ) -> float:
-    """`_hidden_fractions` of one set of plane points [S, 3]."""
-    return float(_hidden_fractions(hm, pts3[None], occupied)[0])
-
-
 _BLOCK_SAMPLES = np.linspace(-LONG / 2 + 0.01, LONG / 2 - 0.01, 24)
 
 
@@ -218,8 +212,7 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
                 centre_u = (good.min() + good.max()) / 2
                 # A visible end that borders the table is the block's real end.
                 beyond = origin + np.outer([u_lo - 0.008, u_hi + 0.008], u_dir)
-                lo_real, hi_real = _hidden_fraction(hm, beyond[:1], occupied) == 0, \
-                    _hidden_fraction(hm, beyond[1:], occupied) == 0
+                lo_real, hi_real = _hidden_fractions(hm, beyond[:, None], occupied) == 0
                 if lo_real and not hi_real:
                     centre_u = u_lo + LONG / 2
                 elif hi_real and not lo_real:

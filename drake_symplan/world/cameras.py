@@ -65,6 +65,7 @@ class DepthCamera:
     rays: np.ndarray  # [H * W, 3] world-frame ray per pixel, scaled to unit depth
 
     def __post_init__(self):
+        # The height test runs on every pixel of every frame: a contiguous float32 column.
         self.ray_z = np.ascontiguousarray(self.rays[:, 2], dtype=np.float32)
 
 
@@ -106,6 +107,10 @@ class DepthNoise:
     sigma: float = 0.0  # metres
     dropout: float = 0.0  # fraction of pixels lost
 
+    @property
+    def active(self) -> bool:
+        return self.sigma > 0 or self.dropout > 0
+
     def apply(self, xyz: np.ndarray, origin: np.ndarray, rng: np.random.Generator):
         if self.dropout > 0:
             xyz = xyz[rng.random(len(xyz)) >= self.dropout]
@@ -135,7 +140,7 @@ def read_point_clouds(
         depth = cam.sensor.depth_image_32F_output_port().Eval(ctx).data.reshape(-1)
         origin = cam.X_WC.translation()
         keep = depth > 0  # 0: nearer than depth_min; inf: beyond depth_max
-        noisy = noise is not None and (noise.sigma > 0 or noise.dropout > 0)
+        noisy = noise is not None and noise.active
         if z_min is not None and not noisy:
             keep &= depth * cam.ray_z > np.float32(z_min - origin[2])  # false for inf
         else:
