@@ -1,4 +1,5 @@
-"""Gumbel-sigmoid, the norm-3 layer and the three models: padding, equivariance, roles."""
+"""Gumbel-sigmoid, the norm-3 layer, the three models and the continuous reference:
+padding, equivariance, roles."""
 
 from __future__ import annotations
 
@@ -36,6 +37,7 @@ def _models():
         "relational": build_model("relational", state_dim=D).eval(),
         "attentive": build_model("attentive", state_dim=D).eval(),
         "deepsym": build_model("deepsym", state_dim=D, max_objects=4).eval(),
+        "reference": build_model("reference", state_dim=D).eval(),
     }
 
 
@@ -81,7 +83,7 @@ def test_normed_linear_scales_input_and_weights_to_norm_three():
     np.testing.assert_allclose(out.detach().numpy(), [[9.0, 0.0], [0.0, -9.0]], atol=1e-5)
 
 
-@pytest.mark.parametrize("name", ["relational", "attentive", "deepsym"])
+@pytest.mark.parametrize("name", ["relational", "attentive", "deepsym", "reference"])
 @torch.no_grad()
 def test_padding_is_inert(name):
     model = _models()[name]
@@ -102,7 +104,7 @@ def test_padding_is_inert(name):
     torch.testing.assert_close(big[:, slots], pred, atol=1e-5, rtol=1e-5)
 
 
-@pytest.mark.parametrize("name", ["relational", "attentive"])
+@pytest.mark.parametrize("name", ["relational", "attentive", "reference"])
 def test_permutation_equivariance(name):
     model = _models()[name]
     state, action, mask = _batch(n=4)
@@ -146,13 +148,38 @@ def test_deepsym_rejects_too_many_objects():
         model(state, action, mask)
 
 
-@pytest.mark.parametrize("name", ["relational", "attentive", "deepsym"])
+@pytest.mark.parametrize("name", ["relational", "attentive", "deepsym", "reference"])
 def test_training_mode_gradients_reach_every_parameter(name):
     model = _models()[name].train()
     state, action, mask = _batch()
     model(state, action, mask).pow(2).sum().backward()
     for pname, p in model.named_parameters():
         assert p.grad is not None and torch.isfinite(p.grad).all(), pname
+
+
+def test_reference_fits_a_continuous_effect_and_has_no_symbols():
+    # The effect is a continuous function of a feature: each object rises by 0.1 x its
+    # first feature. Four bits per object express it to ~3 cm (AttentiveDeepSym of the
+    # same width and steps); the reference, which reads the features, to ~4 mm.
+    from drake_symplan.learning.readout import read_symbols
+
+    torch.manual_seed(0)
+    state, action, mask = _batch(b=128, seed=1)
+    effect = torch.zeros(128, 4, 6)
+    effect[..., 2] = 0.1 * state[..., 0] * mask
+    model = build_model("reference", state_dim=D, d_model=64, hidden=64)
+    optimizer = torch.optim.Adam(model.parameters(), lr=3e-3)
+    for _ in range(200):
+        loss = ((model(state, action, mask) - effect) ** 2).sum(-1).mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    model.eval()
+    with torch.no_grad():
+        err = (model(state, action, mask) - effect)[..., 2][mask].abs().mean()
+    assert float(err) < 0.006  # m; the effect's own spread is ~0.08 m
+    with pytest.raises(ValueError, match="no symbols"):
+        read_symbols(model, state[0])
 
 
 def test_unknown_model_name():
@@ -174,3 +201,15 @@ def test_relational_checkpoint_from_before_own_message_loads_unchanged():
     state, action, mask = _batch()
     torch.testing.assert_close(loaded(state, action, mask), old(state, action, mask))
     assert build_model("relational", state_dim=D).own_message  # the default
+
+
+@pytest.mark.parametrize("name", ["relational", "attentive", "deepsym", "reference"])
+@torch.no_grad()
+def test_every_model_rebuilds_from_its_checkpoint(name):
+    from drake_symplan.learning.checkpoint import model_from_checkpoint
+
+    model = _models()[name]
+    ckpt = {"model": name, "model_config": model.config(), "model_state": model.state_dict()}
+    loaded = model_from_checkpoint(ckpt).eval()
+    state, action, mask = _batch()
+    torch.testing.assert_close(loaded(state, action, mask), model(state, action, mask))

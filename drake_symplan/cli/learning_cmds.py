@@ -11,12 +11,13 @@ from pathlib import Path
 
 from drake_symplan.cli.main import CommandError
 
-MODEL_NAMES = ("relational", "attentive", "deepsym")
+MODEL_NAMES = ("relational", "attentive", "deepsym", "reference")
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("train", help="train an effect model on a data set")
-    p.add_argument("--model", required=True, choices=MODEL_NAMES)
+    p.add_argument("--model", required=True, choices=MODEL_NAMES,
+                   help="reference: no symbols, the data set's error floor (models.py)")
     p.add_argument("--data", required=True, help="data set directory (shards + manifest.json)")
     p.add_argument("--out", required=True, help="run directory to create (or resume)")
     p.add_argument("--epochs", type=int, default=200)

@@ -21,6 +21,11 @@ slots), through a binary bottleneck that can be read out as symbols:
 - `AttentiveDeepSym` (Ahmetoglu et al. 2022, attentive): unary bits per object, then
   transformer encoder layers over the objects, then a per-object decoder.
 
+`ContinuousReference` is not a symbol learner: the attentive model without its
+bottleneck (the transformer reads the standardised features themselves). Its test
+error is the data set's floor for the three symbolic models, what they could reach if
+symbols cost nothing; it has no symbols to read out.
+
 Features are standardised and effects de-standardised with training-set statistics
 held in buffers (`set_normalization`), so checkpoints are self-contained.
 """
@@ -60,9 +65,10 @@ class EffectModel(nn.Module):
         self.register_buffer("state_std", torch.ones(state_dim))
         self.register_buffer("effect_mean", torch.zeros(EFFECT_DIM))
         self.register_buffer("effect_std", torch.ones(EFFECT_DIM))
-        self.encoder = MLP(state_dim, [hidden] * layers)
-        self.unary_head = NormedLinear(hidden, n_unary)
-        self.gs = GumbelSigmoid(temperature, hard)
+        if n_unary > 0:
+            self.encoder = MLP(state_dim, [hidden] * layers)
+            self.unary_head = NormedLinear(hidden, n_unary)
+            self.gs = GumbelSigmoid(temperature, hard)
 
     def config(self) -> dict:
         """Keyword arguments that rebuild this model (see `build_model`)."""
@@ -89,6 +95,8 @@ class EffectModel(nn.Module):
 
     def unary_logits(self, state: torch.Tensor) -> torch.Tensor:
         """[B, N, n_unary] logits of the unary symbols."""
+        if self.n_unary == 0:
+            raise ValueError(f"{type(self).__name__} has no symbols to read out")
         return self.unary_head(self.encoder(self._features(state)))
 
     def relation_logits(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor | None:
@@ -231,10 +239,41 @@ class AttentiveDeepSym(EffectModel):
         return self._effects(self.decoder(x), mask)
 
 
+class ContinuousReference(EffectModel):
+    """AttentiveDeepSym without the bottleneck: features and action into the transformer."""
+
+    def __init__(
+        self,
+        state_dim: int,
+        n_heads: int = 4,
+        n_blocks: int = 2,
+        d_model: int = 128,
+        hidden: int = 128,
+        layers: int = 2,
+        temperature: float = DEFAULT_TEMPERATURE,
+        hard: bool = DEFAULT_HARD,
+    ):
+        super().__init__(state_dim, 0, hidden, layers, temperature, hard)
+        del self._config["n_unary"]
+        self._config.update(n_heads=n_heads, n_blocks=n_blocks, d_model=d_model)
+        self.embed = MLP(state_dim + ACTION_DIM, [hidden] * (layers - 1), d_model)
+        block = nn.TransformerEncoderLayer(
+            d_model, n_heads, dim_feedforward=hidden, dropout=0.0, batch_first=True
+        )
+        self.transformer = nn.TransformerEncoder(block, n_blocks, enable_nested_tensor=False)
+        self.decoder = MLP(d_model, [hidden] * layers, EFFECT_DIM)
+
+    def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
+        x = self.embed(torch.cat([self._features(state), action], dim=-1))
+        x = self.transformer(x, src_key_padding_mask=~mask)
+        return self._effects(self.decoder(x), mask)
+
+
 MODELS: dict[str, type[EffectModel]] = {
     "relational": RelationalDeepSym,
     "attentive": AttentiveDeepSym,
     "deepsym": DeepSym,
+    "reference": ContinuousReference,
 }
 
 
