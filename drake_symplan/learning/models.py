@@ -107,6 +107,14 @@ class EffectModel(nn.Module):
         return self.gs(self.unary_logits(state)) * mask.unsqueeze(-1)
 
 
+def object_transformer(d_model: int, n_heads: int, n_blocks: int, hidden: int) -> nn.Module:
+    """Transformer encoder layers over a set of objects (no dropout, batch first)."""
+    block = nn.TransformerEncoderLayer(
+        d_model, n_heads, dim_feedforward=hidden, dropout=0.0, batch_first=True
+    )
+    return nn.TransformerEncoder(block, n_blocks, enable_nested_tensor=False)
+
+
 class RelationalDeepSym(EffectModel):
     """Unary symbols + K relation types from value-less sigmoid self-attention."""
 
@@ -227,10 +235,7 @@ class AttentiveDeepSym(EffectModel):
         super().__init__(state_dim, n_unary, hidden, layers, temperature, hard)
         self._config.update(n_heads=n_heads, n_blocks=n_blocks, d_model=d_model)
         self.embed = nn.Linear(n_unary + ACTION_DIM, d_model)
-        block = nn.TransformerEncoderLayer(
-            d_model, n_heads, dim_feedforward=hidden, dropout=0.0, batch_first=True
-        )
-        self.transformer = nn.TransformerEncoder(block, n_blocks, enable_nested_tensor=False)
+        self.transformer = object_transformer(d_model, n_heads, n_blocks, hidden)
         self.decoder = MLP(d_model, [hidden] * layers, EFFECT_DIM)
 
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
@@ -240,7 +245,10 @@ class AttentiveDeepSym(EffectModel):
 
 
 class ContinuousReference(EffectModel):
-    """AttentiveDeepSym without the bottleneck: features and action into the transformer."""
+    """AttentiveDeepSym without the bottleneck: features and action into the transformer.
+
+    `temperature` and `hard` are accepted, like every model's, and unused.
+    """
 
     def __init__(
         self,
@@ -257,10 +265,7 @@ class ContinuousReference(EffectModel):
         del self._config["n_unary"]
         self._config.update(n_heads=n_heads, n_blocks=n_blocks, d_model=d_model)
         self.embed = MLP(state_dim + ACTION_DIM, [hidden] * (layers - 1), d_model)
-        block = nn.TransformerEncoderLayer(
-            d_model, n_heads, dim_feedforward=hidden, dropout=0.0, batch_first=True
-        )
-        self.transformer = nn.TransformerEncoder(block, n_blocks, enable_nested_tensor=False)
+        self.transformer = object_transformer(d_model, n_heads, n_blocks, hidden)
         self.decoder = MLP(d_model, [hidden] * layers, EFFECT_DIM)
 
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
