@@ -109,6 +109,35 @@ def test_kill_9_then_the_same_command_ends_with_exactly_n(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_larger_n_extends_a_collection_and_anything_else_is_refused(tmp_path):
+    from drake_symplan.data.collect import CollectConfig, collect
+    from drake_symplan.data.storage import existing_shards, load_transitions, read_manifest
+
+    def config(n, seed=3):
+        return CollectConfig(transitions=n, seed=seed, max_objects=3, chunk_size=3)
+
+    out = tmp_path / "data"
+    collect(out, config(4), progress=False)  # chunks of 3 and 1
+    first = existing_shards(out)[0].read_bytes()
+    with pytest.raises(ValueError, match="different configuration"):
+        collect(out, config(7, seed=4), progress=False)
+    with pytest.raises(ValueError, match="different configuration"):
+        collect(out, config(3), progress=False)
+    summary = collect(out, config(7), progress=False)  # chunks of 3, 3 and 1
+    assert summary["this_run"]["new_transitions"] == 4  # the short chunk 1 is redone
+    assert existing_shards(out)[0].read_bytes() == first  # kept, not recollected
+    assert len(load_transitions(out)) == 7
+    fresh = tmp_path / "fresh"
+    collect(fresh, config(7), progress=False)
+    for c, path in existing_shards(fresh).items():
+        with np.load(path) as a, np.load(existing_shards(out)[c]) as b:
+            assert np.array_equal(a["episode"], b["episode"])
+            assert np.allclose(a["effect"], b["effect"])
+    manifest = read_manifest(out)
+    assert manifest["config"]["transitions"] == 7 and manifest["extended_from"] == [4]
+
+
+@pytest.mark.slow
 def test_hand_and_arm_agree_on_a_fixed_set():
     from drake_symplan.data.parity import measure_parity
 

@@ -11,7 +11,7 @@ def register(subparsers) -> None:
         "collect", help="collect random-exploration transitions (resumable, parallel)")
     collect.add_argument("--backend", choices=("hand", "arm"), default="hand",
                          help="hand: fast weld-constraint hand; arm: UR10 in full physics")
-    collect.add_argument("--transitions", type=int, required=True, help="how many (exactly)")
+    collect.add_argument("--transitions", type=int, required=True, help="how many in all (exactly); rerun with a larger N to extend a collection")
     collect.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     collect.add_argument("--out", required=True, help="data set directory")
     collect.add_argument("--seed", type=int, default=0)

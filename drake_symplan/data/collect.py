@@ -7,6 +7,8 @@ what a chunk holds depends on (config, seed, c) only, never on the number of wor
 which worker ran it. Shards are written atomically (storage.write_shard), so after a
 `kill -9` the same command finds the finished shards, deletes stray temporary files and
 produces only the missing chunks: it ends with exactly N transitions, none duplicated.
+For the same reason the same command with a larger N extends a finished collection: its
+full chunks are the first chunks of the larger one.
 
 Each worker process builds its own station (back-end) once and takes chunks from a pool;
 transitions are reported to the parent as they happen for a tqdm bar with rate and ETA.
@@ -193,10 +195,17 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int = 1,
     identity = dc.asdict(config)
     if (out_dir / storage.MANIFEST).exists():
         manifest = storage.read_manifest(out_dir)
-        if manifest.get("config") != identity:
-            raise ValueError(
-                f"{out_dir} holds a collection with a different configuration "
-                f"({manifest.get('config')}); use a new --out directory or the same options")
+        stored = manifest.get("config")
+        if stored != identity:
+            if not _extends(stored, identity):
+                raise ValueError(
+                    f"{out_dir} holds a collection with a different configuration "
+                    f"({stored}); use a new --out directory, or the same options (a larger "
+                    f"--transitions extends it)")
+            manifest.update(config=identity, status="collecting",
+                            extended_from=[*manifest.get("extended_from", []),
+                                           stored["transitions"]])
+            storage.write_manifest(out_dir, manifest)
     else:
         manifest = {"config": identity, "seed": config.seed, "code_version": code_version(),
                     "status": "collecting"}
@@ -209,7 +218,7 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int = 1,
                          f"{config.num_chunks} chunks")
     for c, path in list(done.items()):
         if storage.shard_length(path) != config.chunk_count(c):
-            path.unlink()  # cannot happen with atomic writes; regenerate rather than trust
+            path.unlink()  # a short last chunk of a collection being extended: redo it
             del done[c]
     todo = [c for c in range(config.num_chunks) if c not in done]
     already = sum(config.chunk_count(c) for c in done)
@@ -238,6 +247,15 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int = 1,
     storage.write_manifest(out_dir, manifest)
     storage.write_json(out_dir, "summary.json", summary)
     return summary
+
+
+def _extends(stored: dict | None, identity: dict) -> bool:
+    """Whether `identity` is `stored` with more transitions (the chunks already written are
+    then exactly chunks of the larger collection; a short last one is regenerated)."""
+    if not isinstance(stored, dict) or stored.keys() != identity.keys():
+        return False
+    same = all(stored[k] == identity[k] for k in identity if k != "transitions")
+    return same and identity["transitions"] > stored["transitions"]
 
 
 def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: int, bar):
