@@ -121,3 +121,15 @@ def test_a_cube_put_at_a_blocks_end_is_told_apart_with_the_prior(camera_station,
     assert all(e["type_ok"] and e["position_mm"] < 5.0 for e in report["errors"].values()), \
         report["errors"]
     assert report["contacts_ok"]
+
+
+def test_a_row_of_points_along_an_edge_is_no_surface():
+    # One camera row along a box edge: a flat run of cells whose points are collinear, so
+    # a plane fit through them has no normal (it used to give a sideways one, then NaNs).
+    y = np.arange(-0.158, -0.105, 0.001)
+    row = np.column_stack([np.full_like(y, 0.5595), y, np.full_like(y, 0.0508)])
+    points = seg.crop(np.vstack([cube_surface_points(np.array([0.7, 0.0, 0.025])), row]))
+    surfaces = seg.find_surfaces(seg.height_map(points))
+    assert len(surfaces) == 1
+    assert surfaces[0].normal[2] > 0.999
+    assert np.allclose(surfaces[0].centroid[:2], [0.7, 0.0], atol=0.002)

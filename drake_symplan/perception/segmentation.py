@@ -18,6 +18,7 @@ CROP_Y = (-0.56, 0.56)
 CROP_Z = (0.004, 0.50)  # table top is z = 0; everything above 4 mm is an object
 FLAT_RANGE = 0.009  # m, max height spread in a 3x3 neighbourhood of a surface cell
 MIN_REGION_CELLS = 12
+MIN_PLANE_WIDTH = CELL / 4  # m, rms spread of a surface's points across its long axis
 
 
 @dc.dataclass
@@ -141,7 +142,10 @@ def find_surfaces(hm: HeightMap) -> list[Surface]:
         pts = hm.points[idx[top]]
         if len(pts) < 10:
             continue
-        normal, centroid = _fit_plane(pts)
+        fit = _fit_plane(pts)
+        if fit is None:
+            continue
+        normal, centroid = fit
         # Grow back the edge cells that the flatness test dropped: points within two
         # cells of the region that lie on its plane.
         lo_c = np.maximum(cells.min(axis=0) - 2, 0)
@@ -157,9 +161,14 @@ def find_surfaces(hm: HeightMap) -> list[Surface]:
     return surfaces
 
 
-def _fit_plane(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fit_plane(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(unit normal with z > 0, centroid), or None for points on a line (no plane)."""
     centroid = pts.mean(axis=0)
-    _, _, vt = np.linalg.svd(pts - centroid, full_matrices=False)
+    _, sv, vt = np.linalg.svd(pts - centroid, full_matrices=False)
+    # A single row of pixels along a box's edge fills a flat region of cells with
+    # collinear points; its "normal" is any direction across the line.
+    if sv[1] / np.sqrt(len(pts)) < MIN_PLANE_WIDTH:
+        return None
     n = vt[2]
     if n[2] < 0:
         n = -n
