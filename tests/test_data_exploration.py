@@ -205,3 +205,31 @@ def test_a_misperceived_scene_is_skipped_and_the_episode_goes_on_once_all_are_se
     log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
     assert log.end == "perception_unrecovered" and log.skipped == {
         "perception_lost_object": 1}
+
+
+def test_perception_raising_drops_the_episode_and_keeps_what_it_recorded():
+    from drake_symplan.data.backends import Backend, PerceptionFailure
+    from drake_symplan.data.exploration import EpisodeConfig, run_episode
+
+    class RaisingPerceiver:
+        def perceive(self, *args, **kwargs):
+            raise ValueError("Points cannot contain NaN")
+
+    backend = Backend.__new__(Backend)  # no station: only the perceiver is called
+    backend.station, backend.perceiver, backend.noise, backend.rng = None, RaisingPerceiver(), \
+        None, None
+    with pytest.raises(PerceptionFailure, match="ValueError: Points cannot contain NaN"):
+        backend.perceive()
+
+    class FailingThird(ScriptedBackend):
+        def execute(self, action, before):
+            if not self.after:
+                raise PerceptionFailure("perception failed: ValueError: NaN")
+            return super().execute(action, before)
+
+    two = cubes(0.5, 0.7)
+    config = EpisodeConfig(min_objects=2, max_objects=2, length=4)
+    log = run_episode(FailingThird(seen=[two], after=[two, two]), np.random.default_rng(0),
+                      config, episode=0, budget=10)
+    assert log.end == "perception_error" and log.dropped and "NaN" in log.error
+    assert [t.step for t in log.transitions] == [0, 1]

@@ -31,6 +31,12 @@ CONTACT_APPROXIMATION = "similar"
 RESET_SETTLE = 0.1  # s of physics after putting a sampled scene on the table
 
 
+class PerceptionFailure(Exception):
+    """Perception raised on a scene (a numerical failure): the episode cannot go on.
+
+    Not a RuntimeError, so the back-ends' simulation-failure handlers let it through."""
+
+
 @dc.dataclass
 class Execution:
     """What one action did, as perceived. status: "ok" | "infeasible" | "sim_failure"."""
@@ -67,8 +73,13 @@ class Backend:
 
     def perceive(self, prior=None):
         """The scene as perceived now; `prior`: the scene perceived before the action."""
-        return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng,
-                                       prior=prior)
+        from scipy.spatial import QhullError
+
+        try:
+            return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng,
+                                           prior=prior)
+        except (ValueError, ArithmeticError, QhullError) as e:
+            raise PerceptionFailure(f"perception failed: {type(e).__name__}: {e}") from e
 
     @property
     def _seen(self):

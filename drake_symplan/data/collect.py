@@ -109,13 +109,14 @@ def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
     backend.noise = (DepthNoise(config.noise_sigma, config.noise_dropout)
                      if config.noise_sigma > 0 or config.noise_dropout > 0 else None)
     transitions, ends, outcomes, skipped = [], Counter(), Counter(), Counter()
-    infeasible, episodes = 0, 0
+    infeasible, episodes, errors = 0, 0, []
     t0 = time.perf_counter()
     while len(transitions) < target:
         if episodes >= MAX_EPISODES_PER_CHUNK:
             raise RuntimeError(f"chunk {c}: {episodes} episodes gave only {len(transitions)} "
                                f"transitions (ends: {dict(ends)})")
-        log = run_episode(backend, rng, config.episode_config(), c * EPISODE_STRIDE + episodes,
+        episode = c * EPISODE_STRIDE + episodes
+        log = run_episode(backend, rng, config.episode_config(), episode,
                           target - len(transitions), on_transition)
         episodes += 1
         transitions.extend(log.transitions)
@@ -123,10 +124,13 @@ def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
         outcomes.update(log.outcomes)
         skipped.update(log.skipped)
         infeasible += log.infeasible
+        if log.error:
+            errors.append(f"episode {episode}: {log.error}")
     arrays, extra = pack(transitions)
     info = {"chunk": c, "transitions": len(transitions), "episodes": episodes,
             "episode_ends": dict(ends), "executed_outcomes": dict(outcomes),
             "skipped_transitions": dict(skipped), "infeasible_actions": infeasible,
+            "perception_errors": errors,
             "seconds": round(time.perf_counter() - t0, 3)}
     return arrays, extra, info
 

@@ -50,7 +50,7 @@ LIFT_TOL = 0.05  # m of rise at the end of the lift: the object went up with the
 TIP_TOL = np.radians(15.0)  # tilt gained by an object that tipped over
 # Ends of an episode; the DROP_REASONS ones are failures.
 DROP_REASONS = ("sim_failure", "perception_initial_count", "perception_unrecovered",
-                "too_many_infeasible")
+                "perception_error", "too_many_infeasible")
 TABLE_X, TABLE_Y = (-0.3, 1.3), (-0.7, 0.7)  # the table top (models/table/table.sdf)
 
 
@@ -82,6 +82,7 @@ class EpisodeLog:
     outcomes: Counter = dc.field(default_factory=Counter)  # every executed action
     infeasible: int = 0
     skipped: Counter = dc.field(default_factory=Counter)  # executed, not recorded: why
+    error: str = ""  # what perception raised, when it ended the episode
 
     @property
     def dropped(self) -> bool:
@@ -163,25 +164,39 @@ def run_episode(
     budget: int,
     on_transition: Callable[[], None] | None = None,
 ) -> EpisodeLog:
-    """Runs one episode on `backend`, recording at most `budget` transitions."""
+    """Runs one episode on `backend`, recording at most `budget` transitions.
+
+    Perception raising on a scene (PerceptionFailure) ends the episode as dropped
+    ("perception_error"); the transitions recorded before it are kept."""
+    from drake_symplan.data.backends import PerceptionFailure
+
+    log = EpisodeLog()
+    try:
+        _act(backend, rng, config, episode, budget, on_transition, log)
+    except PerceptionFailure as e:
+        log.end, log.error = "perception_error", str(e)
+    return log
+
+
+def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_transition,
+         log: EpisodeLog) -> None:
     from drake_symplan.perception.perceive import associate
     from drake_symplan.skills.pick_place import action_geometry
 
-    log = EpisodeLog()
     n = int(rng.integers(config.min_objects, config.max_objects + 1))
     backend.reset(sample_scene(rng, n, long_fraction=config.long_fraction))
     before = backend.perceive()
     if len(before.objects) != n:
         log.end = "perception_initial_count"
-        return log
+        return
     step, infeasible_run, lost = 0, 0, False
     while step < config.length:
         if len(log.transitions) >= budget:
             log.end = "budget"
-            return log
+            return
         if len(before.objects) < 2:  # lost track, and no action to try on what is seen
             log.end = "perception_unrecovered"
-            return log
+            return
         action = random_action(rng, before.names)
         result = backend.execute(action, before)
         if result.status == "infeasible":
@@ -189,12 +204,12 @@ def run_episode(
             infeasible_run += 1
             if infeasible_run >= config.max_infeasible:
                 log.end = "too_many_infeasible"
-                return log
+                return
             continue
         infeasible_run = 0
         if result.status != "ok":
             log.end = "sim_failure"
-            return log
+            return
         step += 1
         lift, after = result.lift, result.after
         if lost:
@@ -204,7 +219,7 @@ def run_episode(
             log.outcomes["fell_off"] += 1
             log.skipped["left_table"] += 1
             log.end = "left_table"
-            return log
+            return
         if lost or len(after.objects) != n:
             log.skipped["perception_recovering" if lost else "perception_lost_object"
                         if missing else "perception_count_mismatch"] += 1
@@ -234,4 +249,3 @@ def run_episode(
         before = after
     if lost:
         log.end = "length_unrecovered"
-    return log
