@@ -180,6 +180,7 @@ def run_episode(
 
 def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_transition,
          log: EpisodeLog) -> None:
+    """run_episode's actions: records into `log` and sets how the episode ended."""
     from drake_symplan.perception.perceive import associate
     from drake_symplan.skills.pick_place import action_geometry
 
