@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses as dc
 
 import numpy as np
+from scipy.spatial import QhullError
 
 from drake_symplan.structs import Action
 from drake_symplan.world.cameras import DepthNoise, default_cameras
@@ -73,8 +74,6 @@ class Backend:
 
     def perceive(self, prior=None):
         """The scene as perceived now; `prior`: the scene perceived before the action."""
-        from scipy.spatial import QhullError
-
         try:
             return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng,
                                            prior=prior)
