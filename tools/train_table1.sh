@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Table I: three models x three seeds on one data set, single-thread runs, two at a time,
-# then the continuous reference (no symbols: the data set's error floor) x three seeds.
+# and the continuous reference (no symbols: the data set's error floor) x three seeds.
 #   bash tools/train_table1.sh [DATA (data_out/hand50k)] [RUNS (runs/<data set name>)]
 # Re-running resumes unfinished runs and skips finished ones (and ones another invocation
 # holds: RUN.lock).
@@ -21,8 +21,9 @@ run() {  # model seed
 export -f run
 export data runs
 mkdir -p "$runs"
-printf '%s\n' "relational 0" "attentive 0" "relational 1" "attentive 1" "relational 2" \
-  "attentive 2" "deepsym 0" "deepsym 1" "deepsym 2" "reference 0" "reference 1" \
-  "reference 2" | xargs -P 2 -L 1 bash -c 'run "$0" "$1"'
+# Seed-major, so that an interrupted invocation leaves whole seeds of all four models.
+for seed in 0 1 2; do
+  for model in relational attentive deepsym reference; do echo "$model $seed"; done
+done | xargs -P 2 -L 1 bash -c 'run "$0" "$1"'
 .venv/bin/symplan eval effects "$runs"/*_s? --json --plot "$runs/effects.png" > "$runs/eval.json"
 echo "Table I: $runs/eval.json"
