@@ -82,6 +82,7 @@ def _collect_cmd(out, n):
 
 @pytest.mark.slow
 def test_kill_9_then_the_same_command_ends_with_exactly_n(tmp_path):
+    from drake_symplan.data.stats import dataset_stats
     from drake_symplan.data.storage import existing_shards, load_transitions
 
     out, n = tmp_path / "data", 22
@@ -103,6 +104,9 @@ def test_kill_9_then_the_same_command_ends_with_exactly_n(tmp_path):
             keys.update(zip(z["episode"].tolist(), z["step"].tolist(), strict=True))
     assert len(keys) == n  # no (episode, step) twice
     assert not list(out.glob(".*tmp*"))
+    stats = dataset_stats(out)
+    phases = stats["worker_seconds_by_phase"]
+    assert phases["physics"] > 0 and phases["perception"] > 0 and phases["other"] >= 0
     from drake_symplan.cli.main import main
 
     assert main(["data", "stats", str(out), "--json"]) == 0

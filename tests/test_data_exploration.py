@@ -124,7 +124,8 @@ def test_pack_pads_with_mask_and_stats_read_the_shards(tmp_path):
                 {"length_unrecovered": 1, "perception_unrecovered": 1},
                 "skipped_transitions": {"perception_count_mismatch": 1,
                                         "perception_recovering": 2},
-                "infeasible_actions": 0, "seconds": 1.0}
+                "infeasible_actions": 0, "seconds": 1.0,
+                "phase_seconds": {"physics": 0.5, "perception": 0.25}}
         storage.write_shard(tmp_path, c, arrays, extra={**extra, "info": np.array(json.dumps(
             info))})
     data = storage.load_transitions(tmp_path)
@@ -142,6 +143,9 @@ def test_pack_pads_with_mask_and_stats_read_the_shards(tmp_path):
     assert stats["perception_unrecorded_per_action"] == pytest.approx(6 / 12, abs=1e-4)
     assert stats["executed_outcome_fractions"]["fell_off"] == pytest.approx(1 / 3, abs=1e-3)
     assert sum(stats["outcome_fractions"].values()) == pytest.approx(1.0)
+    assert stats["worker_seconds"] == 2.0
+    assert stats["worker_seconds_by_phase"] == {"physics": 1.0, "perception": 0.5,
+                                                "other": 0.5}
 
 
 def test_chunks_sum_to_exactly_n():

@@ -3,8 +3,11 @@
 For each back-end, `--runs` fresh collections of `--transitions` transitions on
 `--objects`-object scenes with `--workers` workers (perception included); reports the
 median end-to-end rate (worker start-up included) and the median steady rate (transitions
-per second of worker time, times the workers). `--parity-pairs N` also runs N identical
-(scene, action) pairs on both back-ends (data/parity.py).
+per second of worker time, times the workers), and where the worker time goes: seconds per
+transition in physics, perception and the rest, and the rate the workers would reach if
+they only simulated (`physics_only_rate_per_s`: the ceiling for any speed-up outside the
+physics). `--parity-pairs N` also runs N identical (scene, action) pairs on both back-ends
+(data/parity.py).
 
     .venv/bin/python tools/bench_collect.py --json [--out FILE] [--parity-pairs 300]
 """
@@ -23,7 +26,7 @@ def bench_backend(backend: str, transitions: int, workers: int, objects: int, ru
                   seed: int) -> dict:
     from drake_symplan.data.collect import CollectConfig, collect
 
-    rates, steady, rows = [], [], []
+    rates, steady, rows, phases = [], [], [], []
     for r in range(runs):
         with tempfile.TemporaryDirectory() as tmp:
             config = CollectConfig(backend=backend, transitions=transitions, seed=seed + r,
@@ -33,8 +36,11 @@ def bench_backend(backend: str, transitions: int, workers: int, objects: int, ru
         run = summary["this_run"]
         rates.append(run["rate_per_s"])
         steady.append(transitions / (summary["worker_seconds"] / workers))
+        phases.append({k: v / transitions
+                       for k, v in summary["worker_seconds_by_phase"].items()})
         rows.append({"rate_per_s": run["rate_per_s"], "wall_seconds": run["wall_seconds"],
                      "steady_rate_per_s": round(steady[-1], 3),
+                     "seconds_per_transition": {k: round(v, 4) for k, v in phases[-1].items()},
                      "no_effect_fraction": summary["no_effect_fraction"],
                      "dropped_fraction": summary["dropped_fraction"],
                      "dropped_reasons": summary["dropped_reasons"],
@@ -42,7 +48,11 @@ def bench_backend(backend: str, transitions: int, workers: int, objects: int, ru
     return {"backend": backend, "workers": workers, "objects": objects,
             "transitions_per_run": transitions, "runs": rows,
             "median_rate_per_s": round(statistics.median(rates), 3),
-            "median_steady_rate_per_s": round(statistics.median(steady), 3)}
+            "median_steady_rate_per_s": round(statistics.median(steady), 3),
+            "median_seconds_per_transition": {
+                k: round(statistics.median(p[k] for p in phases), 4) for k in phases[0]},
+            "physics_only_rate_per_s": round(
+                workers / statistics.median(p["physics"] for p in phases), 3)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,6 +16,7 @@ tests.
 from __future__ import annotations
 
 import dataclasses as dc
+import time
 
 import numpy as np
 from scipy.spatial import QhullError
@@ -67,6 +68,12 @@ class Backend:
         self.perceiver = Perceiver()
         self.noise = noise if noise is not None and noise.active else None
         self.rng = rng or np.random.default_rng(0)
+        self.perception_seconds = 0.0
+
+    def seconds(self) -> dict[str, float]:
+        """Wall time spent so far in physics (simulating) and in perception (rendering
+        included): where collection time goes, for `data stats` and the benchmark."""
+        return {"physics": self.station.physics_seconds, "perception": self.perception_seconds}
 
     def reset(self, scene: Scene) -> None:
         self.station.reset(scene)
@@ -74,11 +81,14 @@ class Backend:
 
     def perceive(self, prior=None):
         """The scene as perceived now; `prior`: the scene perceived before the action."""
+        start = time.perf_counter()
         try:
             return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng,
                                            prior=prior)
         except (ValueError, ArithmeticError, QhullError) as e:
             raise PerceptionFailure(f"perception failed: {type(e).__name__}: {e}") from e
+        finally:
+            self.perception_seconds += time.perf_counter() - start
 
     @property
     def _seen(self):
@@ -158,9 +168,9 @@ class ArmBackend(Backend):
         trajectory.shiftRight(t0)
         station.command_source.UpdateTrajectory(trajectory)
         try:
-            station.simulator.AdvanceTo(t0 + motion.t_lift)
+            station.advance_to(t0 + motion.t_lift)
             lift = self.perceive(before)
-            station.simulator.AdvanceTo(t0 + motion.t_end)
+            station.advance_to(t0 + motion.t_end)
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             return Execution("sim_failure", message=f"simulation failed: {e}")

@@ -110,7 +110,7 @@ def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
                      if config.noise_sigma > 0 or config.noise_dropout > 0 else None)
     transitions, ends, outcomes, skipped = [], Counter(), Counter(), Counter()
     infeasible, episodes, errors = 0, 0, []
-    t0 = time.perf_counter()
+    t0, phases0 = time.perf_counter(), backend.seconds()
     while len(transitions) < target:
         if episodes >= MAX_EPISODES_PER_CHUNK:
             raise RuntimeError(f"chunk {c}: {episodes} episodes gave only {len(transitions)} "
@@ -131,7 +131,9 @@ def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
             "episode_ends": dict(ends), "executed_outcomes": dict(outcomes),
             "skipped_transitions": dict(skipped), "infeasible_actions": infeasible,
             "perception_errors": errors,
-            "seconds": round(time.perf_counter() - t0, 3)}
+            "seconds": round(time.perf_counter() - t0, 3),
+            "phase_seconds": {k: round(v - phases0[k], 3)
+                              for k, v in backend.seconds().items()}}
     return arrays, extra, info
 
 

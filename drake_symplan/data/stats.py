@@ -10,7 +10,10 @@
 - perception_failures_per_action: executed actions whose resulting scene perception got
   wrong (a box too many or lost), which the episode skipped and recovered from;
   perception_unrecorded_per_action adds the actions run while track was lost: every
-  executed action that perception kept out of the data set.
+  executed action that perception kept out of the data set;
+- worker_seconds and, for data collected since phases were timed, worker_seconds_by_phase:
+  physics (simulating), perception (rendering included) and other (planning, features,
+  bookkeeping).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ def dataset_stats(data_dir: str | Path) -> dict:
     outcomes, executed, ends, skipped, hist = Counter(), Counter(), Counter(), Counter(), Counter()
     episodes: set[int] = set()
     transitions, infeasible, seconds = 0, 0, 0.0
+    phases, untimed = Counter(), 0
     for path in paths:
         z = storage.read_shard_arrays(path, ("mask", "episode", "outcome", "info"))
         transitions += len(z["episode"])
@@ -53,6 +57,10 @@ def dataset_stats(data_dir: str | Path) -> dict:
             skipped.update(info["skipped_transitions"])
             infeasible += info["infeasible_actions"]
             seconds += info["seconds"]
+            if "phase_seconds" in info:
+                phases.update(info["phase_seconds"])
+            else:
+                untimed += 1
     num_episodes = sum(ends.values()) or len(episodes)
     dropped = {k: ends[k] for k in DROP_REASONS if ends[k]}
     failures = sum(skipped[k] for k in PERCEPTION_FAILURES)
@@ -80,6 +88,10 @@ def dataset_stats(data_dir: str | Path) -> dict:
         "perception_unrecorded_per_action": round(unrecorded / actions, 4) if actions else 0.0,
         "infeasible_actions": infeasible,
         "worker_seconds": round(seconds, 1),
+        "worker_seconds_by_phase": None if untimed or not phases else {
+            "physics": round(phases["physics"], 1),
+            "perception": round(phases["perception"], 1),
+            "other": round(seconds - phases["physics"] - phases["perception"], 1)},
     }
 
 
@@ -95,4 +107,9 @@ def format_stats(stats: dict) -> str:
              f"perception failures per action: {stats['perception_failures_per_action']:.2%} "
              f"(skipped, recovered); actions unrecorded because of perception: "
              f"{stats['perception_unrecorded_per_action']:.2%}"]
+    phases = stats["worker_seconds_by_phase"]
+    if phases:
+        total = stats["worker_seconds"] or 1.0
+        lines.append(f"worker time: {stats['worker_seconds']:.0f} s (" + ", ".join(
+            f"{k} {v / total:.0%}" for k, v in phases.items()) + ")")
     return "\n".join(lines)

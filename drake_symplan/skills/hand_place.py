@@ -187,7 +187,7 @@ def _follow(station: Station, motion: HandMotion, t_from: float, t_to: float) ->
     trajectory = motion.trajectory.Clone()
     trajectory.shiftRight(t0)
     station.command_source.UpdateTrajectory(trajectory)
-    station.simulator.AdvanceTo(t0 + t_to)
+    station.advance_to(t0 + t_to)
 
 
 def _riders(station: Station, z_before: dict[str, float]) -> list:
@@ -224,12 +224,12 @@ def settle_until_rest(station: Station) -> float:
     but that perception can't see and that goes nowhere.
     """
     t0 = station.context.get_time()
-    station.simulator.AdvanceTo(t0 + SETTLE_MIN)
+    station.advance_to(t0 + SETTLE_MIN)
     plant, ctx = station.plant, station.plant_context
     bodies = list(station.assigned.values())
     poses = [plant.EvalBodyPoseInWorld(ctx, b) for b in bodies]
     while station.context.get_time() - t0 < SETTLE_MAX - 1e-9:
-        station.simulator.AdvanceTo(station.context.get_time() + SETTLE_CHECK)
+        station.advance_to(station.context.get_time() + SETTLE_CHECK)
         now = [plant.EvalBodyPoseInWorld(ctx, b) for b in bodies]
         if all(_at_rest(a, b) for a, b in zip(poses, now, strict=True)):
             break

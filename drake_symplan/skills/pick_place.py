@@ -190,9 +190,9 @@ def execute(station: Station, motion: Motion) -> tuple[dict, dict, dict]:
     trajectory = motion.trajectory.Clone()
     trajectory.shiftRight(t0)
     station.command_source.UpdateTrajectory(trajectory)
-    station.simulator.AdvanceTo(t0 + motion.t_lift)
+    station.advance_to(t0 + motion.t_lift)
     lifted = station.object_states()
-    station.simulator.AdvanceTo(t0 + motion.t_end)
+    station.advance_to(t0 + motion.t_end)
     end = station.object_states()
     return start, lifted, end
 

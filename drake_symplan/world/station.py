@@ -7,6 +7,7 @@ scene's objects, parks (and locks) the unused ones under the table, and puts the
 from __future__ import annotations
 
 import dataclasses as dc
+import time
 from pathlib import Path
 
 import numpy as np
@@ -159,6 +160,7 @@ class Station:
         self.cameras = AddDepthCameras(builder, scene_graph, cfg.cameras)
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
+        self.physics_seconds = 0.0  # wall time spent in advance_to, for the benchmarks
         self.context = self.simulator.get_mutable_context()
         self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
         self.assigned: dict[str, object] = {}  # scene name -> body
@@ -237,7 +239,15 @@ class Station:
 
     def settle(self, seconds: float = 0.5) -> None:
         """Lets physics run with the current command held (objects come to rest)."""
-        self.simulator.AdvanceTo(self.context.get_time() + seconds)
+        self.advance_to(self.context.get_time() + seconds)
+
+    def advance_to(self, t: float) -> None:
+        """Simulates up to time t; the wall time it takes adds to `physics_seconds`."""
+        start = time.perf_counter()
+        try:
+            self.simulator.AdvanceTo(t)
+        finally:
+            self.physics_seconds += time.perf_counter() - start
 
     # --- ground truth (tests and perception measurement only) ----------------------
 
