@@ -54,6 +54,7 @@ class Backend:
 
     name = ""
     robot = ""
+    perception_seconds = 0.0  # wall time spent in perceive, for the benchmarks
 
     def __init__(self, noise: DepthNoise | None = None, rng: np.random.Generator | None = None,
                  time_step: float | None = None):
@@ -68,7 +69,6 @@ class Backend:
         self.perceiver = Perceiver()
         self.noise = noise if noise is not None and noise.active else None
         self.rng = rng or np.random.default_rng(0)
-        self.perception_seconds = 0.0
 
     def seconds(self) -> dict[str, float]:
         """Wall time spent so far in physics (simulating) and in perception (rendering
