@@ -2,7 +2,8 @@
 
 `train(TrainConfig(...))` loads the whole data set into memory, splits it by
 episode (80/10/10, seeded), fits normalisation statistics on the training split,
-and runs epochs of shuffled mini-batches. After every epoch it evaluates the
+and runs epochs of shuffled mini-batches (by default grouped by object count and
+trimmed of padding, `TensorSet.grouped_batches`). After every epoch it evaluates the
 validation loss in eval mode (deterministic bits), appends a row to `log.csv`, saves
 `last.pt` and, on improvement, `best.pt`. Training stops after `epochs` epochs or
 `patience` epochs without improvement; the test metrics of the best checkpoint go to
@@ -50,6 +51,9 @@ class TrainConfig:
     temperature: float = DEFAULT_TEMPERATURE  # Gumbel-sigmoid; see gumbel.py
     hard: bool = DEFAULT_HARD
     model_kwargs: dict = field(default_factory=dict)
+    # Batches of transitions with one object count, trimmed of padding (see
+    # TensorSet.grouped_batches): the same model and loss, ~1.6x fewer slots on 2-4 objects.
+    group_by_count: bool = True
     progress: bool = True
 
     def __post_init__(self):
@@ -89,9 +93,11 @@ def train_step(model, optimizer, batch, grad_clip: float) -> torch.Tensor:
 def _check_resumable(saved: dict, cfg: TrainConfig, data_fp: str, out: Path) -> None:
     if saved["data_fingerprint"] != data_fp:
         raise ValueError(f"cannot resume {out}: the data in {cfg.data} changed since it started")
-    now = dataclasses.asdict(cfg)
-    diff = [k for k, v in saved["train_config"].items()
-            if k not in RESUMABLE_CHANGES and k not in ("data", "out") and now.get(k) != v]
+    now, then = dataclasses.asdict(cfg), saved["train_config"]
+    # A setting the saved run lacks (added since it started) counts as changed.
+    diff = [k for k in sorted(now.keys() | then.keys())
+            if k not in RESUMABLE_CHANGES and k not in ("data", "out")
+            and now.get(k, None) != then.get(k, None)]
     if diff:
         raise ValueError(f"cannot resume {out}: settings {diff} differ from the saved run")
 
@@ -167,11 +173,13 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
     while progress["epoch"] < cfg.epochs and not stopped_early:
         start = time.perf_counter()
         model.train()
-        total, batches = torch.zeros(()), 0
-        for batch in sets["train"].batches(cfg.batch_size, shuffle):
+        total, n_batches = torch.zeros(()), 0
+        batches = (sets["train"].grouped_batches if cfg.group_by_count
+                   else sets["train"].batches)
+        for batch in batches(cfg.batch_size, shuffle):
             total += train_step(model, optimizer, batch, cfg.grad_clip)
-            batches += 1
-        train_loss = float(total) / max(1, batches)
+            n_batches += 1
+        train_loss = float(total) / max(1, n_batches)
         if not math.isfinite(train_loss):
             raise ValueError(f"training diverged in epoch {progress['epoch'] + 1} "
                              f"(loss {train_loss}); {last_path} holds the previous epoch")
