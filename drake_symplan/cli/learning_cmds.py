@@ -31,9 +31,6 @@ def register(subparsers) -> None:
                    help="Gumbel-sigmoid temperature (default 3; see learning/gumbel.py)")
     p.add_argument("--soft", action="store_true",
                    help="soft Gumbel-sigmoid samples (default: straight-through hard bits)")
-    p.add_argument("--no-group-by-count", action="store_true",
-                   help="mix object counts in a batch, padded to the largest scene (default: "
-                        "batches of one object count, trimmed of padding; same model, faster)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true")
@@ -81,8 +78,7 @@ def cmd_train(args: argparse.Namespace) -> dict:
     cfg = TrainConfig(
         model=args.model, data=args.data, out=args.out, epochs=args.epochs,
         batch_size=args.batch_size, lr=args.lr, seed=args.seed, patience=args.patience,
-        threads=args.threads, hard=not args.soft, group_by_count=not args.no_group_by_count,
-        progress=not args.no_progress, **options,
+        threads=args.threads, hard=not args.soft, progress=not args.no_progress, **options,
     )
     return train(cfg, resume=args.resume)
 

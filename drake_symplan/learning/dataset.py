@@ -54,31 +54,6 @@ class TensorSet:
         for start in range(0, n, batch_size):
             yield self.batch(order[start:start + batch_size])
 
-    def slots_used(self) -> torch.Tensor:
-        """[T] number of leading slots each transition needs: its last real slot + 1."""
-        n = self.mask.shape[1]
-        last = torch.where(self.mask, torch.arange(1, n + 1), 0)
-        return last.max(dim=1).values
-
-    def grouped_batches(self, batch_size: int, generator: torch.Generator):
-        """Shuffled mini-batches of transitions that need the same number of slots, trimmed
-        to it, covering the set once in a shuffled batch order.
-
-        Padded slots are inert in every model, so trimming them changes no prediction; it
-        only saves the work of computing them (about 40 % of the slots on 2-4-object data).
-        """
-        order = torch.randperm(len(self), generator=generator)
-        used = self.slots_used()[order]
-        chunks = []
-        for width in used.unique().tolist():
-            if width == 0:  # no real object: nothing to predict
-                continue
-            group = order[used == width]
-            chunks += [(group[i:i + batch_size], width) for i in range(0, len(group), batch_size)]
-        for k in torch.randperm(len(chunks), generator=generator).tolist():
-            index, width = chunks[k]
-            yield tuple(t[:, :width] for t in self.batch(index))
-
 
 def split_by_episode(
     episode: np.ndarray, seed: int, fractions: tuple[float, float, float] = DEFAULT_FRACTIONS

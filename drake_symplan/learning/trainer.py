@@ -2,8 +2,7 @@
 
 `train(TrainConfig(...))` loads the whole data set into memory, splits it by
 episode (80/10/10, seeded), fits normalisation statistics on the training split,
-and runs epochs of shuffled mini-batches (by default grouped by object count and
-trimmed of padding, `TensorSet.grouped_batches`). After every epoch it evaluates the
+and runs epochs of shuffled mini-batches. After every epoch it evaluates the
 validation loss in eval mode (deterministic bits), appends a row to `log.csv`, saves
 `last.pt` and, on improvement, `best.pt`. Training stops after `epochs` epochs or
 `patience` epochs without improvement; the test metrics of the best checkpoint go to
@@ -51,9 +50,6 @@ class TrainConfig:
     temperature: float = DEFAULT_TEMPERATURE  # Gumbel-sigmoid; see gumbel.py
     hard: bool = DEFAULT_HARD
     model_kwargs: dict = field(default_factory=dict)
-    # Batches of transitions with one object count, trimmed of padding (see
-    # TensorSet.grouped_batches): the same model and loss, ~1.6x fewer slots on 2-4 objects.
-    group_by_count: bool = True
     progress: bool = True
 
     def __post_init__(self):
@@ -174,9 +170,7 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
         start = time.perf_counter()
         model.train()
         total, n_batches = torch.zeros(()), 0
-        batches = (sets["train"].grouped_batches if cfg.group_by_count
-                   else sets["train"].batches)
-        for batch in batches(cfg.batch_size, shuffle):
+        for batch in sets["train"].batches(cfg.batch_size, shuffle):
             total += train_step(model, optimizer, batch, cfg.grad_clip)
             n_batches += 1
         train_loss = float(total) / max(1, n_batches)
