@@ -57,7 +57,7 @@ def test_resume_refuses_a_run_saved_without_a_setting_now_in_the_config(tmp_path
     then = dataclasses.asdict(cfg)
     _check_resumable({"data_fingerprint": "f", "train_config": dict(then)}, cfg, "f", tmp_path)
     del then["grad_clip"]  # a run started before the setting existed
-    with pytest.raises(ValueError, match=r"\['group_by_count'\] differ"):
+    with pytest.raises(ValueError, match=r"\['grad_clip'\] differ"):
         _check_resumable({"data_fingerprint": "f", "train_config": then}, cfg, "f", tmp_path)
 
 
