@@ -27,7 +27,8 @@ error is the data set's floor for the three symbolic models, what they could rea
 symbols cost nothing; it has no symbols to read out.
 
 Features are standardised and effects de-standardised with training-set statistics
-held in buffers (`set_normalization`), so checkpoints are self-contained.
+held in buffers (`set_normalization`), so checkpoints are self-contained. Per-object
+layers run on the real objects only (`layers.Packed`); padded slots are never computed.
 """
 
 from __future__ import annotations
@@ -36,7 +37,13 @@ import torch
 from torch import nn
 
 from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE, GumbelSigmoid
-from drake_symplan.learning.layers import MLP, NormedLinear, scale_to_norm
+from drake_symplan.learning.layers import (
+    MLP,
+    NormedLinear,
+    Packed,
+    packed_transformer,
+    scale_to_norm,
+)
 from drake_symplan.structs import ACTION_DIM, EFFECT_DIM
 
 
@@ -103,8 +110,9 @@ class EffectModel(nn.Module):
         """[B, K, N, N] logits of r_k(o_i, o_j), or None for a model without relations."""
         return None
 
-    def _unary_bits(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        return self.gs(self.unary_logits(state)) * mask.unsqueeze(-1)
+    def _unary_bits(self, features: torch.Tensor) -> torch.Tensor:
+        """Unary bits (sampled in training) of standardised features [..., d_o]."""
+        return self.gs(self.unary_head(self.encoder(features)))
 
 
 def object_transformer(d_model: int, n_heads: int, n_blocks: int, hidden: int) -> nn.Module:
@@ -142,27 +150,38 @@ class RelationalDeepSym(EffectModel):
         self.decoder = MLP((n_relations + own_message) * z_dim, [hidden] * layers, EFFECT_DIM)
 
     def relation_logits(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        b, n, _ = state.shape
-        qk = self.attention(self._features(state)).view(b, n, 2, self.n_relations, self.key_dim)
-        qk = scale_to_norm(qk).permute(2, 0, 3, 1, 4)  # [2, B, K, N, key_dim]
+        return self._pair_logits(self.attention(self._features(state)))
+
+    def _pair_logits(self, qk: torch.Tensor) -> torch.Tensor:
+        """[B, K, N, N] q^k_i . k^k_j from the attention MLP's output [B, N, 2 K key_dim]."""
+        b, n, _ = qk.shape
+        qk = scale_to_norm(qk.view(b, n, 2, self.n_relations, self.key_dim))
+        qk = qk.permute(2, 0, 3, 1, 4)  # [2, B, K, N, key_dim]
         return qk[0] @ qk[1].transpose(-1, -2)
+
+    def _relation_bits(self, logits: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        m = mask.to(logits.dtype)
+        pair = (m.unsqueeze(-1) * m.unsqueeze(-2)).unsqueeze(1)
+        return self.gs(logits) * pair
 
     def relations(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         """[B, K, N, N] relation bits (sampled in training), zero wherever a slot is padding."""
-        m = mask.to(state.dtype)
-        pair = (m.unsqueeze(-1) * m.unsqueeze(-2)).unsqueeze(1)
-        return self.gs(self.relation_logits(state, mask)) * pair
+        return self._relation_bits(self.relation_logits(state, mask), mask)
 
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
         b, n, _ = state.shape
-        unary = self._unary_bits(state, mask)
-        z = self.message(torch.cat([unary, action], dim=-1))  # [B, N, D]
-        alpha = self.relations(state, mask)  # [B, K, N, N]
-        h = (alpha.reshape(b, self.n_relations * n, n) @ z).view(b, self.n_relations, n, -1)
-        h = h.transpose(1, 2).reshape(b, n, -1)  # [B, N, K * D], heads concatenated
+        packed = Packed(mask)
+        x = packed.pack(self._features(state))
+        unary = self._unary_bits(x)
+        z = self.message(torch.cat([unary, packed.pack(action)], dim=-1))  # [M, D]
+        qk = packed.unpack(self.attention(x))
+        alpha = self._relation_bits(self._pair_logits(qk), mask)  # [B, K, N, N]
+        h = (alpha.reshape(b, self.n_relations * n, n) @ packed.unpack(z))
+        h = h.view(b, self.n_relations, n, -1).transpose(1, 2).reshape(b, n, -1)
+        h = packed.pack(h)  # [M, K * D], heads concatenated
         if self.own_message:
             h = torch.cat([z, h], dim=-1)
-        return self._effects(self.decoder(h), mask)
+        return self._effects(packed.unpack(self.decoder(h)), mask)
 
 
 class DeepSym(EffectModel):
@@ -197,7 +216,9 @@ class DeepSym(EffectModel):
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
         b, n, _ = state.shape
         m = self.max_objects
-        slots = torch.cat([self._unary_bits(state, mask), mask.unsqueeze(-1).to(state.dtype),
+        packed = Packed(mask)
+        bits = packed.unpack(self._unary_bits(packed.pack(self._features(state))))
+        slots = torch.cat([bits, mask.unsqueeze(-1).to(state.dtype),
                            action * mask.unsqueeze(-1)], dim=-1)
         order = self.role_order(action, mask)
         slots = slots.gather(1, order.unsqueeze(-1).expand_as(slots))
@@ -239,9 +260,11 @@ class AttentiveDeepSym(EffectModel):
         self.decoder = MLP(d_model, [hidden] * layers, EFFECT_DIM)
 
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
-        x = self.embed(torch.cat([self._unary_bits(state, mask), action], dim=-1))
-        x = self.transformer(x, src_key_padding_mask=~mask)
-        return self._effects(self.decoder(x), mask)
+        packed = Packed(mask)
+        bits = self._unary_bits(packed.pack(self._features(state)))
+        x = self.embed(torch.cat([bits, packed.pack(action)], dim=-1))
+        x = packed_transformer(self.transformer, x, packed)
+        return self._effects(packed.unpack(self.decoder(x)), mask)
 
 
 class ContinuousReference(EffectModel):
@@ -269,9 +292,10 @@ class ContinuousReference(EffectModel):
         self.decoder = MLP(d_model, [hidden] * layers, EFFECT_DIM)
 
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
-        x = self.embed(torch.cat([self._features(state), action], dim=-1))
-        x = self.transformer(x, src_key_padding_mask=~mask)
-        return self._effects(self.decoder(x), mask)
+        packed = Packed(mask)
+        x = self.embed(packed.pack(torch.cat([self._features(state), action], dim=-1)))
+        x = packed_transformer(self.transformer, x, packed)
+        return self._effects(packed.unpack(self.decoder(x)), mask)
 
 
 MODELS: dict[str, type[EffectModel]] = {
