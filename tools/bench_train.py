@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import statistics
 import sys
@@ -91,6 +92,21 @@ def bench_readout(state_dim: int, n: int, transitions: int, repeats: int) -> dic
     return {"transitions": transitions, "seconds": best, "rate_per_s": transitions / best}
 
 
+def cpu_facts() -> dict:
+    """CPU model and widest vector extension. A step time means little without them: the
+    same Relational step has measured 6.5 ms on one day's host and 15 ms on another's."""
+    try:
+        info = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return {}
+    model = next((line.split(":", 1)[1].strip() for line in info.splitlines()
+                  if line.startswith("model name")), "")
+    flags = set(next((line.split(":", 1)[1].split() for line in info.splitlines()
+                      if line.startswith("flags")), []))
+    simd = next((f for f in ("avx512f", "avx2", "avx") if f in flags), "none")
+    return {"cpu_model": model, "simd": simd, "cpus": len(os.sched_getaffinity(0))}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -128,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
             "peer_step_ms": PEER_STEP_MS,
         },
         "machine": {"python": platform.python_version(), "torch": torch.__version__,
-                    "processor": platform.processor() or platform.machine()},
+                    "processor": platform.processor() or platform.machine(), **cpu_facts()},
     }
     text = json.dumps(result, indent=2)
     if args.out:
