@@ -9,7 +9,7 @@ they only simulated (`physics_only_rate_per_s`: the ceiling for any speed-up out
 physics). `--parity-pairs N` also runs N identical (scene, action) pairs on both back-ends
 (data/parity.py).
 
-    .venv/bin/python tools/bench_collect.py --json [--out FILE] [--parity-pairs 300]
+    python tools/bench_collect.py --json [--out FILE] [--parity-pairs 300]
 """
 
 from __future__ import annotations

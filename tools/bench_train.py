@@ -1,6 +1,6 @@
 """Benchmark of the learning layer: Adam step time per model and symbol read-out rate.
 
-    .venv/bin/python tools/bench_train.py --json [--out FILE]
+    python tools/bench_train.py --json [--out FILE]
 
 An Adam step (forward, summed-over-objects MSE, backward, clip at 10, fused Adam) at
 batch 128 with 4 objects on `--threads` CPU threads (default 2), for each model:

@@ -13,7 +13,7 @@ run() {  # model seed
   [ -f "$out/metrics.json" ] && return 0
   mkdir "$out.lock" 2>/dev/null || return 0
   [ -f "$out/last.pt" ] && resume="--resume"
-  .venv/bin/symplan train --model "$1" --data "$data" --out "$out" --seed "$2" \
+  symplan train --model "$1" --data "$data" --out "$out" --seed "$2" \
     --epochs 300 --patience 30 --lr 1e-3 --threads 1 --no-progress --json $resume \
     > "$out.log" 2>&1
   rmdir "$out.lock"
@@ -25,5 +25,5 @@ mkdir -p "$runs"
 for seed in 0 1 2; do
   for model in relational attentive deepsym reference; do echo "$model $seed"; done
 done | xargs -P 2 -L 1 bash -c 'run "$0" "$1"'
-.venv/bin/symplan eval effects "$runs"/*_s? --json --plot "$runs/effects.png" > "$runs/eval.json"
+symplan eval effects "$runs"/*_s? --json --plot "$runs/effects.png" > "$runs/eval.json"
 echo "Table I: $runs/eval.json"
