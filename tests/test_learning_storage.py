@@ -7,6 +7,7 @@ import pytest
 
 from drake_symplan.data.storage import (
     fingerprint,
+    load_extra,
     load_transitions,
     write_manifest,
     write_shard,
@@ -43,6 +44,18 @@ def test_round_trip_pads_to_largest_n_in_index_order(tmp_path):
     np.testing.assert_array_equal(out.effect[2:], b.effect)
     np.testing.assert_array_equal(out.next_state[2:], b.next_state)
     np.testing.assert_array_equal(out.episode, [0, 1, 10, 11, 12])
+
+
+def test_extra_arrays_load_in_transition_order_or_not_at_all(tmp_path):
+    write_manifest(tmp_path)
+    write_shard(tmp_path, 1, _arrays(3, 2), {"outcome": np.array([2, 0, 1], np.int8)})
+    write_shard(tmp_path, 0, _arrays(2, 2), {"outcome": np.array([4, 3], np.int8)})
+    assert load_extra(tmp_path, "outcome").tolist() == [4, 3, 2, 0, 1]
+    write_shard(tmp_path, 2, _arrays(1, 2))  # a shard without the array
+    assert load_extra(tmp_path, "outcome") is None
+    write_shard(tmp_path, 2, _arrays(2, 2), {"outcome": np.array([1], np.int8)})
+    with pytest.raises(ValueError, match="shard-000002.*1 entries for 2 transitions"):
+        load_extra(tmp_path, "outcome")
 
 
 def test_fingerprint_tracks_contents(tmp_path):

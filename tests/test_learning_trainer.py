@@ -14,7 +14,12 @@ from drake_symplan.cli import learning_cmds
 from drake_symplan.data.storage import write_manifest, write_shard
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.dataset import split_by_episode
-from drake_symplan.learning.evaluate import aggregate_runs, object_errors_cm, summarize_errors
+from drake_symplan.learning.evaluate import (
+    aggregate_runs,
+    effect_metrics,
+    object_errors_cm,
+    summarize_errors,
+)
 from drake_symplan.learning.readout import read_symbols, readout_dataset
 from drake_symplan.learning.synthetic import same_group_rule
 from drake_symplan.learning.trainer import TrainConfig, _check_resumable, train
@@ -73,10 +78,49 @@ def test_errors_exclude_padding_and_group_by_count():
     assert summary["by_count"]["2"]["error_cm"] == pytest.approx(3.0)
     assert summary["by_count"]["3"]["error_cm"] == pytest.approx(0.0)
     models = aggregate_runs([
-        {"run": "a", "model": "m", "error_cm": 1.0, "by_count": {"2": {"error_cm": 1.0}}},
-        {"run": "b", "model": "m", "error_cm": 3.0, "by_count": {"2": {"error_cm": 2.0}}},
+        {"run": "a", "model": "m", "error_cm": 1.0, "by_count": {"2": {"error_cm": 1.0}},
+         "by_role": {"other": {"error_cm": 4.0}}},
+        {"run": "b", "model": "m", "error_cm": 3.0, "by_count": {"2": {"error_cm": 2.0}},
+         "by_role": {"source": {"error_cm": 1.0}, "other": {"error_cm": 2.0}}},
     ])
     assert models["m"]["error_cm"] == {"mean": 2.0, "std": pytest.approx(2 ** 0.5), "runs": 2}
+    assert models["m"]["by_count"]["2"]["mean"] == 1.5
+    assert list(models["m"]["by_role"]) == ["other", "source"]
+    assert models["m"]["by_role"]["other"]["mean"] == 3.0
+    assert models["m"]["by_role"]["source"] == {"mean": 1.0, "std": 0.0, "runs": 1}
+    assert "by_outcome" not in models["m"]
+
+
+class _Constant(torch.nn.Module):
+    """Predicts a fixed effect tensor, whatever the input."""
+
+    def __init__(self, pred):
+        super().__init__()
+        self.pred = pred
+
+    def forward(self, state, action, mask):
+        return self.pred[: len(state)]
+
+
+def test_errors_by_role_and_outcome():
+    from drake_symplan.learning.dataset import TensorSet
+
+    # Transition 0: source (1 cm off), target (2 cm), another object (6 cm).
+    # Transition 1: source (3 cm), target (0 cm), padding (ignored).
+    action = torch.zeros(2, 3, 8)
+    action[:, 0, 0] = action[:, 1, 4] = 1.0
+    pred = torch.zeros(2, 3, 6)
+    pred[0, 0], pred[0, 1], pred[0, 2], pred[1, 0], pred[1, 2] = 0.01, 0.02, 0.06, 0.03, 5.0
+    mask = torch.tensor([[True, True, True], [True, True, False]])
+    data = TensorSet(torch.zeros(2, 3, 9), action, torch.zeros(2, 3, 6), mask)
+    metrics = effect_metrics(_Constant(pred), data, np.array([1, 0]), ("calm", "busy"))
+    roles = {k: v["error_cm"] for k, v in metrics["by_role"].items()}
+    assert roles == pytest.approx({"source": 2.0, "target": 1.0, "other": 6.0})
+    assert metrics["by_role"]["other"]["objects"] == 1
+    assert metrics["by_outcome"]["busy"] == {"error_cm": pytest.approx(3.0), "objects": 3}
+    assert metrics["by_outcome"]["calm"] == {"error_cm": pytest.approx(1.5), "objects": 2}
+    with pytest.raises(ValueError, match="1 outcome labels for 2 transitions"):
+        effect_metrics(_Constant(pred), data, np.array([1]), ("calm", "busy"))
 
 
 def test_train_resume_eval_and_symbols(data_dir, tmp_path):

@@ -37,7 +37,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=cmd_train)
 
     p = eval_subparsers(subparsers).add_parser(
-        "effects", help="test-set effect error (cm) of runs, per model")
+        "effects", help="test-set effect error (cm) of runs per model: overall, by object count, role and outcome")
     p.add_argument("runs", nargs="+", help="run directories")
     p.add_argument("--data", default=None,
                    help="data set directory if it moved (must have the run's fingerprint)")
@@ -85,7 +85,8 @@ def cmd_train(args: argparse.Namespace) -> dict:
 
 def evaluate_runs(runs: list[str], data_dir: str | None = None) -> dict:
     """Test-set effect metrics of every run and their mean +- std per model."""
-    from drake_symplan.data.storage import fingerprint, load_transitions
+    from drake_symplan.data.exploration import OUTCOMES
+    from drake_symplan.data.storage import fingerprint, load_extra, load_transitions
     from drake_symplan.learning.checkpoint import load_run
     from drake_symplan.learning.dataset import TensorSet, split_by_episode
     from drake_symplan.learning.evaluate import aggregate_runs, effect_metrics
@@ -97,13 +98,14 @@ def evaluate_runs(runs: list[str], data_dir: str | None = None) -> dict:
         train_cfg = config["train_config"]
         data = str(Path(data_dir or train_cfg["data"]).resolve())
         if data not in cache:
-            cache[data] = (load_transitions(data), fingerprint(data))
-        arrays, fp = cache[data]
+            cache[data] = (load_transitions(data), fingerprint(data), load_extra(data, "outcome"))
+        arrays, fp, outcome = cache[data]
         if fp != config["data_fingerprint"]:
             raise CommandError(f"run {run} was trained on other data than {data} "
                                "(fingerprints differ)")
         test = split_by_episode(arrays.episode, train_cfg["seed"])["test"]
-        metrics = effect_metrics(model, TensorSet.from_arrays(arrays, test))
+        metrics = effect_metrics(model, TensorSet.from_arrays(arrays, test),
+                                 None if outcome is None else outcome[test], OUTCOMES)
         per_run.append({"run": str(run), "model": config["model"], "epoch": config["epoch"],
                         **metrics})
     return {"runs": per_run, "models": aggregate_runs(per_run)}
@@ -118,7 +120,9 @@ def cmd_eval_effects(args: argparse.Namespace) -> dict:
     if not args.json:
         for name, stats in result["models"].items():
             e = stats["error_cm"]
-            print(f"{name}: {e['mean']:.2f} +- {e['std']:.2f} cm over {e['runs']} run(s)")
+            roles = ", ".join(f"{k} {v['mean']:.2f}" for k, v in stats["by_role"].items())
+            print(f"{name}: {e['mean']:.2f} +- {e['std']:.2f} cm over {e['runs']} run(s) "
+                  f"({roles})")
     return result
 
 

@@ -200,6 +200,21 @@ def read_shard_arrays(path: str | Path, keys: tuple[str, ...]) -> dict[str, np.n
         return {k: z[k] for k in keys if k in z.files}
 
 
+def load_extra(data_dir: str | Path, key: str) -> np.ndarray | None:
+    """The per-transition extra array `key` (e.g. "outcome") of all shards of `data_dir`,
+    in `load_transitions` order; None if any shard lacks it."""
+    parts = []
+    for path in shard_paths(data_dir):
+        z = read_shard_arrays(path, (key, "episode"))
+        if key not in z:
+            return None
+        if len(z[key]) != len(z["episode"]):
+            raise ValueError(f"shard {path}: {key} has {len(z[key])} entries for "
+                             f"{len(z['episode'])} transitions")
+        parts.append(z[key])
+    return np.concatenate(parts)
+
+
 def remove_stale_tmp(data_dir: str | Path) -> list[Path]:
     """Deletes temporary files left by writers that were killed mid-write."""
     stale = [p for p in Path(data_dir).glob(".*.tmp-*") if p.is_file()]

@@ -4,8 +4,10 @@ The error of one real object is the mean absolute error over its EFFECT_DIM effe
 components, in centimetres; padded slots are excluded everywhere (the peer
 implementation averaged over them, which flatters scenes with few objects). A run's
 error is the mean over all real objects of its test split; by object count groups
-transitions by their number of real objects. Across runs of one model we report
-mean +- sample standard deviation (0 for a single run).
+transitions by their number of real objects; by role groups objects by their part in
+the action (source, target, or another object, which only relations reach); by outcome
+groups them by their transition's outcome class where the data set records one. Across
+runs of one model we report mean +- sample standard deviation (0 for a single run).
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ import torch
 from drake_symplan.learning.dataset import TensorSet
 
 CM_PER_M = 100.0
+ROLES = ("source", "target", "other")
+GROUPINGS = ("by_count", "by_role", "by_outcome")
 
 
 def effect_loss(pred: torch.Tensor, effect: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
@@ -53,6 +57,29 @@ def evaluate_loss(model: torch.nn.Module, data: TensorSet, batch_size: int = 409
     return float(effect_loss(pred, data.effect, data.mask.to(pred.dtype)))
 
 
+def object_roles(action: torch.Tensor | np.ndarray) -> np.ndarray:
+    """[T, N] index into ROLES of every slot, from the action encoding (structs.py)."""
+    a = np.asarray(action)
+    return np.where(a[..., 0] > 0.5, 0, np.where(a[..., 4] > 0.5, 1, 2))
+
+
+def group_errors(errors: np.ndarray, labels: np.ndarray, names: tuple[str, ...]) -> dict:
+    """Mean error over the real objects labelled k, for every names[k] that occurs.
+
+    `labels` is per slot [T, N] or per transition [T] (then every object of a transition
+    shares its label).
+    """
+    if labels.ndim == 1:
+        labels = np.broadcast_to(labels[:, None], errors.shape)
+    real = ~np.isnan(errors)
+    groups = {}
+    for k, name in enumerate(names):
+        rows = real & (labels == k)
+        if rows.any():
+            groups[name] = {"error_cm": float(errors[rows].mean()), "objects": int(rows.sum())}
+    return groups
+
+
 def summarize_errors(errors: np.ndarray) -> dict:
     """Mean error over real objects, overall and by the transition's object count."""
     real = ~np.isnan(errors)
@@ -72,10 +99,25 @@ def summarize_errors(errors: np.ndarray) -> dict:
     }
 
 
-def effect_metrics(model: torch.nn.Module, data: TensorSet, batch_size: int = 4096) -> dict:
-    """`summarize_errors` of the eval-mode predictions on `data`, plus its loss."""
+def effect_metrics(
+    model: torch.nn.Module,
+    data: TensorSet,
+    outcome: np.ndarray | None = None,
+    outcome_names: tuple[str, ...] = (),
+    batch_size: int = 4096,
+) -> dict:
+    """`summarize_errors` of the eval-mode predictions on `data`, by role, and its loss.
+
+    With `outcome` (index into `outcome_names` per transition of `data`) also by outcome.
+    """
     pred = predict(model, data, batch_size)
-    summary = summarize_errors(object_errors_cm(pred, data.effect, data.mask))
+    errors = object_errors_cm(pred, data.effect, data.mask)
+    summary = summarize_errors(errors)
+    summary["by_role"] = group_errors(errors, object_roles(data.action), ROLES)
+    if outcome is not None:
+        if len(outcome) != len(errors):
+            raise ValueError(f"{len(outcome)} outcome labels for {len(errors)} transitions")
+        summary["by_outcome"] = group_errors(errors, np.asarray(outcome), outcome_names)
     summary["loss"] = float(effect_loss(pred, data.effect, data.mask.to(pred.dtype)))
     return summary
 
@@ -87,21 +129,24 @@ def _mean_std(values: list[float]) -> dict:
 
 
 def aggregate_runs(per_run: list[dict]) -> dict:
-    """Group run results {"run", "model", "error_cm", "by_count"} by model: mean +- std."""
+    """Group run results {"run", "model", "error_cm", "by_count"[, "by_role", "by_outcome"]}
+    by model: mean +- std overall and per group of every grouping the runs report."""
     groups: dict[str, list[dict]] = defaultdict(list)
     for result in per_run:
         groups[result["model"]].append(result)
     models = {}
     for name, results in sorted(groups.items()):
-        counts = sorted({c for r in results for c in r["by_count"]}, key=int)
-        models[name] = {
-            "error_cm": _mean_std([r["error_cm"] for r in results]),
-            "by_count": {
-                c: _mean_std([r["by_count"][c]["error_cm"] for r in results if c in r["by_count"]])
-                for c in counts
-            },
-            "runs": [r["run"] for r in results],
-        }
+        models[name] = {"error_cm": _mean_std([r["error_cm"] for r in results])}
+        for grouping in GROUPINGS:
+            reported = [r[grouping] for r in results if grouping in r]
+            labels = list(dict.fromkeys(k for g in reported for k in g))
+            if grouping == "by_count":
+                labels.sort(key=int)
+            if reported:
+                models[name][grouping] = {
+                    k: _mean_std([g[k]["error_cm"] for g in reported if k in g]) for k in labels
+                }
+        models[name]["runs"] = [r["run"] for r in results]
     return models
 
 
