@@ -151,28 +151,37 @@ def aggregate_runs(per_run: list[dict]) -> dict:
 
 
 def plot_errors(models: dict, out: str | Path) -> Path:
-    """Bar chart of the error (mean +- std over runs) per model and object count."""
+    """Bar charts of the error (mean +- std over runs) per model: overall and by object
+    count on the left, by role (and by outcome, where the runs report it) beside it."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     names = list(models)
-    counts = sorted({c for m in models.values() for c in m["by_count"]}, key=int)
-    groups = ["all", *counts]
+    panels = [("by_count", ["all"] + sorted(
+        {c for m in models.values() for c in m["by_count"]}, key=int))]
+    for grouping in ("by_role", "by_outcome"):
+        labels = list(dict.fromkeys(k for m in models.values() for k in m.get(grouping, {})))
+        if labels:
+            panels.append((grouping, labels))
     width = 0.8 / max(1, len(names))
-    fig, ax = plt.subplots(figsize=(1.6 + 1.2 * len(groups), 3.2))
-    for k, name in enumerate(names):
-        stats = [models[name]["error_cm"]] + [
-            models[name]["by_count"].get(c, {"mean": np.nan, "std": 0.0}) for c in counts
-        ]
-        x = np.arange(len(groups)) + (k - (len(names) - 1) / 2) * width
-        ax.bar(x, [s["mean"] for s in stats], width, yerr=[s["std"] for s in stats],
-               capsize=3, label=name)
-    ax.set_xticks(np.arange(len(groups)))
-    ax.set_xticklabels(["all"] + [f"{c} objects" for c in counts])
-    ax.set_ylabel("effect error (cm, MAE per object)")
-    ax.legend()
+    fig, axes = plt.subplots(1, len(panels), squeeze=False, figsize=(
+        sum(1.6 + 1.1 * len(labels) for _, labels in panels), 3.4))
+    for ax, (grouping, labels) in zip(axes[0], panels, strict=True):
+        for k, name in enumerate(names):
+            groups = models[name].get(grouping, {})
+            stats = [models[name]["error_cm"] if g == "all"
+                     else groups.get(g, {"mean": np.nan, "std": 0.0}) for g in labels]
+            x = np.arange(len(labels)) + (k - (len(names) - 1) / 2) * width
+            ax.bar(x, [s["mean"] for s in stats], width, yerr=[s["std"] for s in stats],
+                   capsize=3, label=name)
+        ax.set_xticks(np.arange(len(labels)))
+        ax.set_xticklabels([f"{g} obj." if g.isdigit() else g.replace("_", " ")
+                            for g in labels], rotation=20)
+        ax.set_title(grouping.replace("_", " ").replace("count", "object count"))
+    axes[0][0].set_ylabel("effect error (cm, MAE per object)")
+    axes[0][0].legend()
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
