@@ -181,14 +181,26 @@ def test_train_resume_eval_and_symbols(data_dir, tmp_path):
 def test_baseline_readout_has_no_relations(data_dir, tmp_path):
     args = _parse(["train", "--model", "deepsym", "--data", str(data_dir), "--out",
                    str(tmp_path / "d"), "--epochs", "1", "--threads", "1", "--no-progress",
-                   "--temperature", "2", "--json"])
+                   "--temperature", "2", "--model-option", "n_unary=2", "--json"])
     result = args.func(args)
     assert result["model"] == "deepsym" and result["epochs"] == 1
     assert load_run(tmp_path / "d")[1]["model_config"]["temperature"] == 2.0
     symbols = readout_dataset(tmp_path / "d", data_dir)
-    assert symbols["unary"].shape == (300, 4, 4)
+    assert symbols["unary"].shape == (300, 4, 2)
     assert symbols["relational"].shape == (300, 0, 4, 4)
     assert symbols["next_relational_uncertain"].dtype == bool
+
+
+def test_model_options_are_parsed_and_checked_against_the_model():
+    assert learning_cmds.parse_model_options(["n_unary=4", "own_message=false"]) == {
+        "n_unary": 4, "own_message": False}
+    with pytest.raises(ValueError, match="'n_unary' is not KEY=VALUE"):
+        learning_cmds.parse_model_options(["n_unary"])
+    with pytest.raises(ValueError, match=r"'attentive' has no option \['key_dim'\].*'n_heads'"):
+        TrainConfig("attentive", "d", "o", model_kwargs={"key_dim": 8})
+    with pytest.raises(ValueError, match=r"\['temperature'\] are set by the trainer"):
+        TrainConfig("relational", "d", "o", model_kwargs={"temperature": 1.0})
+    TrainConfig("relational", "d", "o", model_kwargs={"key_dim": 8, "n_relations": 2})
 
 
 def test_missing_run_and_data_errors_name_the_path(tmp_path):

@@ -31,6 +31,9 @@ def register(subparsers) -> None:
                    help="Gumbel-sigmoid temperature (default 3; see learning/gumbel.py)")
     p.add_argument("--soft", action="store_true",
                    help="soft Gumbel-sigmoid samples (default: straight-through hard bits)")
+    p.add_argument("--model-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="a constructor argument of the model, e.g. n_unary=4 or key_dim=32 "
+                   "(repeatable; see learning/models.py)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true")
@@ -78,9 +81,23 @@ def cmd_train(args: argparse.Namespace) -> dict:
     cfg = TrainConfig(
         model=args.model, data=args.data, out=args.out, epochs=args.epochs,
         batch_size=args.batch_size, lr=args.lr, seed=args.seed, patience=args.patience,
-        threads=args.threads, hard=not args.soft, progress=not args.no_progress, **options,
+        threads=args.threads, hard=not args.soft, progress=not args.no_progress,
+        model_kwargs=parse_model_options(args.model_option), **options,
     )
     return train(cfg, resume=args.resume)
+
+
+def parse_model_options(items: list[str]) -> dict:
+    """{"n_unary": 4} from ["n_unary=4"]; values are YAML scalars (int, float, bool, str)."""
+    import yaml
+
+    options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise ValueError(f"model option {item!r} is not KEY=VALUE")
+        options[key.strip()] = yaml.safe_load(value)
+    return options
 
 
 def evaluate_runs(runs: list[str], data_dir: str | None = None) -> dict:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import inspect
 import math
 import time
 from dataclasses import dataclass, field
@@ -60,6 +61,23 @@ class TrainConfig:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
         if self.lr <= 0:
             raise ValueError(f"lr must be positive, got {self.lr}")
+        check_model_kwargs(self.model, self.model_kwargs)
+
+
+# Constructor arguments that TrainConfig sets itself (from the data or its own fields).
+_SET_BY_TRAINER = ("state_dim", "temperature", "hard")
+
+
+def check_model_kwargs(model: str, kwargs: dict) -> None:
+    """Raise ValueError naming any of `kwargs` that model `model` does not take."""
+    params = inspect.signature(MODELS[model].__init__).parameters
+    unknown = sorted(k for k in kwargs if k not in params or k == "self")
+    if unknown:
+        options = sorted(k for k in params if k not in ("self", *_SET_BY_TRAINER))
+        raise ValueError(f"model {model!r} has no option {unknown}; it takes {options}")
+    fixed = sorted(k for k in kwargs if k in _SET_BY_TRAINER)
+    if fixed:
+        raise ValueError(f"{fixed} are set by the trainer, not as model options")
 
 
 def make_model(cfg: TrainConfig, state_dim: int, max_objects: int):
