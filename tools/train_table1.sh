@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # Table I: three models x three seeds on one data set, single-thread runs, two at a time,
 # and the continuous reference (no symbols: the data set's error floor) x three seeds.
-#   bash tools/train_table1.sh [DATA (data_out/hand50k)] [RUNS (runs/<data set name>)]
+#   bash tools/train_table1.sh [DATA (data_out/hand50k_s9)] [RUNS (runs/<data set name>)]
 # Re-running resumes unfinished runs and skips finished ones (and ones another invocation
 # holds: RUN.lock).
 set -u
 cd "$(dirname "$0")/.."
-data=${1:-data_out/hand50k}
+data=${1:-data_out/hand50k_s9}
 runs=${2:-runs/$(basename "$data")}
 run() {  # model seed
   local out="$runs/$1_s$2" resume=""
