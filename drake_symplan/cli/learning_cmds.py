@@ -40,7 +40,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=cmd_train)
 
     p = eval_subparsers(subparsers).add_parser(
-        "effects", help="test-set effect error (cm) of runs per model: overall, by object count, role and outcome")
+        "effects", help="test-set effect error (cm) of runs per model: overall and by "
+        "object count, role and outcome")
     p.add_argument("runs", nargs="+", help="run directories")
     p.add_argument("--data", default=None,
                    help="data set directory if it moved (must have the run's fingerprint)")
