@@ -89,6 +89,9 @@ def test_errors_exclude_padding_and_group_by_count():
     assert models["m"]["by_role"]["other"]["mean"] == 3.0
     assert models["m"]["by_role"]["source"] == {"mean": 1.0, "std": 0.0, "runs": 1}
     assert "by_outcome" not in models["m"]
+    order = aggregate_runs([{"run": r, "model": r, "error_cm": 1.0, "by_count": {}}
+                            for r in ("reference", "zz", "deepsym", "relational", "attentive")])
+    assert list(order) == ["relational", "attentive", "deepsym", "reference", "zz"]
 
 
 class _Constant(torch.nn.Module):

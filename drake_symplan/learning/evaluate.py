@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from drake_symplan.learning.dataset import TensorSet
+from drake_symplan.learning.models import MODELS
 
 CM_PER_M = 100.0
 ROLES = ("source", "target", "other")
@@ -130,12 +131,14 @@ def _mean_std(values: list[float]) -> dict:
 
 def aggregate_runs(per_run: list[dict]) -> dict:
     """Group run results {"run", "model", "error_cm", "by_count"[, "by_role", "by_outcome"]}
-    by model: mean +- std overall and per group of every grouping the runs report."""
+    by model (in Table I's order): mean +- std overall and per group of every grouping the
+    runs report."""
     groups: dict[str, list[dict]] = defaultdict(list)
     for result in per_run:
         groups[result["model"]].append(result)
+    rank = {name: i for i, name in enumerate(MODELS)}  # Table I's order, then by name
     models = {}
-    for name, results in sorted(groups.items()):
+    for name, results in sorted(groups.items(), key=lambda g: (rank.get(g[0], len(rank)), g[0])):
         models[name] = {"error_cm": _mean_std([r["error_cm"] for r in results])}
         for grouping in GROUPINGS:
             reported = [r[grouping] for r in results if grouping in r]
