@@ -21,6 +21,7 @@ OFFSET_METRES: dict[str, float] = {"left": -0.075, "center": 0.0, "right": 0.075
 # A non-argument object is all zeros; the grasp bits are set only on the source and
 # the release bits only on the target.
 ACTION_DIM = 8
+IS_SOURCE, IS_TARGET = 0, 4  # the role columns of the encoding
 
 # Per-object effect (EFFECT_DIM = 6, metres): [dp at lift (3); dp after release
 # relative to where the carry put it (3)]. The second half has the arm's lateral
@@ -72,21 +73,21 @@ def encode_action(action: Action, names: list[str]) -> np.ndarray:
         raise ValueError(f"action target {action.target!r} is not among objects {names}")
     a = np.zeros((len(names), ACTION_DIM), dtype=np.float32)
     s, t = names.index(action.source), names.index(action.target)
-    a[s, 0] = 1.0
-    a[s, 1 + OFFSETS.index(action.grasp)] = 1.0
-    a[t, 4] = 1.0
-    a[t, 5 + OFFSETS.index(action.release)] = 1.0
+    a[s, IS_SOURCE] = 1.0
+    a[s, IS_SOURCE + 1 + OFFSETS.index(action.grasp)] = 1.0
+    a[t, IS_TARGET] = 1.0
+    a[t, IS_TARGET + 1 + OFFSETS.index(action.release)] = 1.0
     return a
 
 
 def decode_action(encoded: np.ndarray, names: list[str]) -> Action:
     """Inverse of `encode_action`."""
-    s = int(np.argmax(encoded[:, 0]))
-    t = int(np.argmax(encoded[:, 4]))
-    if encoded[s, 0] != 1.0 or encoded[t, 4] != 1.0:
+    s = int(np.argmax(encoded[:, IS_SOURCE]))
+    t = int(np.argmax(encoded[:, IS_TARGET]))
+    if encoded[s, IS_SOURCE] != 1.0 or encoded[t, IS_TARGET] != 1.0:
         raise ValueError("encoded action has no source or no target")
-    grasp = OFFSETS[int(np.argmax(encoded[s, 1:4]))]
-    release = OFFSETS[int(np.argmax(encoded[t, 5:8]))]
+    grasp = OFFSETS[int(np.argmax(encoded[s, IS_SOURCE + 1:IS_SOURCE + 4]))]
+    release = OFFSETS[int(np.argmax(encoded[t, IS_TARGET + 1:IS_TARGET + 4]))]
     return Action(names[s], grasp, names[t], release)
 
 

@@ -20,6 +20,7 @@ import torch
 
 from drake_symplan.learning.dataset import TensorSet
 from drake_symplan.learning.models import MODELS
+from drake_symplan.structs import IS_SOURCE, IS_TARGET
 
 CM_PER_M = 100.0
 ROLES = ("source", "target", "other")
@@ -61,7 +62,7 @@ def evaluate_loss(model: torch.nn.Module, data: TensorSet, batch_size: int = 409
 def object_roles(action: torch.Tensor | np.ndarray) -> np.ndarray:
     """[T, N] index into ROLES of every slot, from the action encoding (structs.py)."""
     a = np.asarray(action)
-    return np.where(a[..., 0] > 0.5, 0, np.where(a[..., 4] > 0.5, 1, 2))
+    return np.where(a[..., IS_SOURCE] > 0.5, 0, np.where(a[..., IS_TARGET] > 0.5, 1, 2))
 
 
 def group_errors(errors: np.ndarray, labels: np.ndarray, names: tuple[str, ...]) -> dict:

@@ -44,7 +44,7 @@ from drake_symplan.learning.layers import (
     packed_transformer,
     scale_to_norm,
 )
-from drake_symplan.structs import ACTION_DIM, EFFECT_DIM
+from drake_symplan.structs import ACTION_DIM, EFFECT_DIM, IS_SOURCE, IS_TARGET
 
 
 class EffectModel(nn.Module):
@@ -208,8 +208,8 @@ class DeepSym(EffectModel):
         """[B, N] permutation putting source, target, other real objects, padding first."""
         n = mask.shape[1]
         rank = torch.where(mask, 2.0, 3.0)
-        rank = torch.where(action[..., 4] > 0.5, 1.0, rank)
-        rank = torch.where(action[..., 0] > 0.5, 0.0, rank)
+        rank = torch.where(action[..., IS_TARGET] > 0.5, 1.0, rank)
+        rank = torch.where(action[..., IS_SOURCE] > 0.5, 0.0, rank)
         rank = rank * n + torch.arange(n, device=mask.device)  # stable within a rank
         return rank.argsort(dim=1)
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drake_symplan.structs import ACTION_DIM, OFFSETS, Action
+from drake_symplan.structs import ACTION_DIM, IS_SOURCE, IS_TARGET, OFFSETS, Action
 from drake_symplan.symbolic.canonical import canonical_orders, encode, permute
 from drake_symplan.symbolic.states import Atom, SymbolicState
 
@@ -227,8 +227,8 @@ def _roles(action: np.ndarray, mask: np.ndarray):
     """Source, target, grasp and release index per transition; ValueError on rows
     without exactly one source and one target among the real objects."""
     a = action > 0.5
-    is_src = a[:, :, 0] & mask
-    is_tgt = a[:, :, 4] & mask
+    is_src = a[:, :, IS_SOURCE] & mask
+    is_tgt = a[:, :, IS_TARGET] & mask
     bad = (is_src.sum(1) != 1) | (is_tgt.sum(1) != 1) | (is_src & is_tgt).any(1)
     if bad.any():
         rows = np.flatnonzero(bad)
@@ -239,8 +239,8 @@ def _roles(action: np.ndarray, mask: np.ndarray):
     ar = np.arange(len(action))
     src = is_src.argmax(1)
     tgt = is_tgt.argmax(1)
-    grasp_bits = a[ar, src, 1:4]
-    release_bits = a[ar, tgt, 5:8]
+    grasp_bits = a[ar, src, IS_SOURCE + 1:IS_SOURCE + 4]
+    release_bits = a[ar, tgt, IS_TARGET + 1:IS_TARGET + 4]
     if (grasp_bits.sum(1) != 1).any() or (release_bits.sum(1) != 1).any():
         raise ValueError("some transitions do not have exactly one grasp and one release offset")
     return src, tgt, grasp_bits.argmax(1), release_bits.argmax(1)
