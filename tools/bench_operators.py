@@ -27,13 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from drake_symplan.planning.planners import plan  # noqa: E402
-from drake_symplan.symbolic import synthetic  # noqa: E402
-from drake_symplan.symbolic.operators import LearnConfig, learn_operators  # noqa: E402
-from drake_symplan.symbolic.pddl import domain_pddl, problem_pddl  # noqa: E402
+from drake_symplan.planning.planners import plan
+from drake_symplan.symbolic import synthetic
+from drake_symplan.symbolic.operators import LearnConfig, learn_operators
+from drake_symplan.symbolic.pddl import domain_pddl, problem_pddl
 
 
 def bench_learning(data: dict, runs: int, min_count: int) -> tuple[dict, object]:

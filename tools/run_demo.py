@@ -14,20 +14,18 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
+from drake_symplan.perception.association import associate
+from drake_symplan.perception.perceive import Perceiver
+from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
+from drake_symplan.structs import Action
+from drake_symplan.world.cameras import default_cameras
+from drake_symplan.world.scenes import load_scene
+from drake_symplan.world.station import Station, StationConfig
+from drake_symplan.world.visualization import StartMeshcat, recording
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-import numpy as np  # noqa: E402
-
-from drake_symplan.perception.association import associate  # noqa: E402
-from drake_symplan.perception.perceive import Perceiver  # noqa: E402
-from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place  # noqa: E402
-from drake_symplan.structs import Action  # noqa: E402
-from drake_symplan.world.cameras import default_cameras  # noqa: E402
-from drake_symplan.world.scenes import load_scene  # noqa: E402
-from drake_symplan.world.station import Station, StationConfig  # noqa: E402
-from drake_symplan.world.visualization import StartMeshcat, recording  # noqa: E402
-
 DEMO_SCENE = REPO / "tools" / "demo_scene.yaml"
 SCRIPT = [
     Action("o1", "center", "o0", "center"),  # cube onto cube

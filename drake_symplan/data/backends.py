@@ -25,7 +25,6 @@ from drake_symplan.structs import Action
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import Scene
 
-BACKENDS = ("hand", "arm")
 # SAP's linear contact model with the boxes' 0.05 s relaxation time launches a box that
 # drops a few cm onto the table (both robots); Hunt-Crossley ("similar", still the SAP
 # solver, so weld constraints work) lands it. Random releases drop boxes all the time.
@@ -83,16 +82,12 @@ class Backend:
         """The scene as perceived now; `prior`: the scene perceived before the action."""
         start = time.perf_counter()
         try:
-            return self.perceiver.perceive(self._seen, noise=self.noise, rng=self.rng,
+            return self.perceiver.perceive(self.station, noise=self.noise, rng=self.rng,
                                            prior=prior)
         except (ValueError, ArithmeticError, QhullError) as e:
             raise PerceptionFailure(f"perception failed: {type(e).__name__}: {e}") from e
         finally:
             self.perception_seconds += time.perf_counter() - start
-
-    @property
-    def _seen(self):
-        return self.station
 
     def execute(self, action: Action, before) -> Execution:
         raise NotImplementedError
@@ -122,7 +117,7 @@ class HandBackend(Backend):
                 allow_kinematic=self.allow_kinematic)
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
-            self.station.hand.release(self.station.plant_context)
+            self.station.release()
             return Execution("sim_failure", message=f"simulation failed: {e}")
         if motion.held is None and self.noise is None:
             # Nothing was caught, so nothing was simulated: the scene is exactly the one
@@ -132,14 +127,8 @@ class HandBackend(Backend):
             lift = before
         return Execution("ok", lift, self.perceive(before))
 
-    @property
-    def _seen(self):
-        # Perception filters the robot's own points using its model instance (`arm`); the
-        # hand has no geometry, so it stands in for the arm there and filters nothing.
-        return _RobotView(self.station, self.station.hand.instance)
-
     def _perceive_if_moved(self, before):
-        held = self.station.hand.held
+        held = self.station.held
         return self.perceive(before) if held is not None or self.noise is not None else None
 
 
@@ -156,40 +145,25 @@ class ArmBackend(Backend):
         self.planner = PickPlacePlanner()
 
     def execute(self, action: Action, before) -> Execution:
-        from drake_symplan.skills.pick_place import InfeasibleAction
+        from drake_symplan.skills.pick_place import InfeasibleAction, run_motion
 
-        station = self.station
         try:
-            motion = self.planner.plan(action, before.object_states(), station.arm_positions())
+            motion = self.planner.plan(action, before.object_states(),
+                                       self.station.robot_positions())
         except InfeasibleAction as e:
             return Execution("infeasible", message=str(e))
-        t0 = station.context.get_time()
-        trajectory = motion.trajectory.Clone()
-        trajectory.shiftRight(t0)
-        station.command_source.UpdateTrajectory(trajectory)
         try:
-            station.advance_to(t0 + motion.t_lift)
-            lift = self.perceive(before)
-            station.advance_to(t0 + motion.t_end)
+            lift = run_motion(self.station, motion, lambda: self.perceive(before))
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             return Execution("sim_failure", message=f"simulation failed: {e}")
         return Execution("ok", lift, self.perceive(before))
 
 
-class _RobotView:
-    """The station, with `arm` naming the hand's model instance (for robot self-filtering)."""
-
-    def __init__(self, station, instance):
-        self._station, self.arm = station, instance
-
-    def __getattr__(self, name):
-        return getattr(self._station, name)
+BACKENDS: dict[str, type[Backend]] = {"hand": HandBackend, "arm": ArmBackend}
 
 
 def make_backend(name: str, **kwargs) -> Backend:
-    if name == "hand":
-        return HandBackend(**kwargs)
-    if name == "arm":
-        return ArmBackend(**kwargs)
-    raise ValueError(f"unknown back-end {name!r}; expected one of {BACKENDS}")
+    if name not in BACKENDS:
+        raise ValueError(f"unknown back-end {name!r}; expected one of {tuple(BACKENDS)}")
+    return BACKENDS[name](**kwargs)

@@ -58,7 +58,7 @@ class CollectConfig:
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
-            raise ValueError(f"unknown back-end {self.backend!r}; expected one of {BACKENDS}")
+            raise ValueError(f"unknown back-end {self.backend!r}; expected one of {tuple(BACKENDS)}")
         if self.transitions < 1 or self.chunk_size < 1 or self.episode_length < 1:
             raise ValueError("transitions, chunk_size and episode_length must be positive")
         if not 2 <= self.min_objects <= self.max_objects <= 8:

@@ -65,29 +65,6 @@ class PerceivedScene:
             np.zeros((0, 9), np.float32)
 
 
-def robot_shapes(station) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """The robot's collision shapes at its current joint state (proprioception)."""
-    from pydrake.geometry import Box, Cylinder
-
-    query = station.scene_graph.get_query_output_port().Eval(
-        station.scene_graph.GetMyContextFromRoot(station.context))
-    inspector = query.inspector()
-    shapes = []
-    plant = station.plant
-    if station.arm is None:
-        return shapes
-    for body_index in plant.GetBodyIndices(station.arm):
-        for gid in plant.GetCollisionGeometriesForBody(plant.get_body(body_index)):
-            shape = inspector.GetShape(gid)
-            X = query.GetPoseInWorld(gid).GetAsMatrix4()
-            if isinstance(shape, Box):
-                shapes.append(("box", X, np.array([shape.width(), shape.depth(),
-                                                   shape.height()])))
-            elif isinstance(shape, Cylinder):
-                shapes.append(("cylinder", X, np.array([shape.radius(), shape.length()])))
-    return shapes
-
-
 class Perceiver:
     """Turns the station's depth images into perceived objects.
 
@@ -100,7 +77,7 @@ class Perceiver:
                  ) -> PerceivedScene:
         clouds = station.point_clouds(noise=noise, rng=rng, z_min=seg.CROP_Z[0])
         points = seg.crop(np.vstack(clouds))
-        points = seg.remove_inside(points, [s for s in robot_shapes(station)
+        points = seg.remove_inside(points, [s for s in station.robot_collision_shapes()
                                             if _near_workspace(s[1])])
         return self.perceive_points(points, prior)
 

@@ -23,12 +23,11 @@ from collections.abc import Callable
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
-from pydrake.multibody.math import SpatialVelocity
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.skills.pick_place import action_geometry, carry_duration
 from drake_symplan.structs import Action, ObjectState
-from drake_symplan.world.hand import grasp_catches, hand_q_of_pose, hold
+from drake_symplan.world.hand import grasp_catches, hand_q_of_pose
 from drake_symplan.world.scenes import HALF_EXTENTS
 from drake_symplan.world.station import Station
 
@@ -108,24 +107,11 @@ def _carries_others(station: Station, held: str) -> bool:
     return False
 
 
-def _place(station: Station, body, q: np.ndarray) -> None:
-    """Kinematically puts the hand at q and the welded body with it, at rest."""
-    station.hand.set_positions(station.plant_context, q)
-    station.plant.SetFreeBodyPose(station.plant_context, body, _pose_of_hand_q(q))
-    station.plant.SetFreeBodySpatialVelocity(station.plant_context, body, SpatialVelocity.Zero())
-    station.command_source.UpdateTrajectory(hold(q))
-
-
-def _clearance(station: Station, bodies: list) -> float:
-    """Distance (m) from `bodies` to the nearest geometry not theirs, capped at 1 cm."""
-    query = station.scene_graph.get_query_output_port().Eval(
-        station.scene_graph.GetMyContextFromRoot(station.context))
-    mine = {g for body in bodies for g in station.plant.GetCollisionGeometriesForBody(body)}
-    best = 0.01
-    for d in query.ComputeSignedDistancePairwiseClosestPoints(0.01):
-        if (d.id_A in mine) != (d.id_B in mine):
-            best = min(best, d.distance)
-    return best
+def _place(station: Station, name: str, q: np.ndarray) -> None:
+    """Kinematically puts the hand at q and the welded object with it, at rest."""
+    station.set_robot_positions(q)
+    station.set_object_pose(name, _pose_of_hand_q(q))
+    station.hold(q)
 
 
 def _pose_of_hand_q(q: np.ndarray) -> RigidTransform:
@@ -150,51 +136,39 @@ def hand_pick_place(
     `allow_kinematic=False` simulates every carry in full physics (no kinematic carry of
     a free box, no rigid carry of a loaded one).
     """
-    if station.hand is None:
+    if station.config.robot != "hand":
         raise ValueError("hand_pick_place needs a station built with StationConfig(robot='hand')")
     motion = plan_hand(station, action, beliefs, allow_kinematic)
     if motion.held is None:
         return motion, at_lift() if at_lift else None
-    ctx, hand = station.plant_context, station.hand
-    body = station.assigned[motion.held]
-    hand.grasp(ctx, body)
+    station.grasp(motion.held)
     if motion.kinematic:
         riders = []
         _move_load(station, motion, riders, 0.0, motion.t_lift)
     else:
         z_before = {n: X.translation()[2] for n, X in station.object_poses().items()}
-        _follow(station, motion, 0.0, motion.t_lift)
+        station.follow(motion.trajectory, 0.0, motion.t_lift)
         riders = _riders(station, z_before) if allow_kinematic else None
     lifted = at_lift() if at_lift else None
     if riders is None:
-        _follow(station, motion, motion.t_lift, motion.t_release)
+        station.follow(motion.trajectory, motion.t_lift, motion.t_release)
     else:
         _move_load(station, motion, riders, motion.t_lift, motion.t_release)
-        if _clearance(station, [body, *riders]) < RELEASE_MIN_CLEARANCE:
+        if station.clearance([motion.held, *riders]) < RELEASE_MIN_CLEARANCE:
             # Something is in the way of the release pose: come down on it in physics, as
             # the arm would, from where the carry ends.
             _move_load(station, motion, riders, motion.t_release, motion.t_above)
-            _follow(station, motion, motion.t_above, motion.t_release)
-    hand.release(ctx)
-    station.command_source.UpdateTrajectory(hold(hand.positions(ctx)))
+            station.follow(motion.trajectory, motion.t_above, motion.t_release)
+    station.release()
+    station.hold(station.robot_positions())
     settle_until_rest(station)
     return motion, lifted
 
 
-def _follow(station: Station, motion: HandMotion, t_from: float, t_to: float) -> None:
-    """Simulates the hand tracking its path from path time t_from (now) to t_to."""
-    t0 = station.context.get_time() - t_from
-    trajectory = motion.trajectory.Clone()
-    trajectory.shiftRight(t0)
-    station.command_source.UpdateTrajectory(trajectory)
-    station.advance_to(t0 + t_to)
-
-
-def _riders(station: Station, z_before: dict[str, float]) -> list:
-    """The bodies besides the held one that the lift raised by more than RIDER_DZ."""
-    held = station.hand.held
-    return [station.assigned[n] for n, X in station.object_poses().items()
-            if station.assigned[n] is not held and X.translation()[2] - z_before[n] >= RIDER_DZ]
+def _riders(station: Station, z_before: dict[str, float]) -> list[str]:
+    """The objects besides the held one that the lift raised by more than RIDER_DZ."""
+    return [n for n, X in station.object_poses().items()
+            if n != station.held and X.translation()[2] - z_before[n] >= RIDER_DZ]
 
 
 def _move_load(station: Station, motion: HandMotion, riders: list, t_from: float,
@@ -205,14 +179,13 @@ def _move_load(station: Station, motion: HandMotion, riders: list, t_from: float
     point, the release): a carry no faster than the arm's keeps a rider where it sits, so
     the load moves as one rigid body, as the hand's path moves between the two knots.
     """
-    plant, ctx = station.plant, station.plant_context
     q_from = motion.trajectory.value(t_from).ravel()
     q_to = motion.trajectory.value(t_to).ravel()
     X_move = _pose_of_hand_q(q_to).multiply(_pose_of_hand_q(q_from).inverse())
-    for body in riders:
-        plant.SetFreeBodyPose(ctx, body, X_move.multiply(plant.EvalBodyPoseInWorld(ctx, body)))
-        plant.SetFreeBodySpatialVelocity(ctx, body, SpatialVelocity.Zero())
-    _place(station, station.hand.held, q_to)
+    poses = station.object_poses()
+    for name in riders:
+        station.set_object_pose(name, X_move.multiply(poses[name]))
+    _place(station, station.held, q_to)
 
 
 def settle_until_rest(station: Station) -> float:
@@ -223,18 +196,16 @@ def settle_until_rest(station: Station) -> float:
     sub-millimetre discrete-time vibration whose velocity never drops below a threshold,
     but that perception can't see and that goes nowhere.
     """
-    t0 = station.context.get_time()
+    t0 = station.time()
     station.advance_to(t0 + SETTLE_MIN)
-    plant, ctx = station.plant, station.plant_context
-    bodies = list(station.assigned.values())
-    poses = [plant.EvalBodyPoseInWorld(ctx, b) for b in bodies]
-    while station.context.get_time() - t0 < SETTLE_MAX - 1e-9:
-        station.advance_to(station.context.get_time() + SETTLE_CHECK)
-        now = [plant.EvalBodyPoseInWorld(ctx, b) for b in bodies]
+    poses = list(station.object_poses().values())
+    while station.time() - t0 < SETTLE_MAX - 1e-9:
+        station.advance_to(station.time() + SETTLE_CHECK)
+        now = list(station.object_poses().values())
         if all(_at_rest(a, b) for a, b in zip(poses, now, strict=True)):
             break
         poses = now
-    return station.context.get_time() - t0
+    return station.time() - t0
 
 
 def _at_rest(before: RigidTransform, after: RigidTransform) -> bool:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import dataclasses as dc
 import time
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
@@ -25,6 +27,8 @@ CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 JOINT_SPEED = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi])  # UR10 limits
+
+T = TypeVar("T")
 
 
 @dc.dataclass
@@ -183,18 +187,13 @@ class PickPlacePlanner:
         return Motion(traj, t_lift, times[-1])
 
 
-def execute(station: Station, motion: Motion) -> tuple[dict, dict, dict]:
-    """Runs the motion from the station's current time; object states at start/lift/end."""
-    start = station.object_states()
-    t0 = station.context.get_time()
-    trajectory = motion.trajectory.Clone()
-    trajectory.shiftRight(t0)
-    station.command_source.UpdateTrajectory(trajectory)
-    station.advance_to(t0 + motion.t_lift)
-    lifted = station.object_states()
-    station.advance_to(t0 + motion.t_end)
-    end = station.object_states()
-    return start, lifted, end
+def run_motion(station: Station, motion: Motion, at_lift: Callable[[], T]) -> T:
+    """Executes `motion` from the station's current time; returns what `at_lift()`, called
+    once the lift has ended, returned (e.g. the scene perceived then)."""
+    station.follow(motion.trajectory, 0.0, motion.t_lift)
+    lifted = at_lift()
+    station.follow(motion.trajectory, motion.t_lift, motion.t_end)
+    return lifted
 
 
 def pick_place(
@@ -210,21 +209,21 @@ def pick_place(
     """
     t_wall = time.perf_counter()
     try:
-        motion = planner.plan(action, objects, station.arm_positions())
+        motion = planner.plan(action, objects, station.robot_positions())
     except InfeasibleAction as e:
         now = station.object_states()
         return Outcome("infeasible", _report(now, now, now), time.perf_counter() - t_wall,
                        str(e))
-    start_states = station.object_states()
-    snapshot = station.context.Clone()
+    start = station.object_states()
+    snapshot = station.snapshot()
     try:
-        start, lifted, end = execute(station, motion)
+        lifted = run_motion(station, motion, station.object_states)
     except RuntimeError as e:
-        station.context.SetTimeStateAndParametersFrom(snapshot)
-        station.hold(station.arm_positions())
-        return Outcome("sim_failure", _report(start_states, start_states, start_states),
+        station.restore(snapshot)
+        return Outcome("sim_failure", _report(start, start, start),
                        time.perf_counter() - t_wall, f"simulation failed: {e}")
-    return Outcome("ok", _report(start, lifted, end), time.perf_counter() - t_wall)
+    return Outcome("ok", _report(start, lifted, station.object_states()),
+                   time.perf_counter() - t_wall)
 
 
 def _report(start: dict, lifted: dict, end: dict) -> dict[str, ObjectOutcome]:

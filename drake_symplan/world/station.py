@@ -8,11 +8,20 @@ from __future__ import annotations
 
 import dataclasses as dc
 import time
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.geometry import (
+    Box,
+    Cylinder,
+    Meshcat,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Role,
+)
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import (
     AddMultibodyPlant,
@@ -26,9 +35,8 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.structs import ObjectState
 from drake_symplan.world.cameras import AddDepthCameras, CameraConfig, DepthNoise, read_point_clouds
-from drake_symplan.world.scenes import HALF_EXTENTS, OBJECT_TYPES, Scene, validate_scene
+from drake_symplan.world.scenes import OBJECT_TYPES, Scene, validate_scene
 
-MODELS_DIR = Path(__file__).resolve().parents[2] / "models"
 MODEL_FILES = {
     "cube": "package://drake_symplan_models/objects/cube.sdf",
     "long": "package://drake_symplan_models/objects/long_block.sdf",
@@ -68,8 +76,13 @@ class StationConfig:
     robot: str = "ur10"
 
 
+def models_dir() -> Path:
+    """The installed models (package drake_symplan_models: the repo's top-level models/)."""
+    return Path(str(resources.files("drake_symplan_models")))
+
+
 def add_package_paths(parser: Parser) -> None:
-    parser.package_map().AddPackageXml(str(MODELS_DIR / "package.xml"))
+    parser.package_map().AddPackageXml(str(models_dir() / "package.xml"))
 
 
 def AddUr10(plant, parser: Parser):
@@ -145,7 +158,7 @@ class Station:
 
         if self.arm is not None:
             self.command_source = builder.AddSystem(
-                TrajectorySource(self.hold_trajectory(HOME_Q, FINGER_OPEN), 1))
+                TrajectorySource(self.hold_trajectory(HOME_Q), 1))
             builder.Connect(self.command_source.get_output_port(),
                             plant.get_desired_state_input_port(self.arm))
         else:
@@ -165,24 +178,24 @@ class Station:
         self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
         self.assigned: dict[str, object] = {}  # scene name -> body
         self.types: dict[str, str] = {}
-        if self.arm is not None:
-            self._gripper_body = plant.GetBodyByName("gripper_palm", self.arm)
-            self.tcp_frame = plant.GetFrameByName("tcp", self.arm)
+        self._name_of: dict = {}  # body index -> scene name
         # Each pool body's model instance holds exactly its floating joint.
         self._floating_joints = {
             b.index(): plant.get_joint(plant.GetJointIndices(b.model_instance())[0])
             for bodies in self.pool.values() for b in bodies
         }
 
-    @staticmethod
-    def hold_trajectory(q_arm: np.ndarray, finger: float) -> PiecewisePolynomial:
-        q = np.concatenate([q_arm, [finger, finger]])
+    def hold_trajectory(self, q: np.ndarray, finger: float = FINGER_OPEN) -> PiecewisePolynomial:
+        """A constant command: robot positions `q` (the arm's with `finger`, or the hand's)."""
+        if self.arm is not None:
+            q = np.concatenate([q, [finger, finger]])
+        q = np.asarray(q, float)
         return PiecewisePolynomial.FirstOrderHold([0.0, 1.0], np.column_stack([q, q]))
 
     # --- episodes -----------------------------------------------------------------
 
     def reset(self, scene: Scene, q_arm: np.ndarray = HOME_Q) -> None:
-        """Puts the scene's objects on the table, parks the rest, arm home, time 0."""
+        """Puts the scene's objects on the table, parks the rest, robot home, time 0."""
         validate_scene(scene)
         counts = {t: sum(o.type == t for o in scene.objects) for t in OBJECT_TYPES}
         for t in OBJECT_TYPES:
@@ -198,6 +211,7 @@ class Station:
             body = self.pool[o.type][used[o.type]]
             used[o.type] += 1
             self.assigned[o.name], self.types[o.name] = body, o.type
+        self._name_of = {b.index(): n for n, b in self.assigned.items()}
         park = 0
         for t in OBJECT_TYPES:
             for i, body in enumerate(self.pool[t]):
@@ -205,14 +219,12 @@ class Station:
                 fj.Unlock(ctx)
                 if i >= used[t]:
                     plant.SetFreeBodyPose(ctx, body, _parked_pose(park))
-                    plant.SetFreeBodySpatialVelocity(ctx, body, _zero_velocity())
+                    plant.SetFreeBodySpatialVelocity(ctx, body, SpatialVelocity.Zero())
                     fj.Lock(ctx)
                     park += 1
         for o in scene.objects:
-            body = self.assigned[o.name]
-            X = RigidTransform(RollPitchYaw(0, 0, o.yaw), np.asarray(o.position, float))
-            plant.SetFreeBodyPose(ctx, body, X)
-            plant.SetFreeBodySpatialVelocity(ctx, body, _zero_velocity())
+            self.set_object_pose(
+                o.name, RigidTransform(RollPitchYaw(0, 0, o.yaw), np.asarray(o.position, float)))
         if self.arm is not None:
             q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
             plant.SetPositions(ctx, self.arm, q)
@@ -220,7 +232,7 @@ class Station:
             self.hold(q_arm)
         else:
             self.hand.reset(ctx)
-            self.simulator.Initialize()
+        self.simulator.Initialize()
         self._show_only_assigned()  # after Initialize: it re-creates the geometry
 
     def _show_only_assigned(self) -> None:
@@ -232,10 +244,25 @@ class Station:
                 path = f"/drake/station/{self.plant.GetModelInstanceName(b.model_instance())}"
                 self.meshcat.SetProperty(path, "visible", b.index() in in_use)
 
-    def hold(self, q_arm: np.ndarray, finger: float = FINGER_OPEN) -> None:
-        """Commands the arm to hold `q_arm` from now on."""
-        self.command_source.UpdateTrajectory(self.hold_trajectory(q_arm, finger))
-        self.simulator.Initialize()
+    # --- commanding the robot -----------------------------------------------------
+
+    def time(self) -> float:
+        return self.context.get_time()
+
+    def hold(self, q: np.ndarray, finger: float = FINGER_OPEN) -> None:
+        """Commands the robot to hold positions `q` (arm: 6 joints, hand: its 6) from now on."""
+        self.command_source.UpdateTrajectory(self.hold_trajectory(q, finger))
+
+    def follow(self, trajectory: PiecewisePolynomial, t_from: float, t_to: float) -> None:
+        """Tracks `trajectory` (in its own time) from t_from, which is now, to t_to.
+
+        The one way every skill moves the robot: consecutive calls with the same
+        trajectory continue it (follow(tr, 0, t1); perceive; follow(tr, t1, t2))."""
+        t0 = self.context.get_time() - t_from
+        shifted = trajectory.Clone()
+        shifted.shiftRight(t0)
+        self.command_source.UpdateTrajectory(shifted)
+        self.advance_to(t0 + t_to)
 
     def settle(self, seconds: float = 0.5) -> None:
         """Lets physics run with the current command held (objects come to rest)."""
@@ -248,6 +275,47 @@ class Station:
             self.simulator.AdvanceTo(t)
         finally:
             self.physics_seconds += time.perf_counter() - start
+
+    def snapshot(self):
+        """The full simulation state now, for `restore`."""
+        return self.context.Clone()
+
+    def restore(self, snapshot) -> None:
+        """Back to a `snapshot`, the robot holding where it was then."""
+        self.context.SetTimeStateAndParametersFrom(snapshot)
+        self.hold(self.robot_positions())
+        self.simulator.Initialize()
+
+    def robot_positions(self) -> np.ndarray:
+        """The arm's six joint positions, or the hand's [x, y, z, yaw, pitch, roll]."""
+        if self.arm is not None:
+            return self.plant.GetPositions(self.plant_context, self.arm)[:6].copy()
+        return self.hand.positions(self.plant_context)
+
+    # --- the hand (robot "hand" only) ---------------------------------------------
+
+    @property
+    def held(self) -> str | None:
+        """The scene name of the object the hand holds, or None."""
+        body = self.hand.held if self.hand is not None else None
+        return None if body is None else self._name_of[body.index()]
+
+    def grasp(self, name: str) -> None:
+        """Puts the hand at the object's pose and welds them (the grasp never moves it)."""
+        self.hand.grasp(self.plant_context, self.assigned[name])
+
+    def release(self) -> None:
+        self.hand.release(self.plant_context)
+
+    def set_robot_positions(self, q: np.ndarray) -> None:
+        """Kinematically puts the hand at q, at rest (the held object is moved separately)."""
+        self.hand.set_positions(self.plant_context, q)
+
+    def set_object_pose(self, name: str, X: RigidTransform) -> None:
+        """Kinematically puts an object at pose X, at rest."""
+        body = self.assigned[name]
+        self.plant.SetFreeBodyPose(self.plant_context, body, X)
+        self.plant.SetFreeBodySpatialVelocity(self.plant_context, body, SpatialVelocity.Zero())
 
     # --- ground truth (tests and perception measurement only) ----------------------
 
@@ -265,8 +333,7 @@ class Station:
 
     def contact_graph(self, tolerance: float = 0.003) -> set[tuple[str, str]]:
         """Pairs of scene objects whose surfaces are within `tolerance` (sorted names)."""
-        query = self.scene_graph.get_query_output_port().Eval(
-            self.scene_graph.GetMyContextFromRoot(self.context))
+        query = self._query()
         body_of = {}
         for name, body in self.assigned.items():
             for gid in self.plant.GetCollisionGeometriesForBody(body):
@@ -278,6 +345,8 @@ class Station:
                 pairs.add(tuple(sorted((a, b))))
         return pairs
 
+    # --- sensing (what perception may read) -----------------------------------------
+
     def point_clouds(self, noise: DepthNoise | None = None, rng=None,
                      z_min: float | None = None) -> list[np.ndarray]:
         """World-frame depth points [M, 3] from each camera at the current state."""
@@ -285,24 +354,36 @@ class Station:
             raise ValueError("the station has no cameras (StationConfig.cameras is empty)")
         return read_point_clouds(self.cameras, self.context, noise, rng, z_min)
 
-    def gripper_pose(self) -> RigidTransform:
-        return self.tcp_frame.CalcPoseInWorld(self.plant_context)
+    def clearance(self, names: list[str], cap: float = 0.01) -> float:
+        """Distance (m) from the named objects to the nearest geometry not theirs, at most cap
+        (ground truth: the hand's simulation of a release uses it)."""
+        query = self._query()
+        mine = {g for n in names for g in self.plant.GetCollisionGeometriesForBody(self.assigned[n])}
+        best = cap
+        for d in query.ComputeSignedDistancePairwiseClosestPoints(cap):
+            if (d.id_A in mine) != (d.id_B in mine):
+                best = min(best, d.distance)
+        return best
 
-    def arm_positions(self) -> np.ndarray:
-        return self.plant.GetPositions(self.plant_context, self.arm)[:6].copy()
+    def robot_collision_shapes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """The robot's collision shapes at its current joint state (proprioception), as
+        ("box", X_W [4x4], size xyz) or ("cylinder", X_W, [radius, length]); the hand has none."""
+        if self.arm is None:
+            return []
+        query = self._query()
+        inspector = query.inspector()
+        shapes = []
+        for body_index in self.plant.GetBodyIndices(self.arm):
+            for gid in self.plant.GetCollisionGeometriesForBody(self.plant.get_body(body_index)):
+                shape = inspector.GetShape(gid)
+                X = query.GetPoseInWorld(gid).GetAsMatrix4()
+                if isinstance(shape, Box):
+                    shapes.append(("box", X, np.array([shape.width(), shape.depth(),
+                                                       shape.height()])))
+                elif isinstance(shape, Cylinder):
+                    shapes.append(("cylinder", X, np.array([shape.radius(), shape.length()])))
+        return shapes
 
-    def finger_positions(self) -> np.ndarray:
-        return self.plant.GetPositions(self.plant_context, self.arm)[6:].copy()
-
-    def object_corners_z(self, name: str) -> np.ndarray:
-        """World z of the 8 corners of an object's box (ground truth)."""
-        X = self.object_poses()[name]
-        h = np.array(HALF_EXTENTS[self.types[name]])
-        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-        return (X.multiply((signs * h).T))[2]
-
-
-def _zero_velocity():
-    from pydrake.multibody.math import SpatialVelocity
-
-    return SpatialVelocity(np.zeros(3), np.zeros(3))
+    def _query(self):
+        return self.scene_graph.get_query_output_port().Eval(
+            self.scene_graph.GetMyContextFromRoot(self.context))
