@@ -13,10 +13,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.structs import OFFSET_METRES, Action
 
 TYPE_MISMATCH_COST = 0.3  # m-equivalent
 UNMATCHED_COST = 0.5
+GRASP_SLACK = 0.01  # m: a grasp point this far outside a footprint may still hold that box
 
 
 def stacked_on(scene, name: str) -> set[str]:
@@ -41,7 +43,7 @@ def _grasp_candidates(before, action: Action) -> list[str]:
     names = [action.source]
     for o in before.objects:
         local = (point - o.position[:2]) @ o.R[:2, :2]
-        half = np.array([0.025, 0.125 if o.type == "long" else 0.025]) + 0.01
+        half = np.array(HALF_EXTENTS[o.type][:2]) + GRASP_SLACK
         if o.name != action.source and np.all(np.abs(local) <= half):
             names.append(o.name)
     return names
@@ -58,7 +60,9 @@ def _predictions(before, action: Action, grasped: str | None) -> np.ndarray:
     tcp_grasp = src.position + [0, OFFSET_METRES[action.grasp], 0]
     tcp_release = tgt.position + [0, OFFSET_METRES[action.release], 0]
     shift = tcp_release - tcp_grasp
-    shift[2] = tgt.position[2] + 0.05 - held.position[2]  # lands on the target's top
+    # Lands on the target's top.
+    shift[2] = (tgt.position[2] + (HALF_EXTENTS[tgt.type][2] + HALF_EXTENTS[held.type][2])
+                - held.position[2])
     moving = {grasped} | stacked_on(before, grasped)
     for i, o in enumerate(before.objects):
         if o.name in moving:

@@ -1,11 +1,13 @@
 """Fit the known box models (5 cm cube, 5x25x5 cm long block) to surfaces and leftover points.
 
 `fit_boxes` is the bottom-up fit. Each visible top surface is explained by one or more
-boxes: a minimum-area rectangle gives its axes and extents; a 25 cm extent is a long block, a 5 cm square a cube, and anything in
-between is a long block only if the rest of its length is hidden under something higher
-(else a row of touching cubes). Boxes whose bottoms float with nothing fitted under them
-are supported by objects seen only from the side (a cube under a bridge): those are fitted
-to the leftover points below.
+boxes: a minimum-area rectangle gives its axes and extents; a 25 cm extent is a long block,
+a 5 cm square a cube, and anything in between is a long block only if the rest of its
+length is hidden under something higher (else a row of touching cubes). Boxes whose
+bottoms float with nothing fitted under them are supported by objects seen only from the
+side (a cube under a bridge): those are fitted to the leftover points below.
+
+The thresholds are module constants below, each with its reason.
 """
 
 from __future__ import annotations
@@ -17,12 +19,57 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import ConvexHull, QhullError
 
+from drake_symplan.boxes import HALF_EXTENTS, LONG, SIDE
 from drake_symplan.perception.segmentation import CELL, HeightMap, Surface, find_surfaces
-from drake_symplan.world.scenes import HALF_EXTENTS
 
-SIDE = 0.05
-LONG = 0.25
+# Minimum-area rectangle: a 1 deg search over a quarter turn (a rectangle repeats every
+# 90 deg), then 0.1 deg steps within 1 deg of the best.
 _ANGLES = np.radians(np.arange(0.0, 90.0, 1.0))
+_REFINE_ANGLES = np.radians(np.arange(-1.0, 1.01, 0.1))
+HULL_MIN_POINTS = 8  # up to this many points, taking the convex hull first saves nothing
+
+# Hidden or seen (`_hidden_fractions`).
+SEEN_TOL = 0.01  # m: a point is contradicted where the map is empty or this much lower
+OCCUPIED_MARGIN = 0.002  # m: a point this deep inside a known box is in taken space
+BLOCK_SAMPLE_INSET = 0.01  # m: samples along a block's top stop this short of its ends
+BLOCK_SAMPLES = 24  # samples along a block's top centre line
+PLACEMENTS = 21  # candidate centres when sliding a block along its axis
+
+# Reading a top surface (`boxes_from_surface`).
+STRIP_CORE = (0.25, 0.75)  # a strip's core: the middle half of its width, free of edges
+MIN_CORE_POINTS = 10  # points in a strip's core to fit anything to it
+CUBE_SHARE = 10  # a cube in a row of blocks and cubes gets 1/10 of the points as support
+_ROUND_OFF = 1e-9  # m: slack for float round-off in comparisons
+WHOLE_BLOCK_SLACK = 0.015  # m: a seen length this short of 25 cm is a whole block
+EDGE_BAND = 0.006  # m: points this close to an extreme lie on that edge (count density)
+PARTIAL_BLOCK = 0.075  # m: a piece longer than a cube and a half may be a hidden block
+HIDDEN_ENOUGH = 0.9  # fraction of a placement seen or hidden for it to be possible
+HIDDEN_SURE = 0.97  # ... and for it to be certain
+END_PROBE = 0.008  # m: probe this far beyond a visible end to see if the table is there
+SHORT_CUBE = 0.035  # m: a cube seen shorter than this is uncertain
+PRIOR_REACH = 0.03  # m beyond half a block: how far a prior block may lie from a piece
+PRIOR_SNAP = 0.05  # m: a block through a piece must lie this close to the prior block
+STANDING_AXIS = 0.5  # a block's long axis projected on a plane: shorter, it stood on end
+LAYOUT_DISTANCE_CAP = 0.1  # m: cap on a layout box's distance to its nearest prior box
+DUPLICATE_DEPTH = 0.005  # m: a centre this deep inside a better box is the same object
+
+# Supports seen from the side (`hidden_supports`, `_fit_side_clusters`).
+LEANING_TILT = np.radians(5.0)  # a box tilted more than this leans on something
+ON_TABLE = 0.02  # m: a bottom lower than this rests on the table
+STACK_TOL = 0.012  # m: a bottom this close to a top rests on it; columns align this well
+SUPPORT_SEARCH = 0.03  # m: look for support points this far around a box's footprint
+EXPLAINED_MARGIN = 0.006  # m: points this close to a fitted box are its own
+FOOTPRINT_OVERLAP = 0.005  # m: footprints must overlap by this to support
+MIN_SIDE_POINTS = 40  # points in a cluster to fit a box to its side faces
+CLUSTER_DILATION = 2  # cells: side points are grown by this, so a face's pieces join
+OWN_YAW_EXTENT = 0.02  # m: a cluster this wide has a yaw of its own (else the box above's)
+LONG_CLUSTER = 0.08  # m: a cluster longer than this is a long block
+BOTH_FACES = 0.8  # fraction of a box's size seen along an axis: both faces are seen
+ONE_FACE_UNSURE = 0.3  # ... less than this: the box's centre there is uncertain
+
+# Upright blocks (`upright_blocks`).
+UPRIGHT_TILT = np.radians(10.0)  # cubes tilted less than this may be stacked in a column
+COLUMN_CUBES = round(LONG / SIDE)  # cubes in a column as tall as a block standing on its end
 
 
 @dc.dataclass
@@ -71,7 +118,7 @@ def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def min_area_rectangle(uv: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """(angle, lo, hi, axes 2x2) of the smallest enclosing rectangle of 2D points."""
-    if len(uv) > 8:
+    if len(uv) > HULL_MIN_POINTS:
         try:
             uv = uv[ConvexHull(uv).vertices]  # the rectangle only depends on the hull
         except QhullError:
@@ -79,7 +126,7 @@ def min_area_rectangle(uv: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, n
     best = None
     for angles in (_ANGLES, None):
         if angles is None:  # refine around the coarse optimum
-            angles = best[0] + np.radians(np.arange(-1.0, 1.01, 0.1))
+            angles = best[0] + _REFINE_ANGLES
         c, s = np.cos(angles), np.sin(angles)
         pu = uv @ np.stack([c, s])  # [M, A]
         pv = uv @ np.stack([-s, c])
@@ -108,13 +155,14 @@ def _hidden_fractions(hm: HeightMap, pts3: np.ndarray, occupied: Sequence[Fitted
     the table; or the space is taken by an `occupied` box). Beyond the map's edge nothing
     is known."""
     flat = pts3.reshape(-1, 3)
-    contradicted = hm.contradicts(flat, 0.01)
+    contradicted = hm.contradicts(flat, SEEN_TOL)
     for box in occupied:
-        contradicted |= box.contains(flat, 0.002)
+        contradicted |= box.contains(flat, OCCUPIED_MARGIN)
     return 1.0 - contradicted.reshape(pts3.shape[:-1]).mean(axis=-1)
 
 
-_BLOCK_SAMPLES = np.linspace(-LONG / 2 + 0.01, LONG / 2 - 0.01, 24)
+_BLOCK_SAMPLES = np.linspace(-LONG / 2 + BLOCK_SAMPLE_INSET, LONG / 2 - BLOCK_SAMPLE_INSET,
+                             BLOCK_SAMPLES)
 
 
 def _block_hidden_fractions(hm: HeightMap, top_centres: np.ndarray, d: np.ndarray,
@@ -161,10 +209,10 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
     for k in range(n_strips):
         v0 = lo[1] + k * ext[1] / n_strips
         width = ext[1] / n_strips
-        in_strip = (pv >= v0 - 1e-9) & (pv <= v0 + width + 1e-9)
+        in_strip = (pv >= v0 - _ROUND_OFF) & (pv <= v0 + width + _ROUND_OFF)
         # The strip's length from its core only: a neighbour's edge points lie on the border.
-        core = in_strip & (pv > v0 + 0.25 * width) & (pv < v0 + 0.75 * width)
-        if core.sum() < 10:
+        core = in_strip & (pv > v0 + STRIP_CORE[0] * width) & (pv < v0 + STRIP_CORE[1] * width)
+        if core.sum() < MIN_CORE_POINTS:
             continue
         su = pu[core]
         u_lo, u_hi = su.min(), su.max()
@@ -173,8 +221,8 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
         length = u_hi - u_lo
         origin = surface.centroid + v_dir * v_mid
         npts = int(in_strip.sum())
-        if length > LONG - 0.015:  # the whole block is seen
-            n_long = int((length + 0.015) // LONG)
+        if length > LONG - WHOLE_BLOCK_SLACK:  # the whole block is seen
+            n_long = int((length + WHOLE_BLOCK_SLACK) // LONG)
             extra = max(0, int(round((length - n_long * LONG) / SIDE)))
             if extra == 0 and n_long == 1:
                 centre_u = (u_lo + u_hi) / 2
@@ -192,35 +240,35 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
                     kind = "long" if size == LONG else "cube"
                     layout.append(_box_from_top(
                         origin + u_dir * (start + sign * size / 2), n, u_dir, kind, True,
-                        npts // n_long if kind == "long" else npts // 10))
+                        npts // n_long if kind == "long" else npts // CUBE_SHARE))
                     start += sign * size
                 layouts.append(layout)
             if prior:
                 boxes.extend(min(layouts, key=lambda lay: _distance_to(lay, prior)))
             else:
-                dense_lo = np.sum(su < u_lo + 0.006) >= np.sum(su > u_hi - 0.006)
+                dense_lo = np.sum(su < u_lo + EDGE_BAND) >= np.sum(su > u_hi - EDGE_BAND)
                 boxes.extend(layouts[0] if dense_lo else layouts[1])
             continue
-        if length > 0.075:
+        if length > PARTIAL_BLOCK:
             # Could be a long block partly hidden under something, or touching cubes:
             # slide a 25 cm block over every placement that covers what is seen.
-            centres = np.linspace(u_hi - LONG / 2, u_lo + LONG / 2, 21)
+            centres = np.linspace(u_hi - LONG / 2, u_lo + LONG / 2, PLACEMENTS)
             fracs = _block_hidden_fractions(hm, origin + np.outer(centres, u_dir), u_dir,
                                             occupied)
-            if fracs.max() > 0.9:
-                good = centres[fracs >= fracs.max() - 1e-9]
+            if fracs.max() > HIDDEN_ENOUGH:
+                good = centres[fracs >= fracs.max() - _ROUND_OFF]
                 centre_u = (good.min() + good.max()) / 2
                 # A visible end that borders the table is the block's real end.
-                beyond = origin + np.outer([u_lo - 0.008, u_hi + 0.008], u_dir)
+                beyond = origin + np.outer([u_lo - END_PROBE, u_hi + END_PROBE], u_dir)
                 lo_real, hi_real = _hidden_fractions(hm, beyond[:, None], occupied) == 0
                 if lo_real and not hi_real:
                     centre_u = u_lo + LONG / 2
                 elif hi_real and not lo_real:
                     centre_u = u_hi - LONG / 2
                 boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "long",
-                                           fracs.max() < 0.97, npts))
+                                           fracs.max() < HIDDEN_SURE, npts))
                 continue
-        if length <= 0.075 and prior:
+        if length <= PARTIAL_BLOCK and prior:
             # A short piece may be the visible end of a block the prior knows, now mostly
             # under something put on it.
             block = _prior_block_through(origin + u_dir * (u_lo + u_hi) / 2, n, prior, hm,
@@ -232,7 +280,7 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
         for j in range(count):
             centre_u = u_lo + length * (j + 0.5) / count
             boxes.append(_box_from_top(origin + u_dir * centre_u, n, u_dir, "cube",
-                                       length < 0.035, npts // count))
+                                       length < SHORT_CUBE, npts // count))
     return boxes
 
 
@@ -243,17 +291,20 @@ def _prior_block_through(piece: np.ndarray, n: np.ndarray, prior: Sequence[Fitte
     (a point on its top) and is hidden everywhere else, placed nearest the prior one."""
     best = None
     for p in prior:
-        if p.type != "long" or np.linalg.norm(p.center[:2] - piece[:2]) > LONG / 2 + 0.03:
+        reach = LONG / 2 + PRIOR_REACH
+        if p.type != "long" or np.linalg.norm(p.center[:2] - piece[:2]) > reach:
             continue
         d = p.R[:, 1] - (p.R[:, 1] @ n) * n
-        if np.linalg.norm(d) < 0.5:  # the prior block stood on its end
+        if np.linalg.norm(d) < STANDING_AXIS:  # the prior block stood on its end
             continue
         d /= np.linalg.norm(d)
-        centres = piece + np.outer(np.linspace(-LONG / 2 + SIDE / 2, LONG / 2 - SIDE / 2, 21), d)
-        for centre in centres[_block_hidden_fractions(hm, centres, d, occupied) >= 0.9]:
+        offsets = np.linspace(-LONG / 2 + SIDE / 2, LONG / 2 - SIDE / 2, PLACEMENTS)
+        centres = piece + np.outer(offsets, d)
+        hidden = _block_hidden_fractions(hm, centres, d, occupied)
+        for centre in centres[hidden >= HIDDEN_ENOUGH]:
             top_prior = p.center + n * HALF_EXTENTS["long"][2]
             dist = float(np.linalg.norm(centre - top_prior))
-            if dist < 0.05 and (best is None or dist < best[0]):
+            if dist < PRIOR_SNAP and (best is None or dist < best[0]):
                 best = (dist, centre, d)
     if best is None:
         return None
@@ -265,7 +316,7 @@ def _distance_to(layout: list[FittedBox], prior: Sequence[FittedBox]) -> float:
     total = 0.0
     for b in layout:
         d = [np.linalg.norm(b.center - p.center) for p in prior if p.type == b.type]
-        total += min(min(d, default=0.1), 0.1)
+        total += min(min(d, default=LAYOUT_DISTANCE_CAP), LAYOUT_DISTANCE_CAP)
     return total
 
 
@@ -274,7 +325,7 @@ def suppress_duplicates(boxes: list[FittedBox]) -> list[FittedBox]:
     e.g. a block whose top is split in two by a cube standing on its middle)."""
     kept: list[FittedBox] = []
     for box in sorted(boxes, key=lambda b: -b.points):
-        if not any(k.contains(box.center[None], -0.005)[0] for k in kept):
+        if not any(k.contains(box.center[None], -DUPLICATE_DEPTH)[0] for k in kept):
             kept.append(box)
     return kept
 
@@ -291,21 +342,21 @@ def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBo
     while queue:
         box = queue.pop(0)
         bottom = box.bottom_z()
-        tilted = box.tilt > np.radians(5)
-        if bottom < 0.02 and not tilted:
+        tilted = box.tilt > LEANING_TILT
+        if bottom < ON_TABLE and not tilted:
             continue
         footprint = box.corners()[:, :2]
-        if not tilted and any(abs(other.top_z() - bottom) < 0.012
+        if not tilted and any(abs(other.top_z() - bottom) < STACK_TOL
                               and _xy_overlap(footprint, other)
                               for other in boxes + found if other is not box):
             continue
-        lo, hi = footprint.min(axis=0) - 0.03, footprint.max(axis=0) + 0.03
+        lo, hi = footprint.min(axis=0) - SUPPORT_SEARCH, footprint.max(axis=0) + SUPPORT_SEARCH
         sel = ((points[:, 2] < box.center[2]) & np.all(points[:, :2] >= lo, axis=1)
                & np.all(points[:, :2] <= hi, axis=1))
         cand = points[sel]
         for other in boxes + found:
             if len(cand):
-                cand = cand[~other.contains(cand, 0.006)]
+                cand = cand[~other.contains(cand, EXPLAINED_MARGIN)]
         new = _fit_side_clusters(cand, None if tilted else bottom, box)
         found.extend(new)
         queue.extend(new)
@@ -314,33 +365,33 @@ def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBo
 
 def _xy_overlap(footprint: np.ndarray, other: FittedBox) -> bool:
     o = other.corners()[:, :2]
-    return bool(np.all(footprint.max(axis=0) > o.min(axis=0) + 0.005)
-                and np.all(o.max(axis=0) > footprint.min(axis=0) + 0.005))
+    return bool(np.all(footprint.max(axis=0) > o.min(axis=0) + FOOTPRINT_OVERLAP)
+                and np.all(o.max(axis=0) > footprint.min(axis=0) + FOOTPRINT_OVERLAP))
 
 
 def _fit_side_clusters(cand: np.ndarray, top: float | None,
                        above: FittedBox) -> list[FittedBox]:
     """Upright boxes for point clusters under `above`; `top` None: from the points."""
-    if len(cand) < 40:
+    if len(cand) < MIN_SIDE_POINTS:
         return []
     lo = cand[:, :2].min(axis=0)
     idx = np.floor((cand[:, :2] - lo) / CELL).astype(int)
     grid = np.zeros(idx.max(axis=0) + 1, bool)
     grid[idx[:, 0], idx[:, 1]] = True
-    labels, n = ndimage.label(ndimage.binary_dilation(grid, iterations=2))
+    labels, n = ndimage.label(ndimage.binary_dilation(grid, iterations=CLUSTER_DILATION))
     out = []
     for lab in range(1, n + 1):
         pts = cand[labels[idx[:, 0], idx[:, 1]] == lab]
-        if len(pts) < 40:
+        if len(pts) < MIN_SIDE_POINTS:
             continue
         # The visible side faces (one face, or an L of two) give the box's own yaw; the
         # box above may have been turned relative to it.
         angle, *_ = min_area_rectangle(pts[:, :2] - pts[:, :2].mean(axis=0))
-        yaw = angle if np.ptp(pts[:, :2], axis=0).max() > 0.02 else above.yaw
+        yaw = angle if np.ptp(pts[:, :2], axis=0).max() > OWN_YAW_EXTENT else above.yaw
         axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
         uv = pts[:, :2] @ axes.T
         ext = np.ptp(uv, axis=0)
-        kind = "long" if ext.max() > 0.08 else "cube"
+        kind = "long" if ext.max() > LONG_CLUSTER else "cube"
         dims = np.array([SIDE, LONG if kind == "long" else SIDE])
         if kind == "long" and ext[0] > ext[1]:
             axes_k = axes[::-1]
@@ -352,13 +403,13 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         uncertain = False
         for d in range(2):
             a, b = uv[:, d].min(), uv[:, d].max()
-            if ext[d] >= 0.8 * dims[d]:
+            if ext[d] >= BOTH_FACES * dims[d]:
                 centre_uv[d] = (a + b) / 2
             else:  # one face seen: anchor on the side with more points near its extreme
-                near_a = np.sum(uv[:, d] < a + 0.006)
-                near_b = np.sum(uv[:, d] > b - 0.006)
+                near_a = np.sum(uv[:, d] < a + EDGE_BAND)
+                near_b = np.sum(uv[:, d] > b - EDGE_BAND)
                 centre_uv[d] = b - dims[d] / 2 if near_b >= near_a else a + dims[d] / 2
-                uncertain |= ext[d] < 0.3 * dims[d]
+                uncertain |= ext[d] < ONE_FACE_UNSURE * dims[d]
         xy = centre_uv @ axes_k
         y_dir = np.array([*axes_k[1], 0.0])
         n = np.array([0.0, 0.0, 1.0])
@@ -376,7 +427,7 @@ def upright_blocks(boxes: list[FittedBox]) -> list[FittedBox]:
     From the cameras the two look alike (the seams of a tower are invisible); a tipped
     block standing up is far more common in these scenes than a tower of five.
     """
-    cubes = sorted((b for b in boxes if b.type == "cube" and b.tilt < np.radians(10)),
+    cubes = sorted((b for b in boxes if b.type == "cube" and b.tilt < UPRIGHT_TILT),
                    key=lambda b: b.center[2])
     used: set[int] = set()
     merged = []
@@ -386,12 +437,13 @@ def upright_blocks(boxes: list[FittedBox]) -> list[FittedBox]:
         column = [base]
         for other in cubes[i + 1:]:
             top = column[-1]
-            if (id(other) not in used and abs(other.center[2] - top.center[2] - SIDE) < 0.012
-                    and np.linalg.norm(other.center[:2] - top.center[:2]) < 0.012):
+            if (id(other) not in used
+                    and abs(other.center[2] - top.center[2] - SIDE) < STACK_TOL
+                    and np.linalg.norm(other.center[:2] - top.center[:2]) < STACK_TOL):
                 column.append(other)
-            if len(column) == 5:
+            if len(column) == COLUMN_CUBES:
                 break
-        if len(column) < 5:
+        if len(column) < COLUMN_CUBES:
             continue
         used.update(id(c) for c in column)
         x = base.R[:, 0] - base.R[2, 0] * np.array([0.0, 0.0, 1.0])

@@ -1,11 +1,14 @@
-"""The object feature vector x_i (the contract in DESIGN.md), from a perceived box only.
+"""The object feature vector x_i, from a perceived box only.
+
+Its layout is the contract that data collection and the learned models rely on
+(docs/perception.md lists it too):
 
 x = [x, y, z, cos(tilt), long_axis_up, cos(k*yaw), sin(k*yaw), is_cube, is_long]
 - position in metres, world frame (box centre);
 - cos(tilt): tilt between world z and the box axis nearest to it (1 = resting on a face);
 - long_axis_up: |z component| of a long block's long axis (0 lying, 1 standing; 0 for cubes);
-- yaw folded by the box's symmetry: k = 4 for a cube (90 deg), k = 2 for a long block
-  (180 deg), so every symmetric-equivalent pose gives the same vector;
+- yaw folded by the box's symmetry: k = 2 pi / boxes.YAW_PERIOD, 4 for a cube (90 deg),
+  2 for a long block (180 deg), so every symmetric-equivalent pose gives the same vector;
 - the perceived type, one-hot.
 """
 
@@ -13,10 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from drake_symplan.boxes import YAW_PERIOD
+
 FEATURE_NAMES = ("x", "y", "z", "cos_tilt", "long_axis_up", "cos_k_yaw", "sin_k_yaw",
                  "is_cube", "is_long")
 FEATURE_DIM = len(FEATURE_NAMES)
-YAW_SYMMETRY = {"cube": 4, "long": 2}
+YAW_SYMMETRY = {kind: round(2 * np.pi / period) for kind, period in YAW_PERIOD.items()}
 
 
 def object_features(kind: str, position: np.ndarray, R: np.ndarray) -> np.ndarray:

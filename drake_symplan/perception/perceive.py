@@ -12,11 +12,12 @@ import dataclasses as dc
 
 import numpy as np
 
+from drake_symplan.boxes import YAW_PERIOD, fold_yaw
 from drake_symplan.perception import segmentation as seg
 from drake_symplan.perception import tracking
 from drake_symplan.perception.box_fitting import FittedBox, fit_boxes
 from drake_symplan.perception.contacts import contact_graph
-from drake_symplan.perception.features import YAW_SYMMETRY, object_features
+from drake_symplan.perception.features import object_features
 from drake_symplan.structs import ObjectState
 
 
@@ -25,7 +26,7 @@ class PerceivedObject:
     name: str
     type: str
     position: np.ndarray
-    yaw: float
+    yaw: float  # folded by the box's symmetry: in [-45, 45) deg for a cube, [-90, 90) a block
     tilt: float
     features: np.ndarray
     uncertain: bool
@@ -92,19 +93,13 @@ class Perceiver:
         # Stable names by position so a scene always gets the same names.
         boxes.sort(key=lambda b: (round(b.center[0], 2), round(b.center[1], 2), b.center[2]))
         objects = [
-            PerceivedObject(f"p{i}", b.type, b.center, _fold_yaw(b.type, b.yaw), b.tilt,
-                            object_features(b.type, b.center, b.R), b.uncertain, b.R)
+            PerceivedObject(f"p{i}", b.type, b.center, fold_yaw(b.yaw, YAW_PERIOD[b.type]),
+                            b.tilt, object_features(b.type, b.center, b.R), b.uncertain, b.R)
             for i, b in enumerate(boxes)
         ]
         contacts = contact_graph({o.name: (o.position, o.R, np.array(b.half_extents))
                                   for o, b in zip(objects, boxes, strict=True)})
         return PerceivedScene(objects, contacts)
-
-
-def _fold_yaw(kind: str, yaw: float) -> float:
-    """Yaw in (-45, 45] deg for a cube, (-90, 90] deg for a long block."""
-    period = 2 * np.pi / YAW_SYMMETRY[kind]
-    return float((yaw + period / 2) % period - period / 2)
 
 
 def _near_workspace(X: np.ndarray) -> bool:

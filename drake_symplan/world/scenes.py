@@ -12,13 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-# Box half-extents (x, y, z) in metres, per object type.
-HALF_EXTENTS: dict[str, tuple[float, float, float]] = {
-    "cube": (0.025, 0.025, 0.025),
-    "long": (0.025, 0.125, 0.025),
-}
-OBJECT_TYPES = tuple(HALF_EXTENTS)
-MASSES = {"cube": 0.1, "long": 0.4}
+# HALF_EXTENTS and OBJECT_TYPES are also imported from here by modules not yet moved to
+# drake_symplan.boxes (skills, station).
+from drake_symplan.boxes import HALF_EXTENTS, LONG, OBJECT_TYPES, SIDE
 
 # Where objects may be placed (box centres), metres.
 WORKSPACE_X = (0.45, 1.0)
@@ -207,20 +203,31 @@ def sample_scene(
     return validate_scene(Scene(objects))
 
 
+def _level(k: int) -> float:
+    """Centre height of the k-th box (0: on the table) in a stack of boxes lying flat, to
+    the micrometre (so that the presets below keep their exact decimal heights)."""
+    return round(SIDE / 2 + k * SIDE, 6)
+
+
+_END = LONG / 2 - SIDE / 2  # a cube centred over a long block's end, from the block's centre
+
 # Arrangements for perception tests and benchmarks: (type, dx, dy, z) relative to a unit's
 # origin. "tipped" puts a long block over a cube's edge so that physics tips it.
 UNITS: dict[str, list[tuple[str, float, float, float]]] = {
-    "cube": [("cube", 0, 0, 0.025)],
-    "long": [("long", 0, 0, 0.025)],
-    "tower2": [("cube", 0, 0, 0.025), ("cube", 0, 0, 0.075)],
-    "tower3": [("cube", 0, 0, 0.025), ("cube", 0, 0, 0.075), ("cube", 0, 0, 0.125)],
-    "cube_on_end": [("long", 0, 0, 0.025), ("cube", 0, 0.1, 0.075)],
-    "cubes_on_ends": [("long", 0, 0, 0.025), ("cube", 0, -0.1, 0.075), ("cube", 0, 0.1, 0.075)],
-    "bridge": [("cube", 0, -0.1, 0.025), ("cube", 0, 0.1, 0.025), ("long", 0, 0, 0.075)],
-    "touching_x": [("cube", 0, 0, 0.025), ("cube", 0.05, 0, 0.025)],
-    "touching_y": [("cube", 0, 0, 0.025), ("cube", 0, 0.05, 0.025)],
-    "touching_long": [("long", 0, 0, 0.025), ("cube", 0.05, 0.05, 0.025)],
-    "tipped": [("cube", 0, -0.08, 0.025), ("long", 0, 0.01, 0.075)],
+    "cube": [("cube", 0, 0, _level(0))],
+    "long": [("long", 0, 0, _level(0))],
+    "tower2": [("cube", 0, 0, _level(0)), ("cube", 0, 0, _level(1))],
+    "tower3": [("cube", 0, 0, _level(0)), ("cube", 0, 0, _level(1)), ("cube", 0, 0, _level(2))],
+    "cube_on_end": [("long", 0, 0, _level(0)), ("cube", 0, _END, _level(1))],
+    "cubes_on_ends": [("long", 0, 0, _level(0)), ("cube", 0, -_END, _level(1)),
+                      ("cube", 0, _END, _level(1))],
+    "bridge": [("cube", 0, -_END, _level(0)), ("cube", 0, _END, _level(0)),
+               ("long", 0, 0, _level(1))],
+    "touching_x": [("cube", 0, 0, _level(0)), ("cube", SIDE, 0, _level(0))],
+    "touching_y": [("cube", 0, 0, _level(0)), ("cube", 0, SIDE, _level(0))],
+    # A cube against the block's side, 5 cm along it from the block's centre.
+    "touching_long": [("long", 0, 0, _level(0)), ("cube", SIDE, 0.05, _level(0))],
+    "tipped": [("cube", 0, -0.08, _level(0)), ("long", 0, 0.01, _level(1))],
 }
 
 
