@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drake_symplan.data.storage import (
+from drake_symplan.shards import (
     fingerprint,
     load_extra,
     load_transitions,

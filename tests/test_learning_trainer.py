@@ -11,7 +11,6 @@ import pytest
 import torch
 
 from drake_symplan.cli import learning_cmds
-from drake_symplan.data.storage import write_manifest, write_shard
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.dataset import split_by_episode
 from drake_symplan.learning.evaluate import (
@@ -23,6 +22,7 @@ from drake_symplan.learning.evaluate import (
 from drake_symplan.learning.readout import read_symbols, readout_dataset
 from drake_symplan.learning.synthetic import same_group_rule
 from drake_symplan.learning.trainer import TrainConfig, _check_resumable, train
+from drake_symplan.shards import write_manifest, write_shard
 
 torch.set_num_threads(1)
 SMALL = {"epochs": 2, "batch_size": 64, "lr": 1e-3, "threads": 1, "progress": False}

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from drake_symplan.data.storage import load_transitions
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN, read_bits
 from drake_symplan.learning.models import EffectModel
+from drake_symplan.shards import load_transitions
 from drake_symplan.structs import TransitionArrays
 
 READOUT_BATCH = 8192

@@ -1,0 +1,196 @@
+"""The transition data set format: sharded on-disk storage (numpy only: no Drake, no torch).
+
+`learning` reads data sets through this module and `data` writes them through it, so
+neither needs the other (data/storage.py adds collection bookkeeping and re-exports it).
+
+A data set is a directory holding
+
+- `shard-000000.npz`, `shard-000001.npz`, ...: one `TransitionArrays` each, stored
+  under its field names (`state`, `action`, `effect`, `mask`, `episode`,
+  `next_state`); shards may differ in their object count N;
+- `manifest.json`: at least `{"schema_version": 1}`; collection adds its own keys.
+
+Shards are written atomically (temporary file in the same directory, then
+`os.replace`), so a reader never sees half a shard and an interrupted writer leaves
+no corrupt file behind.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from drake_symplan.structs import TransitionArrays
+
+SCHEMA_VERSION = 1
+MANIFEST = "manifest.json"
+SHARD_GLOB = "shard-*.npz"
+REQUIRED_KEYS = ("state", "action", "effect", "mask", "episode")
+
+
+def shard_path(out_dir: str | Path, index: int) -> Path:
+    return Path(out_dir) / f"shard-{index:06d}.npz"
+
+
+def write_shard(
+    out_dir: str | Path, index: int, arrays: TransitionArrays,
+    extra: dict[str, np.ndarray] | None = None,
+) -> Path:
+    """Write `arrays` as shard `index` of `out_dir` atomically; returns its path.
+
+    `extra` arrays (e.g. collection bookkeeping) are stored alongside under their own
+    names; `load_transitions` ignores them.
+    """
+    if index < 0:
+        raise ValueError(f"shard index must be non-negative, got {index}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = shard_path(out_dir, index)
+    fields = {
+        "state": arrays.state.astype(np.float32, copy=False),
+        "action": arrays.action.astype(np.float32, copy=False),
+        "effect": arrays.effect.astype(np.float32, copy=False),
+        "mask": arrays.mask.astype(bool, copy=False),
+        "episode": arrays.episode.astype(np.int64, copy=False),
+    }
+    if arrays.next_state is not None:
+        fields["next_state"] = arrays.next_state.astype(np.float32, copy=False)
+    for key, value in (extra or {}).items():
+        if key in fields or key == "next_state":
+            raise ValueError(f"extra array {key!r} would overwrite a transition field")
+        fields[key] = np.asarray(value)
+    tmp = out_dir / f".{path.name}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, **fields)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def write_manifest(out_dir: str | Path, info: dict | None = None) -> Path:
+    """Write `manifest.json` (atomically) with `schema_version` plus `info`."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / MANIFEST
+    tmp = out_dir / f".{MANIFEST}.tmp-{os.getpid()}"
+    tmp.write_text(json.dumps({"schema_version": SCHEMA_VERSION, **(info or {})}, indent=2))
+    os.replace(tmp, path)
+    return path
+
+
+def read_manifest(data_dir: str | Path) -> dict:
+    """The manifest of `data_dir`, checked for a known schema version."""
+    path = Path(data_dir) / MANIFEST
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist: {data_dir} is not a data set directory")
+    try:
+        manifest = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path} is not valid JSON: {e}") from e
+    if not isinstance(manifest, dict) or manifest.get("schema_version") != SCHEMA_VERSION:
+        raise ValueError(f"{path} has no schema_version {SCHEMA_VERSION}")
+    return manifest
+
+
+def shard_paths(data_dir: str | Path) -> list[Path]:
+    """The shard files of `data_dir` in index order; errors if there are none."""
+    data_dir = Path(data_dir)
+    if not data_dir.is_dir():
+        raise FileNotFoundError(f"data directory {data_dir} does not exist")
+    read_manifest(data_dir)
+    paths = sorted(data_dir.glob(SHARD_GLOB))
+    if not paths:
+        raise ValueError(f"data directory {data_dir} holds no {SHARD_GLOB} files")
+    return paths
+
+
+def _read_shard(path: Path) -> dict[str, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            fields = {key: z[key] for key in z.files}
+    except (OSError, ValueError) as e:
+        raise ValueError(f"cannot read shard {path}: {e}") from e
+    missing = [key for key in REQUIRED_KEYS if key not in fields]
+    if missing:
+        raise ValueError(f"shard {path} lacks arrays {missing}")
+    return fields
+
+
+def _pad(arr: np.ndarray, n: int) -> np.ndarray:
+    if arr.shape[1] == n:
+        return arr
+    width = [(0, 0), (0, n - arr.shape[1])] + [(0, 0)] * (arr.ndim - 2)
+    return np.pad(arr, width)
+
+
+def load_transitions(data_dir: str | Path) -> TransitionArrays:
+    """All shards of `data_dir` concatenated in index order, N padded to the largest."""
+    shards = []
+    for path in shard_paths(data_dir):
+        fields = _read_shard(path)
+        try:
+            TransitionArrays(**{k: fields.get(k) for k in (*REQUIRED_KEYS, "next_state")})
+        except (ValueError, IndexError) as e:
+            raise ValueError(f"shard {path} is malformed: {e}") from e
+        shards.append((path, fields))
+    with_next = [("next_state" in fields) for _, fields in shards]
+    if any(with_next) and not all(with_next):
+        lacking = [str(p) for (p, _), w in zip(shards, with_next, strict=True) if not w]
+        raise ValueError(f"shards {lacking} lack next_state while others have it")
+    widths = {path.name: fields["state"].shape[2] for path, fields in shards}
+    if len(set(widths.values())) > 1:
+        raise ValueError(f"shards of {data_dir} differ in feature width: {widths}")
+    n = max(fields["mask"].shape[1] for _, fields in shards)
+    keys = [*REQUIRED_KEYS] + (["next_state"] if all(with_next) else [])
+    cat = {}
+    for key in keys:
+        parts = [fields[key] if key == "episode" else _pad(fields[key], n) for _, fields in shards]
+        cat[key] = np.concatenate(parts, axis=0)
+    return TransitionArrays(
+        state=cat["state"].astype(np.float32, copy=False),
+        action=cat["action"].astype(np.float32, copy=False),
+        effect=cat["effect"].astype(np.float32, copy=False),
+        mask=cat["mask"].astype(bool, copy=False),
+        episode=cat["episode"].astype(np.int64, copy=False),
+        next_state=cat.get("next_state"),
+    )
+
+
+def fingerprint(data_dir: str | Path) -> str:
+    """sha256 over the contents of the shard files, taken in name order."""
+    h = hashlib.sha256()
+    for path in shard_paths(data_dir):
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+    return h.hexdigest()
+
+
+def read_shard_arrays(path: str | Path, keys: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Only the named arrays of one shard (those it has)."""
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in keys if k in z.files}
+
+
+def load_extra(data_dir: str | Path, key: str) -> np.ndarray | None:
+    """The per-transition extra array `key` (e.g. "outcome") of all shards of `data_dir`,
+    in `load_transitions` order; None if any shard lacks it."""
+    parts = []
+    for path in shard_paths(data_dir):
+        z = read_shard_arrays(path, (key, "episode"))
+        if key not in z:
+            return None
+        if len(z[key]) != len(z["episode"]):
+            raise ValueError(f"shard {path}: {key} has {len(z[key])} entries for "
+                             f"{len(z['episode'])} transitions")
+        parts.append(z[key])
+    return np.concatenate(parts)
