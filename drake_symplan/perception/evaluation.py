@@ -3,30 +3,22 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
-from drake_symplan.perception.features import YAW_SYMMETRY
+from drake_symplan.boxes import YAW_PERIOD, fold_yaw
+from drake_symplan.perception.matching import match_by_position
 
 MATCH_RADIUS = 0.05  # m: a perceived object farther than this from every true one is invented
 
 
 def match_to_truth(perceived, truth: dict) -> dict[str, str]:
     """Perceived name -> true name, by optimal assignment on positions within MATCH_RADIUS."""
-    if not perceived.objects or not truth:
-        return {}
-    names = list(truth)
-    gt = np.stack([truth[n].position for n in names])
-    obs = np.stack([o.position for o in perceived.objects])
-    cost = np.linalg.norm(obs[:, None] - gt[None], axis=2)
-    rows, cols = linear_sum_assignment(cost)
-    return {perceived.objects[r].name: names[c] for r, c in zip(rows, cols, strict=True)
-            if cost[r, c] < MATCH_RADIUS}
+    return match_by_position({o.name: o.position for o in perceived.objects},
+                             {n: s.position for n, s in truth.items()}, MATCH_RADIUS)
 
 
 def yaw_error_deg(kind: str, yaw_a: float, yaw_b: float) -> float:
-    period = 2 * np.pi / YAW_SYMMETRY[kind]
-    d = (yaw_a - yaw_b + period / 2) % period - period / 2
-    return float(abs(np.degrees(d)))
+    """The yaw difference in degrees, up to the box's symmetry."""
+    return float(abs(np.degrees(fold_yaw(yaw_a - yaw_b, YAW_PERIOD[kind]))))
 
 
 def compare(perceived, truth: dict, true_contacts: set) -> dict:
