@@ -80,17 +80,6 @@ def encode_action(action: Action, names: list[str]) -> np.ndarray:
     return a
 
 
-def decode_action(encoded: np.ndarray, names: list[str]) -> Action:
-    """Inverse of `encode_action`."""
-    s = int(np.argmax(encoded[:, IS_SOURCE]))
-    t = int(np.argmax(encoded[:, IS_TARGET]))
-    if encoded[s, IS_SOURCE] != 1.0 or encoded[t, IS_TARGET] != 1.0:
-        raise ValueError("encoded action has no source or no target")
-    grasp = OFFSETS[int(np.argmax(encoded[s, IS_SOURCE + 1:IS_SOURCE + 4]))]
-    release = OFFSETS[int(np.argmax(encoded[t, IS_TARGET + 1:IS_TARGET + 4]))]
-    return Action(names[s], grasp, names[t], release)
-
-
 @dataclass
 class TransitionArrays:
     """A padded batch of transitions: what `data` stores and `learning` trains on.

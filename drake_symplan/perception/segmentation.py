@@ -30,11 +30,6 @@ class Surface:
     normal: np.ndarray  # (3,) unit, z > 0
     centroid: np.ndarray  # (3,)
 
-    def height_at(self, xy: np.ndarray) -> np.ndarray:
-        """z of this plane above world xy points [N, 2]."""
-        n, c = self.normal, self.centroid
-        return c[2] - ((xy[:, 0] - c[0]) * n[0] + (xy[:, 1] - c[1]) * n[1]) / n[2]
-
 
 @dc.dataclass
 class HeightMap:

@@ -14,7 +14,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.solvers import Solve
 
-from drake_symplan.world.station import FINGER_OPEN, HOME_Q, AddUr10, add_package_paths
+from drake_symplan.world.station import FINGER_OPEN, AddUr10, add_package_paths
 
 # One elbow-up branch that reaches the whole workspace with the gripper pointing down.
 Q_LOWER = np.array([-np.pi, -np.pi, 0.0, -2.5 * np.pi / 2, -np.pi, -np.pi])
@@ -70,7 +70,3 @@ class ArmIK:
     def tcp_pose(self, q_arm: np.ndarray) -> RigidTransform:
         self.plant.SetPositions(self.context, np.concatenate([q_arm, [FINGER_OPEN] * 2]))
         return self.tcp.CalcPoseInWorld(self.context)
-
-
-def home_tcp_position() -> np.ndarray:
-    return ArmIK().tcp_pose(HOME_Q).translation()
