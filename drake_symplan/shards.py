@@ -10,20 +10,19 @@ A data set is a directory holding
   `next_state`); shards may differ in their object count N;
 - `manifest.json`: at least `{"schema_version": 1}`; collection adds its own keys.
 
-Shards are written atomically (temporary file in the same directory, then
-`os.replace`), so a reader never sees half a shard and an interrupted writer leaves
-no corrupt file behind.
+Shards and the manifest are written atomically (`atomic.write_atomic`), so a reader
+never sees half a shard and an interrupted writer leaves no corrupt file behind.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.atomic import write_atomic
 from drake_symplan.structs import TransitionArrays
 
 SCHEMA_VERSION = 1
@@ -63,28 +62,15 @@ def write_shard(
         if key in fields or key == "next_state":
             raise ValueError(f"extra array {key!r} would overwrite a transition field")
         fields[key] = np.asarray(value)
-    tmp = out_dir / f".{path.name}.tmp-{os.getpid()}"
-    try:
-        with open(tmp, "wb") as f:
-            np.savez(f, **fields)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+    return write_atomic(path, lambda f: np.savez(f, **fields))
 
 
 def write_manifest(out_dir: str | Path, info: dict | None = None) -> Path:
     """Write `manifest.json` (atomically) with `schema_version` plus `info`."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / MANIFEST
-    tmp = out_dir / f".{MANIFEST}.tmp-{os.getpid()}"
-    tmp.write_text(json.dumps({"schema_version": SCHEMA_VERSION, **(info or {})}, indent=2))
-    os.replace(tmp, path)
-    return path
+    manifest = {"schema_version": SCHEMA_VERSION, **(info or {})}
+    return write_atomic(out_dir / MANIFEST, json.dumps(manifest, indent=2))
 
 
 def read_manifest(data_dir: str | Path) -> dict:

@@ -15,7 +15,7 @@ class NoDrake:
             raise ImportError(f"{name} is blocked: this import must not need Drake")
 
 sys.meta_path.insert(0, NoDrake())
-names = ["drake_symplan.structs", "drake_symplan.shards"]
+names = ["drake_symplan.structs", "drake_symplan.shards", "drake_symplan.atomic"]
 for package in ("learning", "symbolic", "planning"):
     pkg = importlib.import_module(f"drake_symplan.{package}")
     names += [f"drake_symplan.{package}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]

@@ -1,16 +1,16 @@
 """Data set storage for collection: the shard format of `drake_symplan.shards` (re-exported
-here) plus what resuming a collection needs (which shards exist, how long they are,
-stray temporary files) and its summary file.
+here) plus what resuming a collection needs (which shards exist, how long they are; stray
+temporary files: `atomic.remove_stale_tmp`, re-exported) and its summary file.
 """
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.atomic import remove_stale_tmp, write_atomic  # noqa: F401 - re-exported
 from drake_symplan.shards import (  # noqa: F401 - the format, re-exported for data/*
     MANIFEST,
     REQUIRED_KEYS,
@@ -47,18 +47,6 @@ def shard_length(path: str | Path) -> int:
         return -1
 
 
-def remove_stale_tmp(data_dir: str | Path) -> list[Path]:
-    """Deletes temporary files left by writers that were killed mid-write."""
-    stale = [p for p in Path(data_dir).glob(".*.tmp-*") if p.is_file()]
-    for p in stale:
-        p.unlink(missing_ok=True)
-    return stale
-
-
 def write_json(out_dir: str | Path, name: str, data: dict) -> Path:
     """Writes `data` as `out_dir/name` atomically."""
-    path = Path(out_dir) / name
-    tmp = Path(out_dir) / f".{name}.tmp-{os.getpid()}"
-    tmp.write_text(json.dumps(data, indent=2))
-    os.replace(tmp, path)
-    return path
+    return write_atomic(Path(out_dir) / name, json.dumps(data, indent=2))

@@ -13,13 +13,13 @@ A run directory holds
 from __future__ import annotations
 
 import json
-import os
 import platform
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from drake_symplan.atomic import write_atomic
 from drake_symplan.learning.models import EffectModel, build_model
 
 BEST = "best.pt"
@@ -41,20 +41,13 @@ def versions() -> dict:
 
 
 def save_checkpoint(path: str | Path, payload: dict) -> Path:
-    """torch.save `payload` to `path` atomically (temporary file, then os.replace)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    torch.save(payload, tmp)
-    os.replace(tmp, path)
-    return path
+    """torch.save `payload` to `path` atomically (`atomic.write_atomic`)."""
+    return write_atomic(path, lambda f: torch.save(payload, f))
 
 
 def write_json(path: str | Path, obj: dict) -> Path:
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(json.dumps(obj, indent=2))
-    os.replace(tmp, path)
-    return path
+    """`obj` as indented JSON at `path`, written atomically."""
+    return write_atomic(path, json.dumps(obj, indent=2))
 
 
 def read_checkpoint(path: str | Path) -> dict:
