@@ -15,16 +15,14 @@ from collections import Counter
 import numpy as np
 
 from drake_symplan.data.exploration import classify, effects, random_action, relevant_objects
+from drake_symplan.perception.matching import match_by_position
 from drake_symplan.structs import Action
 from drake_symplan.world.scenes import sample_scene
 
 
 def _map_names(src_scene, dst_scene) -> dict[str, str]:
-    out = {}
-    for o in src_scene.objects:
-        d = [np.linalg.norm(o.position - p.position) for p in dst_scene.objects]
-        out[o.name] = dst_scene.objects[int(np.argmin(d))].name
-    return out
+    return match_by_position({o.name: o.position for o in src_scene.objects},
+                             {o.name: o.position for o in dst_scene.objects})
 
 
 def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:

@@ -16,9 +16,9 @@ from typing import TypeVar
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.skills.ik import ArmIK
 from drake_symplan.structs import OFFSET_METRES, Action, ObjectState
-from drake_symplan.world.scenes import HALF_EXTENTS
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
 
 APPROACH_HEIGHT = 0.12  # m above grasp/release points
@@ -74,10 +74,6 @@ class InfeasibleAction(Exception):
     """No IK solution for a waypoint of the action."""
 
 
-def _fold_yaw(yaw: float, period: float) -> float:
-    return float((yaw + period / 2) % period - period / 2)
-
-
 def _top_z(o: ObjectState) -> float:
     hx, hy, hz = HALF_EXTENTS[o.type]
     return float(o.position[2] + hz * np.cos(o.tilt) + max(hx, hy) * np.sin(o.tilt))
@@ -85,7 +81,7 @@ def _top_z(o: ObjectState) -> float:
 
 def grasp_yaw(o: ObjectState) -> float:
     """Gripper yaw that closes the fingers across the box's short x side."""
-    return _fold_yaw(o.yaw, np.pi / 2 if o.type == "cube" else np.pi)
+    return fold_yaw(o.yaw, YAW_PERIOD[o.type])
 
 
 @dc.dataclass
@@ -118,7 +114,7 @@ def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGe
     release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
     carry_z = max(MIN_CARRY_HEIGHT, max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
     yaw_g = grasp_yaw(src)
-    yaw_r = yaw_g + _fold_yaw(tgt.yaw - src.yaw, np.pi / 2)
+    yaw_r = yaw_g + fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"])  # any quarter turn lines up faces
     return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
 
 

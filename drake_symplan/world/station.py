@@ -33,9 +33,10 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_symplan.boxes import OBJECT_TYPES
 from drake_symplan.structs import ObjectState
 from drake_symplan.world.cameras import AddDepthCameras, CameraConfig, DepthNoise, read_point_clouds
-from drake_symplan.world.scenes import OBJECT_TYPES, Scene, validate_scene
+from drake_symplan.world.scenes import Scene, validate_scene
 
 MODEL_FILES = {
     "cube": "package://drake_symplan_models/objects/cube.sdf",
