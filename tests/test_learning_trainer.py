@@ -189,9 +189,9 @@ def test_baseline_readout_has_no_relations(data_dir, tmp_path):
     assert result["model"] == "deepsym" and result["epochs"] == 1
     assert load_run(tmp_path / "d")[1]["model_config"]["temperature"] == 2.0
     symbols = readout_dataset(tmp_path / "d", data_dir)
-    assert symbols["unary"].shape == (300, 4, 2)
-    assert symbols["relational"].shape == (300, 0, 4, 4)
-    assert symbols["next_relational_uncertain"].dtype == bool
+    assert symbols.unary.shape == (300, 4, 2)
+    assert symbols.relational.shape == (300, 0, 4, 4)
+    assert symbols.next_relational_uncertain.dtype == bool
 
 
 def test_model_options_are_parsed_and_checked_against_the_model():

@@ -172,7 +172,7 @@ def test_plan_command_errors_are_one_line(hanoi_files, tmp_path, monkeypatch, ca
 
 def test_operators_command_from_saved_symbols(tmp_path, monkeypatch, capsys):
     data = synthetic.random_transitions(3000, seed=7)
-    np.savez_compressed(tmp_path / "symbols.npz", **data)
+    data.save(tmp_path / "symbols.npz")
     out_dir = tmp_path / "ops"
     code, out, _ = run_cli(["operators", "--symbols", str(tmp_path / "symbols.npz"),
                             "--out", str(out_dir), "--min-count", "20", "--json"],
@@ -244,4 +244,4 @@ def test_operators_command_reads_symbols_out_of_a_run(tmp_path, monkeypatch, cap
     result = json.loads(out)
     assert result["threshold"] == 10 and result["n_transitions"] == 1000
     saved = np.load(tmp_path / "ops" / "symbols.npz")
-    assert np.array_equal(saved["relational"], data["relational"])
+    assert np.array_equal(saved["relational"], data.relational)

@@ -1,8 +1,11 @@
 """Operator learning on hand-written symbolic transitions with known operators."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
+from drake_symplan.structs import SymbolDataset
 from drake_symplan.symbolic import synthetic
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
 from drake_symplan.symbolic.pddl import domain_pddl
@@ -163,8 +166,9 @@ def test_self_relations_ignored_by_default_and_kept_on_request():
 def test_uncertain_transitions_can_be_dropped():
     rows = [Row((0, 0), set(), (0, "center", 1, "center"))] * 3
     data = dataset_from_rows(rows)
-    data["unary_uncertain"] = np.zeros_like(data["unary"], dtype=bool)
-    data["unary_uncertain"][0, 1, 0] = True
+    flags = np.zeros_like(data.unary, dtype=bool)
+    flags[0, 1, 0] = True
+    data = dataclasses.replace(data, unary_uncertain=flags)
     ops = learn_operators(data, LearnConfig(min_count=1, drop_uncertain=True))
     assert ops.n_transitions == 2 and ops.n_dropped_uncertain == 1
     assert learn_operators(data, LearnConfig(min_count=1)).n_transitions == 3
@@ -172,11 +176,41 @@ def test_uncertain_transitions_can_be_dropped():
 
 def test_rejects_transitions_without_one_source_and_target():
     data = dataset_from_rows([Row((0, 0), set(), (0, "center", 1, "center"))])
-    data["action"][0, 1, 4] = 0.0
+    data.action[0, 1, 4] = 0.0
     with pytest.raises(ValueError, match="exactly one source"):
         learn_operators(data)
-    with pytest.raises(ValueError, match="lacks"):
-        learn_operators({"unary": data["unary"]})
+    with pytest.raises(TypeError, match="takes a SymbolDataset, got dict"):
+        learn_operators(data.arrays())
+
+
+def test_symbol_dataset_checks_names_and_shapes(tmp_path):
+    data = dataset_from_rows([Row((0, 1, 0), {(0, 0, 1)}, (0, "center", 1, "center"))])
+    assert (len(data), data.n_objects, data.n_unary, data.n_relations) == (1, 3, 1, 3)
+    with pytest.raises(ValueError, match=r"lacks \['relational', 'next_unary'"):
+        SymbolDataset.from_arrays({"unary": data.unary})
+    with pytest.raises(ValueError, match=r"unknown arrays \['colour'\]"):
+        SymbolDataset.from_arrays({**data.arrays(), "colour": data.unary})
+    with pytest.raises(ValueError, match=r"next_relational has shape \(1, 2, 3, 3\), "
+                       r"expected \(1, 3, 3, 3\)"):
+        dataclasses.replace(data, next_relational=data.next_relational[:, :2])
+    with pytest.raises(ValueError, match=r"relational_uncertain has shape \(1, 3, 3\)"):
+        dataclasses.replace(data, relational_uncertain=np.zeros((1, 3, 3), bool))
+    with pytest.raises(ValueError, match=r"action has shape \(1, 3, 7\)"):
+        dataclasses.replace(data, action=data.action[:, :, :7])
+    # Saved and loaded: the same arrays under the same names; errors name the file.
+    data.save(tmp_path / "symbols.npz")
+    assert [p.name for p in tmp_path.iterdir()] == ["symbols.npz"]
+    again = SymbolDataset.load(tmp_path / "symbols.npz")
+    assert again.arrays().keys() == data.arrays().keys() == {
+        "unary", "relational", "next_unary", "next_relational", "action", "mask"}
+    assert all(np.array_equal(again[k], data[k]) for k in data.arrays())
+    with pytest.raises(KeyError):
+        again["unary_uncertain"]  # absent optional array
+    with pytest.raises(FileNotFoundError, match="no symbols file .*nope.npz"):
+        SymbolDataset.load(tmp_path / "nope.npz")
+    (tmp_path / "bad.npz").write_text("not a zip")
+    with pytest.raises(ValueError, match="cannot read symbols file .*bad.npz"):
+        SymbolDataset.load(tmp_path / "bad.npz")
 
 
 def test_padding_slots_anywhere_and_object_order_do_not_matter():

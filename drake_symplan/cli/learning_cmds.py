@@ -145,8 +145,6 @@ def cmd_eval_effects(args: argparse.Namespace) -> dict:
 
 
 def cmd_symbols(args: argparse.Namespace) -> dict:
-    import numpy as np
-
     from drake_symplan.learning.gumbel import DEFAULT_MARGIN
     from drake_symplan.learning.readout import readout_dataset, uncertainty_counts
 
@@ -154,11 +152,10 @@ def cmd_symbols(args: argparse.Namespace) -> dict:
     symbols = readout_dataset(args.run, args.data, margin=margin)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "wb") as f:  # exactly this name (savez would append .npz)
-        np.savez_compressed(f, **symbols)
-    t, k, n, _ = symbols["relational"].shape
-    result = {"out": str(out), "transitions": t, "objects": n,
-              "unary_dim": int(symbols["unary"].shape[-1]), "relations": k, "margin": margin,
+    symbols.save(out)
+    t, k = len(symbols), symbols.n_relations
+    result = {"out": str(out), "transitions": t, "objects": symbols.n_objects,
+              "unary_dim": symbols.n_unary, "relations": k, "margin": margin,
               **uncertainty_counts(symbols)}
     if not args.json:
         print(f"wrote {out}: {t} transitions, {result['unary_dim']} unary bits, {k} relations")

@@ -51,15 +51,13 @@ def register(subparsers) -> None:
     q.set_defaults(func=cmd_plan)
 
 
-def _load_symbols(args) -> tuple[dict, str]:
-    from drake_symplan.symbolic.operators import load_symbols
+def _load_symbols(args):
+    from drake_symplan.structs import SymbolDataset
 
     if args.symbols is not None:
         if args.run is not None or args.data is not None:
             raise ValueError("give either --symbols FILE or RUN --data DIR, not both")
-        if not args.symbols.is_file():
-            raise FileNotFoundError(f"no symbols file {args.symbols}")
-        return load_symbols(args.symbols), str(args.symbols)
+        return SymbolDataset.load(args.symbols), str(args.symbols)
     if args.run is None or args.data is None:
         raise ValueError("give RUN --data DIR (a trained run and its data) or --symbols FILE")
     for path in (args.run, args.data):
@@ -71,8 +69,6 @@ def _load_symbols(args) -> tuple[dict, str]:
 
 
 def cmd_operators(args) -> dict:
-    import numpy as np
-
     from drake_symplan.symbolic.operators import LearnConfig, learn_operators
     from drake_symplan.symbolic.pddl import domain_pddl
 
@@ -82,7 +78,7 @@ def cmd_operators(args) -> dict:
     ops = learn_operators(data, config)
     args.out.mkdir(parents=True, exist_ok=True)
     if args.symbols is None:
-        np.savez_compressed(args.out / "symbols.npz", **data)
+        data.save(args.out / "symbols.npz")
     domain = args.out / "domain.pddl"
     domain.write_text(domain_pddl(ops.operators, ops.n_unary, ops.n_relations,
                                   n_transitions=ops.n_transitions))
@@ -104,7 +100,7 @@ def cmd_operators(args) -> dict:
     return result
 
 
-def report_markdown(ops, data: dict, source: str) -> str:
+def report_markdown(ops, data, source: str) -> str:
     """A readable report: thresholds, then operators by frequency with an example."""
     from drake_symplan.symbolic.operators import example_action
     from drake_symplan.symbolic.states import SymbolicState
@@ -148,10 +144,10 @@ def report_markdown(ops, data: dict, source: str) -> str:
         if op.example >= 0:
             t, slots = op.example, list(op.example_slots)
             names = [f"o{i}" for i in slots]
-            before = SymbolicState(tuple(names), data["unary"][t][slots],
-                                   data["relational"][t][:, slots][:, :, slots])
-            after = SymbolicState(tuple(names), data["next_unary"][t][slots],
-                                  data["next_relational"][t][:, slots][:, :, slots])
+            before = SymbolicState(tuple(names), data.unary[t][slots],
+                                   data.relational[t][:, slots][:, :, slots])
+            after = SymbolicState(tuple(names), data.next_unary[t][slots],
+                                  data.next_relational[t][:, slots][:, :, slots])
             changed = sorted(set(after.facts(ops.self_relations))
                              - set(before.facts(ops.self_relations)))
             lines.append(

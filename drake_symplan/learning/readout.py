@@ -5,10 +5,11 @@ logit's magnitude is under a margin (see `gumbel.read_bits`). One forward pass p
 state replaces the peer implementation's 100 stochastic passes. Padded slots read
 as 0 and are never uncertain. Models without relations (the baselines) give K = 0.
 
-`readout_dataset` returns exactly the arrays of `symplan symbols`' symbols.npz:
-unary [T, N, P] uint8, relational [T, K, N, N] uint8 with relational[t, k, i, j] =
-r_k(o_i, o_j), next_unary / next_relational (from next_state), action [T, N, 8]
-float32, mask [T, N] bool, and a bool `*_uncertain` array beside each bit array.
+`readout_dataset` returns the `SymbolDataset` (structs.py) that `symplan symbols` saves
+as symbols.npz: unary [T, N, P] uint8, relational [T, K, N, N] uint8 with
+relational[t, k, i, j] = r_k(o_i, o_j), next_unary / next_relational (from next_state),
+action [T, N, 8] float32, mask [T, N] bool, and a bool `*_uncertain` array beside each
+bit array.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN, read_bits
 from drake_symplan.learning.models import EffectModel
 from drake_symplan.shards import load_transitions
-from drake_symplan.structs import TransitionArrays
+from drake_symplan.structs import SymbolDataset, TransitionArrays
 
 READOUT_BATCH = 8192
 
@@ -91,7 +92,7 @@ def readout_dataset(
     data: str | Path | TransitionArrays,
     margin: float = DEFAULT_MARGIN,
     batch_size: int = READOUT_BATCH,
-) -> dict[str, np.ndarray]:
+) -> SymbolDataset:
     """Symbols before and after every transition of `data` (a directory or arrays).
 
     `run_dir` is a run directory (its best checkpoint) or an already loaded model.
@@ -112,19 +113,19 @@ def readout_dataset(
         result[f"{prefix}relational"] = rel
         result[f"{prefix}unary_uncertain"] = unary_unc
         result[f"{prefix}relational_uncertain"] = rel_unc
-    result["action"] = arrays.action.astype(np.float32, copy=False)
-    result["mask"] = mask
-    return result
+    return SymbolDataset(action=arrays.action.astype(np.float32, copy=False), mask=mask,
+                         **result)
 
 
-def uncertainty_counts(symbols: dict[str, np.ndarray]) -> dict[str, int]:
+def uncertainty_counts(symbols: SymbolDataset) -> dict[str, int]:
     """Number of uncertain bits (and of bits read) per array of a read-out."""
     counts = {}
     for key in ("unary", "relational", "next_unary", "next_relational"):
-        counts[f"{key}_uncertain"] = int(symbols[f"{key}_uncertain"].sum())
-    mask = symbols["mask"]
+        flags = getattr(symbols, f"{key}_uncertain")
+        counts[f"{key}_uncertain"] = 0 if flags is None else int(flags.sum())
+    mask = symbols.mask
     n_real = int(mask.sum())
     n_pairs = int((mask.sum(axis=1) ** 2).sum())
-    counts["unary_bits"] = n_real * symbols["unary"].shape[-1]
-    counts["relational_bits"] = n_pairs * symbols["relational"].shape[1]
+    counts["unary_bits"] = n_real * symbols.n_unary
+    counts["relational_bits"] = n_pairs * symbols.n_relations
     return counts

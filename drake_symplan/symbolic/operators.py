@@ -18,12 +18,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drake_symplan.structs import ACTION_DIM, IS_SOURCE, IS_TARGET, OFFSETS, Action
+from drake_symplan.structs import IS_SOURCE, IS_TARGET, OFFSETS, Action, SymbolDataset
 from drake_symplan.symbolic.canonical import canonical_orders, encode, permute
 from drake_symplan.symbolic.states import Atom, SymbolicState
-
-REQUIRED_KEYS = ("unary", "relational", "next_unary", "next_relational", "action", "mask")
-UNCERTAIN_KEYS = tuple(f"{k}_uncertain" for k in REQUIRED_KEYS[:4])
 
 # Relative thresholds reported next to the absolute one (fractions of the data size).
 # The paper's 50 of 160k training samples is about 3.1e-4.
@@ -196,33 +193,6 @@ class OperatorSet:
 # ---------------------------------------------------------------- input checks
 
 
-def check_dataset(data: dict) -> tuple[int, int, int, int]:
-    """Validates the symbolic data set contract; returns (T, N, P, K)."""
-    missing = [k for k in REQUIRED_KEYS if k not in data]
-    if missing:
-        raise ValueError(f"symbolic data set lacks {missing}; it has {sorted(data)}")
-    unary, rel, mask = data["unary"], data["relational"], data["mask"]
-    if unary.ndim != 3 or rel.ndim != 4 or mask.ndim != 2:
-        raise ValueError(
-            f"expected unary [T,N,P], relational [T,K,N,N], mask [T,N]; got "
-            f"{unary.shape}, {rel.shape}, {mask.shape}"
-        )
-    t, n, p = unary.shape
-    k = rel.shape[1]
-    shapes = {
-        "unary": (t, n, p), "next_unary": (t, n, p), "relational": (t, k, n, n),
-        "next_relational": (t, k, n, n), "action": (t, n, ACTION_DIM), "mask": (t, n),
-    }
-    for key, shape in shapes.items():
-        if tuple(data[key].shape) != shape:
-            raise ValueError(f"{key} has shape {tuple(data[key].shape)}, expected {shape}")
-    for key in UNCERTAIN_KEYS:
-        if key in data and tuple(data[key].shape) != shapes[key[: -len("_uncertain")]]:
-            raise ValueError(f"{key} has shape {tuple(data[key].shape)}, expected "
-                             f"{shapes[key[: -len('_uncertain')]]}")
-    return t, n, p, k
-
-
 def _roles(action: np.ndarray, mask: np.ndarray):
     """Source, target, grasp and release index per transition; ValueError on rows
     without exactly one source and one target among the real objects."""
@@ -257,10 +227,10 @@ def _byte_ids(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # ---------------------------------------------------------------- learning
 
 
-def _clean(data: dict, config: LearnConfig):
+def _clean(data: SymbolDataset, config: LearnConfig):
     """Boolean arrays with padding and (optionally) self-relations zeroed, and the
     indices of the transitions kept."""
-    mask = np.asarray(data["mask"]).astype(bool)
+    mask = data.mask.astype(bool)
     keep = np.arange(len(mask))
     if config.drop_uncertain:
         bad = np.zeros(len(mask), dtype=bool)
@@ -268,13 +238,12 @@ def _clean(data: dict, config: LearnConfig):
         pair = mask[:, :, None] & mask[:, None, :]
         if not config.self_relations:
             pair &= ~np.eye(n, dtype=bool)[None]
-        for key in ("unary", "next_unary"):
-            if f"{key}_uncertain" in data:
-                bad |= (np.asarray(data[f"{key}_uncertain"]).astype(bool) & mask[:, :, None]).any((1, 2))
-        for key in ("relational", "next_relational"):
-            if f"{key}_uncertain" in data:
-                unc = np.asarray(data[f"{key}_uncertain"]).astype(bool)
-                bad |= (unc & pair[:, None]).any((1, 2, 3))
+        for unc in (data.unary_uncertain, data.next_unary_uncertain):
+            if unc is not None:
+                bad |= (unc.astype(bool) & mask[:, :, None]).any((1, 2))
+        for unc in (data.relational_uncertain, data.next_relational_uncertain):
+            if unc is not None:
+                bad |= (unc.astype(bool) & pair[:, None]).any((1, 2, 3))
         keep = np.flatnonzero(~bad)
     mask = mask[keep]
     n = mask.shape[1]
@@ -282,21 +251,23 @@ def _clean(data: dict, config: LearnConfig):
     if not config.self_relations:
         pair = pair & ~np.eye(n, dtype=bool)[None, None]
     out = {
-        "unary": np.asarray(data["unary"])[keep].astype(bool) & mask[:, :, None],
-        "next_unary": np.asarray(data["next_unary"])[keep].astype(bool) & mask[:, :, None],
-        "relational": np.asarray(data["relational"])[keep].astype(bool) & pair,
-        "next_relational": np.asarray(data["next_relational"])[keep].astype(bool) & pair,
-        "action": np.asarray(data["action"])[keep],
+        "unary": data.unary[keep].astype(bool) & mask[:, :, None],
+        "next_unary": data.next_unary[keep].astype(bool) & mask[:, :, None],
+        "relational": data.relational[keep].astype(bool) & pair,
+        "next_relational": data.next_relational[keep].astype(bool) & pair,
+        "action": data.action[keep],
         "mask": mask,
     }
     return out, keep
 
 
-def learn_operators(data: dict, config: LearnConfig | None = None) -> OperatorSet:
+def learn_operators(data: SymbolDataset, config: LearnConfig | None = None) -> OperatorSet:
     """Groups the transitions of a symbolic data set into lifted operators."""
+    if not isinstance(data, SymbolDataset):
+        raise TypeError(f"learn_operators takes a SymbolDataset, got {type(data).__name__}")
     config = config or LearnConfig()
     t0 = time.perf_counter()
-    _, _, n_unary, n_rel = check_dataset(data)
+    n_unary, n_rel = data.n_unary, data.n_relations
     d, keep = _clean(data, config)
     mask = d["mask"]
     t, n = mask.shape
@@ -368,7 +339,7 @@ def learn_operators(data: dict, config: LearnConfig | None = None) -> OperatorSe
         n_relations=n_rel,
         self_relations=config.self_relations,
         n_transitions=t,
-        n_dropped_uncertain=int(len(data["mask"]) - t),
+        n_dropped_uncertain=len(data) - t,
         threshold=threshold,
         group_counts=np.sort(group_counts)[::-1],
         seconds=t4 - t0,
@@ -385,9 +356,6 @@ def example_action(op: Operator) -> Action:
     return Action(f"o{s}", op.grasp, f"o{t}", op.release)
 
 
-def load_symbols(path) -> dict:
-    """A symbolic data set saved with np.savez (symbols.npz)."""
-    with np.load(path) as f:
-        data = {k: f[k] for k in f.files}
-    check_dataset(data)
-    return data
+def load_symbols(path) -> SymbolDataset:
+    """A symbolic data set saved as symbols.npz (`SymbolDataset.load`)."""
+    return SymbolDataset.load(path)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_symplan.structs import ACTION_DIM, OFFSETS, Action, encode_action
+from drake_symplan.structs import ACTION_DIM, OFFSETS, Action, SymbolDataset, encode_action
 from drake_symplan.symbolic.states import SymbolicState
 
 N_UNARY = 1
@@ -145,8 +145,8 @@ def random_transitions(
     episode_length: int = 10,
     max_objects: int = 6,
     shuffle_slots: bool = True,
-) -> dict:
-    """A symbolic data set (the read-out contract) from random exploration.
+) -> SymbolDataset:
+    """A symbolic data set (as read out of a model) from random exploration.
 
     Episodes start from a random scene with n_objects[0]..n_objects[1] objects; each
     transition keeps the relevant objects, padded to `max_objects` slots (in a random
@@ -177,7 +177,7 @@ def random_transitions(
         world = after
     for key in ("unary", "relational", "next_unary", "next_relational"):
         out[f"{key}_uncertain"] = np.zeros(out[key].shape, bool)
-    return out
+    return SymbolDataset(**out)
 
 
 def random_problem(
@@ -219,7 +219,7 @@ class Row:
 
 
 def _empty_dataset(t: int, n_max: int, n_unary: int, n_relations: int) -> dict:
-    """Zeroed arrays of the symbolic read-out contract for `t` transitions."""
+    """Zeroed arrays of a `SymbolDataset` of `t` transitions, by name."""
     out = {
         "unary": np.zeros((t, n_max, n_unary), np.uint8),
         "relational": np.zeros((t, n_relations, n_max, n_max), np.uint8),
@@ -233,8 +233,8 @@ def _empty_dataset(t: int, n_max: int, n_unary: int, n_relations: int) -> dict:
 
 def dataset_from_rows(
     rows: list[Row], n_relations: int = N_RELATIONS, max_objects: int | None = None
-) -> dict:
-    """A symbolic data set (the read-out contract) from hand-written transitions."""
+) -> SymbolDataset:
+    """A symbolic data set from hand-written transitions."""
     n_max = max_objects or max(len(r.unary) for r in rows)
     n_unary = len(np.atleast_1d(rows[0].unary[0]))
     out = _empty_dataset(len(rows), n_max, n_unary, n_relations)
@@ -251,23 +251,23 @@ def dataset_from_rows(
         s, g, tg, r = row.action
         names = [f"o{j}" for j in range(n)]
         out["action"][i, :n] = encode_action(Action(names[s], g, names[tg], r), names)
-    return out
+    return SymbolDataset(**out)
 
 
-def shuffled(data: dict, seed: int = 0, slots: bool = True) -> dict:
+def shuffled(data: SymbolDataset, seed: int = 0, slots: bool = True) -> SymbolDataset:
     """The same data set with transitions (and, if `slots`, objects inside each
     transition) in a random order."""
     rng = np.random.default_rng(seed)
-    t, n = data["mask"].shape
+    t, n = data.mask.shape
     rows = rng.permutation(t)
     perm = np.array([rng.permutation(n) if slots else np.arange(n) for _ in range(t)])
     out = {}
-    for key, arr in data.items():
-        arr = np.asarray(arr)[rows]
+    for key, arr in data.arrays().items():
+        arr = arr[rows]
         if slots and key.startswith(("relational", "next_relational")):
             arr = np.take_along_axis(arr, perm[:, None, :, None], axis=2)
             arr = np.take_along_axis(arr, perm[:, None, None, :], axis=3)
         elif slots and key.startswith(("unary", "next_unary", "action", "mask")):
             arr = np.take_along_axis(arr, perm.reshape((t, n) + (1,) * (arr.ndim - 2)), axis=1)
         out[key] = arr
-    return out
+    return SymbolDataset(**out)
