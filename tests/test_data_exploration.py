@@ -237,3 +237,40 @@ def test_perception_raising_drops_the_episode_and_keeps_what_it_recorded():
                       config, episode=0, budget=10)
     assert log.end == "perception_error" and log.dropped and "NaN" in log.error
     assert [t.step for t in log.transitions] == [0, 1]
+
+
+def test_scene_records_keep_identities_through_the_episode_and_renumber_after_a_loss():
+    from drake_symplan.data.exploration import EpisodeConfig, run_episode
+    from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
+
+    def tagged(*xs, contacts=()):
+        # Features carry the x position, so a slot's identity can be checked.
+        return PerceivedScene([PerceivedObject(f"p{i}", "cube", np.array([x, 0.0, 0.025]),
+                                               0.0, 0.0, np.full(9, x, np.float32), False,
+                                               np.eye(3)) for i, x in enumerate(xs)],
+                              set(contacts))
+
+    config = EpisodeConfig(min_objects=2, max_objects=2, length=3)
+    a, b = tagged(0.5, 0.7), tagged(0.5, 0.7, contacts={("p0", "p1")})
+    backend = ScriptedBackend(seen=[a], after=[a, b, b])
+    log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
+    scenes = [t.scene for t in log.transitions]
+    assert [sc.chain for sc in scenes] == [0, 0, 0]
+    for prev, nxt in zip(scenes, scenes[1:], strict=False):
+        np.testing.assert_array_equal(nxt.state, prev.next_state)
+    assert scenes[0].mask.tolist() == [True, True] + [False] * 6
+    np.testing.assert_allclose(scenes[0].state[:2, 0], [0.5, 0.7], rtol=1e-6)
+    assert not scenes[0].next_contacts.any() and scenes[1].next_contacts[0, 1]
+    assert scenes[1].next_contacts[1, 0] and scenes[2].contacts[0, 1]
+    for t in log.transitions:  # each relevant object's slot holds its own features
+        np.testing.assert_array_equal(t.scene.state[t.scene.slots], t.state)
+
+    # Lost after action 1, recovered at action 2: the two recorded steps start a new chain.
+    two, three = tagged(0.5, 0.7), tagged(0.5, 0.6, 0.7)
+    backend = ScriptedBackend(seen=[two, two], after=[three, three, two, two])
+    config = EpisodeConfig(min_objects=2, max_objects=2, length=4)
+    log = run_episode(backend, np.random.default_rng(0), config, episode=0, budget=10)
+    assert [(t.step, t.scene.chain) for t in log.transitions] == [(2, 0), (3, 0)]
+    arrays, extra = pack(log.transitions)
+    assert extra["scene_state"].shape == (2, 8, 9) and extra["chain"].tolist() == [0, 0]
+    assert extra["scene_slots"].shape == (2, 2) and (extra["scene_slots"] >= 0).all()

@@ -155,7 +155,27 @@ def pack(transitions) -> tuple[TransitionArrays, dict[str, np.ndarray]]:
                               np.array([t.episode for t in transitions], np.int64), next_state)
     extra = {"outcome": np.array([OUTCOMES.index(t.outcome) for t in transitions], np.int8),
              "step": np.array([t.step for t in transitions], np.int32)}
+    if all(t.scene is not None for t in transitions):
+        extra.update(scene_extras([t.scene for t in transitions], n))
     return arrays, extra
+
+
+def scene_extras(scenes, n: int) -> dict[str, np.ndarray]:
+    """The per-transition scene arrays stored beside the transitions (exploration.SceneRecord):
+    scene_state / scene_next_state [T, 8, d_o], scene_mask [T, 8], scene_contacts /
+    scene_next_contacts [T, 8, 8], scene_slots [T, n] (-1 for padding), chain [T]."""
+    slots = np.full((len(scenes), n), -1, np.int8)
+    for i, sc in enumerate(scenes):
+        slots[i, :len(sc.slots)] = sc.slots
+    return {
+        "scene_state": np.stack([sc.state for sc in scenes]),
+        "scene_next_state": np.stack([sc.next_state for sc in scenes]),
+        "scene_mask": np.stack([sc.mask for sc in scenes]),
+        "scene_contacts": np.stack([sc.contacts for sc in scenes]),
+        "scene_next_contacts": np.stack([sc.next_contacts for sc in scenes]),
+        "scene_slots": slots,
+        "chain": np.array([sc.chain for sc in scenes], np.int16),
+    }
 
 
 # --- workers ---------------------------------------------------------------------------

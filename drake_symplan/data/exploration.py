@@ -16,6 +16,12 @@ robot perceives. Each action is perceived before, at the end of the lift and aft
   point - grasp point, from the action and the beliefs) for objects that went up with the
   lift (e_lift z > LIFT_TOL) and 0 for the others.
 - Outcome class (for statistics and back-end parity, from perceived scenes): see `classify`.
+- The whole scene (for multi-step problems and contact-aware operators): every perceived
+  object's features before and after, and the perceived contact pairs before and after,
+  in slots that keep an object's identity through the episode (`SceneRecord`); `slots`
+  says which scene slot each relevant object is. Identities follow perception's
+  association from one action to the next; when the robot loses track the identities are
+  renumbered and `chain` counts up, so steps t..t+k of one chain are one object set.
 
 Perception failures: the robot knows how many boxes it put on the table. When the scene
 perceived after an action holds more boxes, or loses one that did not leave the table, the
@@ -63,6 +69,22 @@ class EpisodeConfig:
     max_infeasible: int = 10  # unreachable actions in a row before giving up the episode
 
 
+MAX_SCENE_OBJECTS = 8  # scene slots stored per transition (scenes hold 2-8 objects)
+
+
+@dc.dataclass
+class SceneRecord:
+    """The whole perceived scene around one transition, in identity slots."""
+
+    state: np.ndarray  # [MAX_SCENE_OBJECTS, d_o] features before (zeros where no object)
+    next_state: np.ndarray  # [MAX_SCENE_OBJECTS, d_o] after
+    mask: np.ndarray  # [MAX_SCENE_OBJECTS] bool
+    contacts: np.ndarray  # [MAX_SCENE_OBJECTS, MAX_SCENE_OBJECTS] bool, before (symmetric)
+    next_contacts: np.ndarray  # after
+    slots: np.ndarray  # [k] scene slot of each relevant object
+    chain: int  # identity chain within the episode (renumbered after lost tracking)
+
+
 @dc.dataclass
 class Transition:
     names: list[str]  # perceived names of the relevant objects, in slot order
@@ -73,6 +95,7 @@ class Transition:
     outcome: str
     episode: int
     step: int
+    scene: SceneRecord | None = None
 
 
 @dc.dataclass
@@ -104,6 +127,29 @@ def relevant_objects(scene, action: Action) -> list[str]:
         elif b in args and a not in args:
             touching.add(a)
     return [*args, *sorted(touching)]
+
+
+def scene_record(before, after, after_map, ids: dict[str, int], names: list[str],
+                 chain: int) -> SceneRecord:
+    """The scene before and after in identity slots `ids` (perceived name before -> slot)."""
+    d = before.objects[0].features.shape[0]
+    m = MAX_SCENE_OBJECTS
+    state, next_state = np.zeros((m, d), np.float32), np.zeros((m, d), np.float32)
+    mask = np.zeros(m, bool)
+    for name, i in ids.items():
+        state[i] = before.object(name).features
+        next_state[i] = after.object(after_map[name]).features
+        mask[i] = True
+    back = {v: k for k, v in after_map.items()}
+    contacts, next_contacts = np.zeros((m, m), bool), np.zeros((m, m), bool)
+    for a, b in before.contacts:
+        contacts[ids[a], ids[b]] = contacts[ids[b], ids[a]] = True
+    for a, b in after.contacts:
+        if a in back and b in back:
+            i, j = ids[back[a]], ids[back[b]]
+            next_contacts[i, j] = next_contacts[j, i] = True
+    return SceneRecord(state, next_state, mask, contacts, next_contacts,
+                       np.array([ids[k] for k in names], np.int8), chain)
 
 
 def effects(before, lift, after, lift_map, after_map, names, carry_xy) -> np.ndarray:
@@ -191,6 +237,7 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
         log.end = "perception_initial_count"
         return
     step, infeasible_run, lost = 0, 0, False
+    ids, chain = None, -1  # perceived name -> identity slot; None: renumber at next record
     while step < config.length:
         if len(log.transitions) >= budget:
             log.end = "budget"
@@ -225,9 +272,11 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
             log.skipped["perception_recovering" if lost else "perception_lost_object"
                         if missing else "perception_count_mismatch"] += 1
             lost = len(after.objects) != n
-            before = after
+            before, ids = after, None
             continue
         after_map = associate(before, after, action)
+        if ids is None:
+            ids, chain = {k: i for i, k in enumerate(before.names)}, chain + 1
         lift_map = associate(before, lift, action) if lift is not before else \
             {k: k for k in before.names}
         outcome = classify(before, lift, after, lift_map, after_map)
@@ -244,9 +293,11 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
                 effect=effects(before, lift, after, lift_map, after_map, names, carry_xy),
                 next_state=np.stack([after.object(after_map[k]).features for k in names]),
                 outcome=outcome, episode=episode, step=step - 1,
+                scene=scene_record(before, after, after_map, ids, names, chain),
             ))
             if on_transition:
                 on_transition()
+        ids = {after_map[k]: i for k, i in ids.items()}
         before = after
     if lost:
         log.end = "length_unrecovered"
