@@ -181,6 +181,21 @@ def test_train_resume_eval_and_symbols(data_dir, tmp_path):
     np.testing.assert_array_equal(one[2], saved["relational"][7, :, :2, :2])
 
 
+def test_evaluate_runs_checks_the_data_fingerprint(data_dir, tmp_path):
+    from drake_symplan.learning.evaluate import evaluate_runs, format_summary
+
+    train(TrainConfig("deepsym", str(data_dir), str(tmp_path / "r"), **{**SMALL, "epochs": 1}))
+    result = evaluate_runs([tmp_path / "r"], outcome_names=("a", "b"))
+    assert [r["model"] for r in result["runs"]] == ["deepsym"]
+    assert "by_outcome" not in result["runs"][0]  # the data set records no outcomes
+    assert format_summary(result["models"])[0].startswith("deepsym: ")
+    other = tmp_path / "other"
+    write_manifest(other)
+    write_shard(other, 0, same_group_rule(30, seed=1, episode_length=5)[0])
+    with pytest.raises(ValueError, match="trained on other data.*fingerprints differ"):
+        evaluate_runs([tmp_path / "r"], other)
+
+
 def test_baseline_readout_has_no_relations(data_dir, tmp_path):
     args = _parse(["train", "--model", "deepsym", "--data", str(data_dir), "--out",
                    str(tmp_path / "d"), "--epochs", "1", "--threads", "1", "--no-progress",

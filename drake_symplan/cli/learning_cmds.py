@@ -101,46 +101,15 @@ def parse_model_options(items: list[str]) -> dict:
     return options
 
 
-def evaluate_runs(runs: list[str], data_dir: str | None = None) -> dict:
-    """Test-set effect metrics of every run and their mean +- std per model."""
-    from drake_symplan.data.exploration import OUTCOMES
-    from drake_symplan.data.storage import fingerprint, load_extra, load_transitions
-    from drake_symplan.learning.checkpoint import load_run
-    from drake_symplan.learning.dataset import TensorSet, split_by_episode
-    from drake_symplan.learning.evaluate import aggregate_runs, effect_metrics
-
-    cache: dict[str, tuple] = {}
-    per_run = []
-    for run in runs:
-        model, config = load_run(run)
-        train_cfg = config["train_config"]
-        data = str(Path(data_dir or train_cfg["data"]).resolve())
-        if data not in cache:
-            cache[data] = (load_transitions(data), fingerprint(data), load_extra(data, "outcome"))
-        arrays, fp, outcome = cache[data]
-        if fp != config["data_fingerprint"]:
-            raise CommandError(f"run {run} was trained on other data than {data} "
-                               "(fingerprints differ)")
-        test = split_by_episode(arrays.episode, train_cfg["seed"])["test"]
-        metrics = effect_metrics(model, TensorSet.from_arrays(arrays, test),
-                                 None if outcome is None else outcome[test], OUTCOMES)
-        per_run.append({"run": str(run), "model": config["model"], "epoch": config["epoch"],
-                        **metrics})
-    return {"runs": per_run, "models": aggregate_runs(per_run)}
-
-
 def cmd_eval_effects(args: argparse.Namespace) -> dict:
-    from drake_symplan.learning.evaluate import plot_errors
+    from drake_symplan.data.exploration import OUTCOMES
+    from drake_symplan.learning.evaluate import evaluate_runs, format_summary, plot_errors
 
-    result = evaluate_runs(args.runs, args.data)
+    result = evaluate_runs(args.runs, args.data, OUTCOMES)
     if args.plot:
         result["plot"] = str(plot_errors(result["models"], args.plot))
     if not args.json:
-        for name, stats in result["models"].items():
-            e = stats["error_cm"]
-            roles = ", ".join(f"{k} {v['mean']:.2f}" for k, v in stats["by_role"].items())
-            print(f"{name}: {e['mean']:.2f} +- {e['std']:.2f} cm over {e['runs']} run(s) "
-                  f"({roles})")
+        print("\n".join(format_summary(result["models"])))
     return result
 
 

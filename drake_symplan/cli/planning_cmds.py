@@ -9,7 +9,6 @@ Heavy imports (numpy, the learning layer) happen inside the command functions.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 
@@ -70,93 +69,19 @@ def _load_symbols(args):
 
 def cmd_operators(args) -> dict:
     from drake_symplan.symbolic.operators import LearnConfig, learn_operators
-    from drake_symplan.symbolic.pddl import domain_pddl
+    from drake_symplan.symbolic.report import OPERATORS, write_operators
 
     config = LearnConfig(args.min_count, args.min_fraction, args.self_relations,
                          args.drop_uncertain)
     data, source = _load_symbols(args)
     ops = learn_operators(data, config)
-    args.out.mkdir(parents=True, exist_ok=True)
-    if args.symbols is None:
-        data.save(args.out / "symbols.npz")
-    domain = args.out / "domain.pddl"
-    domain.write_text(domain_pddl(ops.operators, ops.n_unary, ops.n_relations,
-                                  n_transitions=ops.n_transitions))
-    result = {
-        "source": source,
-        "domain": str(domain),
-        "report": str(args.out / "report.md"),
-        **ops.summary(),
-        "thresholds": ops.threshold_report(),
-    }
-    full = dict(result, operators=[op.to_dict() for op in ops.operators])
-    (args.out / "operators.json").write_text(json.dumps(full, indent=2))
-    (args.out / "report.md").write_text(report_markdown(ops, data, source))
+    result = write_operators(ops, data, source, args.out, save_symbols=args.symbols is None)
     if not args.json:
         print(f"{ops.n_transitions} transitions -> {ops.n_groups} groups -> "
               f"{len(ops.operators)} operators (count >= {ops.threshold}, "
               f"{100 * result['coverage']:.1f}% of transitions) in {ops.seconds:.2f} s")
-        print(f"wrote {domain}, {args.out / 'report.md'}, {args.out / 'operators.json'}")
+        print(f"wrote {result['domain']}, {result['report']}, {args.out / OPERATORS}")
     return result
-
-
-def report_markdown(ops, data, source: str) -> str:
-    """A readable report: thresholds, then operators by frequency with an example."""
-    from drake_symplan.symbolic.operators import example_action
-    from drake_symplan.symbolic.states import SymbolicState
-
-    s = ops.summary()
-    lines = [
-        "# Learned operators",
-        "",
-        f"Source: {source}. {s['n_transitions']} transitions"
-        + (f" ({s['n_dropped_uncertain']} uncertain ones dropped)" if s["n_dropped_uncertain"]
-           else "")
-        + f", {s['n_groups']} groups; groups seen at least {s['threshold']} times give "
-        f"{s['n_operators']} operators covering {100 * s['coverage']:.1f}% of the transitions. "
-        f"Self-relations {'kept' if s['self_relations'] else 'ignored'}. "
-        f"Learning took {s['seconds']:.2f} s.",
-        "",
-        "## What other thresholds would keep",
-        "",
-        "| by | threshold | fraction of data | operators | coverage |",
-        "|---|---|---|---|---|",
-    ]
-    for row in ops.threshold_report():
-        lines.append(f"| {row['by']} | {row['threshold']} | {row['fraction']:.2e} | "
-                     f"{row['operators']} | {100 * row['coverage']:.1f}% |")
-    lines += ["", "## Operators by frequency", ""]
-    for op in ops.operators:
-        add, delete = op.effects()
-        lines += [
-            f"### {op.index}. `{op.name}`",
-            "",
-            f"pick(?o0:{op.grasp}) place(?o1:{op.release}); {op.count} transitions, this "
-            f"effect in {op.effect_count} of them ({op.n_effects} distinct effect(s)); "
-            f"parameters: ?o0 source, ?o1 target"
-            + (f", {' '.join(op.params[2:])} in contact" if op.n_params > 2 else "") + ".",
-            "",
-            "- preconditions: " + " ".join(f"({' '.join(a)})" for a in op.preconditions()
-                                          if a[0] != "different"),
-            "- add: " + (" ".join(f"({' '.join(a)})" for a in add) or "(none)"),
-            "- delete: " + (" ".join(f"({' '.join(a)})" for a in delete) or "(none)"),
-        ]
-        if op.example >= 0:
-            t, slots = op.example, list(op.example_slots)
-            names = [f"o{i}" for i in slots]
-            before = SymbolicState(tuple(names), data.unary[t][slots],
-                                   data.relational[t][:, slots][:, :, slots])
-            after = SymbolicState(tuple(names), data.next_unary[t][slots],
-                                  data.next_relational[t][:, slots][:, :, slots])
-            changed = sorted(set(after.facts(ops.self_relations))
-                             - set(before.facts(ops.self_relations)))
-            lines.append(
-                f"- example: transition {t}, {example_action(op)} (objects named by slot: "
-                + ", ".join(f"?o{i}={n}" for i, n in enumerate(names)) + "); became "
-                + (" ".join(f"({' '.join(a)})" for a in changed) or "nothing new")
-            )
-        lines.append("")
-    return "\n".join(lines)
 
 
 def cmd_plan(args) -> dict:

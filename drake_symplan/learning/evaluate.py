@@ -8,6 +8,7 @@ transitions by their number of real objects; by role groups objects by their par
 the action (source, target, or another object, which only relations reach); by outcome
 groups them by their transition's outcome class where the data set records one. Across
 runs of one model we report mean +- sample standard deviation (0 for a single run).
+`evaluate_runs` does all of it for trained run directories (`symplan eval effects`).
 """
 
 from __future__ import annotations
@@ -18,8 +19,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from drake_symplan.learning.dataset import TensorSet
+from drake_symplan.learning.checkpoint import load_run
+from drake_symplan.learning.dataset import TensorSet, split_by_episode
 from drake_symplan.learning.models import MODELS
+from drake_symplan.shards import fingerprint, load_extra, load_transitions
 from drake_symplan.structs import IS_SOURCE, IS_TARGET
 
 CM_PER_M = 100.0
@@ -152,6 +155,49 @@ def aggregate_runs(per_run: list[dict]) -> dict:
                 }
         models[name]["runs"] = [r["run"] for r in results]
     return models
+
+
+def evaluate_runs(
+    runs: list[str | Path], data_dir: str | Path | None = None,
+    outcome_names: tuple[str, ...] = (),
+) -> dict:
+    """Test-set `effect_metrics` of every run directory and their `aggregate_runs`.
+
+    Each run is evaluated on the test split of its own seed, on the data set it was
+    trained on, or on `data_dir` (a data set that moved), which must have the run's
+    fingerprint. With `outcome_names` (the data set's outcome classes, by index) and a
+    data set that records an "outcome" per transition, also by outcome.
+    """
+    cache: dict[str, tuple] = {}
+    per_run = []
+    for run in runs:
+        model, config = load_run(run)
+        train_cfg = config["train_config"]
+        data = str(Path(data_dir or train_cfg["data"]).resolve())
+        if data not in cache:
+            outcome = load_extra(data, "outcome") if outcome_names else None
+            cache[data] = (load_transitions(data), fingerprint(data), outcome)
+        arrays, fp, outcome = cache[data]
+        if fp != config["data_fingerprint"]:
+            raise ValueError(f"run {run} was trained on other data than {data} "
+                             "(fingerprints differ)")
+        test = split_by_episode(arrays.episode, train_cfg["seed"])["test"]
+        metrics = effect_metrics(model, TensorSet.from_arrays(arrays, test),
+                                 None if outcome is None else outcome[test], outcome_names)
+        per_run.append({"run": str(run), "model": config["model"], "epoch": config["epoch"],
+                        **metrics})
+    return {"runs": per_run, "models": aggregate_runs(per_run)}
+
+
+def format_summary(models: dict) -> list[str]:
+    """One line per model of `aggregate_runs`: error mean +- std, runs, and by role."""
+    lines = []
+    for name, stats in models.items():
+        e = stats["error_cm"]
+        roles = ", ".join(f"{k} {v['mean']:.2f}" for k, v in stats.get("by_role", {}).items())
+        lines.append(f"{name}: {e['mean']:.2f} +- {e['std']:.2f} cm over {e['runs']} run(s) "
+                     f"({roles})")
+    return lines
 
 
 def plot_errors(models: dict, out: str | Path) -> Path:
