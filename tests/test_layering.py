@@ -15,7 +15,8 @@ class NoDrake:
             raise ImportError(f"{name} is blocked: this import must not need Drake")
 
 sys.meta_path.insert(0, NoDrake())
-names = ["drake_symplan.structs", "drake_symplan.shards", "drake_symplan.atomic"]
+names = ["drake_symplan.structs", "drake_symplan.shards", "drake_symplan.atomic",
+         "drake_symplan.typed_yaml"]
 for package in ("learning", "symbolic", "planning"):
     pkg = importlib.import_module(f"drake_symplan.{package}")
     names += [f"drake_symplan.{package}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]

@@ -15,27 +15,38 @@ MODEL_NAMES = ("relational", "attentive", "deepsym", "reference")
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("train", help="train an effect model on a data set")
-    p.add_argument("--model", required=True, choices=MODEL_NAMES,
-                   help="reference: no symbols, the data set's error floor (models.py)")
-    p.add_argument("--data", required=True, help="data set directory (shards + manifest.json)")
-    p.add_argument("--out", required=True, help="run directory to create (or resume)")
-    p.add_argument("--epochs", type=int, default=200)
-    p.add_argument("--batch-size", type=int, default=128)
-    p.add_argument("--lr", type=float, default=1e-4)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--patience", type=int, default=20,
+    p = subparsers.add_parser(
+        "train", help="train an effect model on a data set",
+        description="Trains an effect model on a data set into a run directory. A setting "
+        "not given as a flag comes from the --config file, else from TrainConfig's defaults, "
+        "which are Table I's settings (configs/table1.yaml; learning/trainer.py).")
+    p.add_argument("--config", type=Path, metavar="FILE",
+                   help="YAML file of TrainConfig settings, e.g. configs/table1.yaml; "
+                   "flags given on the command line override it")
+    p.add_argument("--model", choices=MODEL_NAMES,
+                   help="required, here or in --config; reference: no symbols, the data "
+                   "set's error floor (models.py)")
+    p.add_argument("--data", help="data set directory (shards + manifest.json); required, "
+                   "here or in --config")
+    p.add_argument("--out", help="run directory to create (or resume); required, here or "
+                   "in --config")
+    p.add_argument("--epochs", type=int, help="at most this many epochs")
+    p.add_argument("--batch-size", type=int)
+    p.add_argument("--lr", type=float, help="Adam learning rate")
+    p.add_argument("--seed", type=int, help="model initialisation, shuffling and the split")
+    p.add_argument("--patience", type=int,
                    help="stop after this many epochs without a better validation loss")
-    p.add_argument("--threads", type=int, default=None, help="torch.set_num_threads")
-    p.add_argument("--temperature", type=float, default=None,
-                   help="Gumbel-sigmoid temperature (default 3; see learning/gumbel.py)")
-    p.add_argument("--soft", action="store_true",
+    p.add_argument("--threads", type=int, help="torch.set_num_threads")
+    p.add_argument("--temperature", type=float,
+                   help="Gumbel-sigmoid temperature (see learning/gumbel.py)")
+    p.add_argument("--soft", dest="hard", action="store_const", const=False,
                    help="soft Gumbel-sigmoid samples (default: straight-through hard bits)")
     p.add_argument("--model-option", action="append", default=[], metavar="KEY=VALUE",
                    help="a constructor argument of the model, e.g. n_unary=4 or key_dim=32 "
-                   "(repeatable; see learning/models.py)")
+                   "(repeatable; see learning/models.py); added to --config's model_kwargs")
     p.add_argument("--resume", action="store_true", help="continue the run in --out")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", dest="progress", action="store_const", const=False,
+                   help="no progress bar")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_train)
 
@@ -73,19 +84,34 @@ def eval_subparsers(subparsers):
     return parser.get_default("eval_subparsers")
 
 
-def cmd_train(args: argparse.Namespace) -> dict:
-    from drake_symplan.learning.trainer import TrainConfig, train
+# The flags of `symplan train` that set the TrainConfig field of the same name.
+TRAIN_FLAGS = ("model", "data", "out", "epochs", "batch_size", "lr", "seed", "patience",
+               "threads", "temperature", "hard", "progress")
+
+
+def train_config(args: argparse.Namespace):
+    """The TrainConfig of `symplan train`: TrainConfig's defaults, overridden by the
+    --config file's settings, overridden by the flags given."""
+    from drake_symplan.learning.trainer import TrainConfig
+    from drake_symplan.typed_yaml import read_fields
 
     if args.threads is not None and args.threads < 1:
         raise CommandError(f"--threads must be at least 1, got {args.threads}")
-    options = {} if args.temperature is None else {"temperature": args.temperature}
-    cfg = TrainConfig(
-        model=args.model, data=args.data, out=args.out, epochs=args.epochs,
-        batch_size=args.batch_size, lr=args.lr, seed=args.seed, patience=args.patience,
-        threads=args.threads, hard=not args.soft, progress=not args.no_progress,
-        model_kwargs=parse_model_options(args.model_option), **options,
-    )
-    return train(cfg, resume=args.resume)
+    values = read_fields(args.config, TrainConfig) if args.config is not None else {}
+    values.update({k: getattr(args, k) for k in TRAIN_FLAGS if getattr(args, k) is not None})
+    if args.model_option:
+        values["model_kwargs"] = {**values.get("model_kwargs", {}),
+                                  **parse_model_options(args.model_option)}
+    missing = [f"--{k}" for k in ("model", "data", "out") if k not in values]
+    if missing:
+        raise CommandError(f"give {', '.join(missing)}, as flags or in the --config file")
+    return TrainConfig(**values)
+
+
+def cmd_train(args: argparse.Namespace) -> dict:
+    from drake_symplan.learning.trainer import train
+
+    return train(train_config(args), resume=args.resume)
 
 
 def parse_model_options(items: list[str]) -> dict:

@@ -1,0 +1,117 @@
+"""Typed YAML configuration files for dataclasses (PyYAML only: no Drake, no torch).
+
+`read_fields(path, cls)` reads a YAML mapping and checks it against the fields of
+dataclass `cls`: unknown keys are refused by name, every value must have its field's
+type (an int where a float is declared is taken as that float, and so is a number in
+exponent notation such as 1e-3, which YAML 1.1 reads as a string); the result goes into
+`cls(**fields)`, possibly with other values on top. Errors are ValueErrors of one line
+that start with the file's name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import types
+import typing
+from pathlib import Path
+
+import yaml
+
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def yaml_problem(error: yaml.YAMLError) -> str:
+    """'invalid YAML (line L, column C)' for a parser error, positions counted from 1."""
+    mark = getattr(error, "problem_mark", None) or getattr(error, "context_mark", None)
+    if mark is None:
+        return "invalid YAML"
+    return f"invalid YAML (line {mark.line + 1}, column {mark.column + 1})"
+
+
+def read_yaml(path: str | Path) -> object:
+    """The parsed contents of YAML file `path` (None when it is empty)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    try:
+        return yaml.safe_load(path.read_text())
+    except yaml.YAMLError as e:
+        raise ValueError(f"{path}: {yaml_problem(e)}") from e
+
+
+class _Mismatch(Exception):
+    pass
+
+
+def _type_name(hint) -> str:
+    return getattr(hint, "__name__", None) or str(hint)
+
+
+def _convert(value, hint):
+    """`value` as type `hint`, or _Mismatch."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        for arg in args:
+            try:
+                return _convert(value, arg)
+            except _Mismatch:
+                continue
+        raise _Mismatch
+    if hint is typing.Any:
+        return value
+    if hint is type(None):
+        if value is None:
+            return None
+        raise _Mismatch
+    if hint is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
+            return float(value)
+        raise _Mismatch
+    if hint in (bool, int, str):
+        if isinstance(value, hint) and not (hint is int and isinstance(value, bool)):
+            return value
+        raise _Mismatch
+    if hint is dict or origin is dict:
+        if not isinstance(value, dict):
+            raise _Mismatch
+        if not args:
+            return dict(value)
+        return {_convert(k, args[0]): _convert(v, args[1]) for k, v in value.items()}
+    if hint is list or origin is list:
+        if not isinstance(value, list):
+            raise _Mismatch
+        return [_convert(v, args[0]) for v in value] if args else list(value)
+    raise TypeError(f"typed_yaml cannot check fields of type {hint}")
+
+
+def check_fields(cls: type, data: object, source: str) -> dict:
+    """`data` (a parsed YAML mapping) checked against the fields of dataclass `cls`."""
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ValueError(f"{source}: expected a mapping of {cls.__name__} settings, "
+                         f"got {type(data).__name__}")
+    fields = [f.name for f in dataclasses.fields(cls) if f.init]
+    unknown = sorted(str(k) for k in data if k not in fields)
+    if unknown:
+        raise ValueError(f"{source}: unknown keys {unknown}; {cls.__name__} has {fields}")
+    hints = typing.get_type_hints(cls)
+    out = {}
+    for key, value in data.items():
+        try:
+            out[key] = _convert(value, hints[key])
+        except _Mismatch:
+            raise ValueError(f"{source}: {key}: expected {_type_name(hints[key])}, got "
+                             f"{type(value).__name__} {value!r}") from None
+    return out
+
+
+def read_fields(path: str | Path, cls: type) -> dict:
+    """The settings in YAML file `path`, checked against dataclass `cls` (see module doc)."""
+    return check_fields(cls, read_yaml(path), str(path))
+
