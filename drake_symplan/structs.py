@@ -155,6 +155,8 @@ class SymbolDataset:
     relational_uncertain: np.ndarray | None = None
     next_unary_uncertain: np.ndarray | None = None
     next_relational_uncertain: np.ndarray | None = None
+    contacts: np.ndarray | None = None  # [T, N, N] bool: pairs perceived in contact before
+    next_contacts: np.ndarray | None = None  # [T, N, N] bool: after
 
     def __post_init__(self):
         names = self.names()
@@ -168,7 +170,7 @@ class SymbolDataset:
         t, n, p = self.unary.shape
         k = self.relational.shape[1]
         shapes = {"unary": (t, n, p), "relational": (t, k, n, n), "action": (t, n, ACTION_DIM),
-                  "mask": (t, n)}
+                  "mask": (t, n), "contacts": (t, n, n)}
         for name in names:
             value = getattr(self, name)
             expected = shapes[name.removeprefix("next_").removesuffix("_uncertain")]
@@ -242,3 +244,28 @@ class SymbolDataset:
         except (OSError, ValueError, TypeError) as e:  # TypeError: a .npy, not an .npz
             raise ValueError(f"cannot read symbols file {path}: {e}") from e
         return cls.from_arrays(arrays, f"symbols file {path}")
+
+
+@dataclass
+class SceneSymbols:
+    """The symbols of whole perceived scenes around T transitions (every object, not only
+    the relevant ones), in identity slots kept through an episode's chain of steps: what
+    multi-step problems are made of. M scene slots, `mask` [T, M] marks the real objects."""
+
+    unary: np.ndarray  # [T, M, P] uint8, before the action
+    relational: np.ndarray  # [T, K, M, M] uint8
+    unary_uncertain: np.ndarray  # bool, like unary
+    relational_uncertain: np.ndarray
+    next_unary: np.ndarray  # after the action
+    next_relational: np.ndarray
+    next_unary_uncertain: np.ndarray
+    next_relational_uncertain: np.ndarray
+    mask: np.ndarray  # [T, M] bool
+    contacts: np.ndarray  # [T, M, M] bool, perceived contact pairs before
+    next_contacts: np.ndarray  # after
+    episode: np.ndarray  # [T] int64
+    step: np.ndarray  # [T] step within the episode
+    chain: np.ndarray  # [T] identity chain within the episode (see data/exploration.py)
+
+    def __len__(self) -> int:
+        return self.mask.shape[0]

@@ -22,8 +22,8 @@ import torch
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN, read_bits
 from drake_symplan.learning.models import EffectModel
-from drake_symplan.shards import load_transitions
-from drake_symplan.structs import SymbolDataset, TransitionArrays
+from drake_symplan.shards import load_extra, load_transitions
+from drake_symplan.structs import SceneSymbols, SymbolDataset, TransitionArrays
 
 READOUT_BATCH = 8192
 
@@ -115,6 +115,73 @@ def readout_dataset(
         result[f"{prefix}relational_uncertain"] = rel_unc
     return SymbolDataset(action=arrays.action.astype(np.float32, copy=False), mask=mask,
                          **result)
+
+
+SCENE_KEYS = ("scene_state", "scene_next_state", "scene_mask", "scene_contacts",
+              "scene_next_contacts", "scene_slots", "chain", "step")
+
+
+def has_scenes(data_dir: str | Path) -> bool:
+    """Whether the data set stores whole scenes beside its transitions (data/exploration.py)."""
+    return load_extra(data_dir, "scene_slots") is not None
+
+
+def readout_scenes(
+    model: EffectModel, data_dir: str | Path, margin: float = DEFAULT_MARGIN,
+    batch_size: int = READOUT_BATCH,
+) -> tuple[SymbolDataset, SceneSymbols]:
+    """Symbols read from the whole perceived scenes of a data set.
+
+    Returns (the relevant objects' symbols, with the perceived contacts among them, as a
+    SymbolDataset; the whole scenes' symbols). Reading the whole scene, not the relevant
+    objects alone, gives an object the symbols a planner reads in a perceived scene:
+    relations come from attention over every object in view."""
+    arrays = load_transitions(data_dir)
+    extra = {k: load_extra(data_dir, k) for k in SCENE_KEYS}
+    missing = [k for k, v in extra.items() if v is None]
+    if missing:
+        raise ValueError(f"data set {data_dir} stores no whole scenes (lacks {missing}); "
+                         "collect it with the current code")
+    mask = extra["scene_mask"].astype(bool)
+    if extra["scene_state"].shape[2] != model.state_dim:
+        raise ValueError(f"the data has {extra['scene_state'].shape[2]} features per object, "
+                         f"the model expects {model.state_dim}")
+    read = {}
+    for prefix, key in (("", "scene_state"), ("next_", "scene_next_state")):
+        unary, unary_unc, rel, rel_unc = read_symbols_batched(
+            model, extra[key], mask, margin, batch_size)
+        read.update({f"{prefix}unary": unary, f"{prefix}relational": rel,
+                     f"{prefix}unary_uncertain": unary_unc,
+                     f"{prefix}relational_uncertain": rel_unc})
+    scenes = SceneSymbols(**read, mask=mask, contacts=extra["scene_contacts"].astype(bool),
+                          next_contacts=extra["scene_next_contacts"].astype(bool),
+                          episode=arrays.episode, step=extra["step"].astype(np.int64),
+                          chain=extra["chain"].astype(np.int64))
+    slots = extra["scene_slots"].astype(np.int64)
+    rel_mask = arrays.mask.astype(bool)
+    return _gather(scenes, slots, rel_mask, arrays.action), scenes
+
+
+def _gather(scenes: SceneSymbols, slots: np.ndarray, mask: np.ndarray,
+            action: np.ndarray) -> SymbolDataset:
+    """The relevant objects' rows of the scene read-out ([T, N] scene slots, -1 padding)."""
+    t = np.arange(len(slots))[:, None]
+    s = np.where(mask, slots, 0)
+    real = mask[:, :, None]
+    pair = (mask[:, :, None] & mask[:, None, :])
+    out = {}
+    for prefix in ("", "next_"):
+        for suffix in ("", "_uncertain"):
+            u = getattr(scenes, f"{prefix}unary{suffix}")[t, s]
+            r = getattr(scenes, f"{prefix}relational{suffix}")
+            r = r[t[:, :, None], :, s[:, :, None], s[:, None, :]].transpose(0, 3, 1, 2)
+            out[f"{prefix}unary{suffix}"] = u * real if suffix == "" else u & real
+            out[f"{prefix}relational{suffix}"] = (r * pair[:, None] if suffix == ""
+                                                 else r & pair[:, None])
+    for prefix in ("", "next_"):
+        c = getattr(scenes, f"{prefix}contacts")[t[:, :, None], s[:, :, None], s[:, None, :]]
+        out[f"{prefix}contacts"] = c & pair
+    return SymbolDataset(action=action.astype(np.float32, copy=False), mask=mask, **out)
 
 
 def uncertainty_counts(symbols: SymbolDataset) -> dict[str, int]:

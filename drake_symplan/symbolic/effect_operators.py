@@ -1,0 +1,364 @@
+"""Effect-first operator learning: group transitions by what changed, intersect preconditions,
+and measure each operator's reliability on every transition it applies to.
+
+A transition's symbolic state is a set of atoms over its objects (slots): `(pJ o)` /
+`(not_pJ o)` for every *certain* unary bit, and `(rK o o')` / `(not_rK o o')` for the
+certain relation bits of the pairs perceived *in contact* only (the paper keeps goal
+relations only between touching objects; here preconditions and effects do the same, so a
+relation between two boxes apart never splits or blocks an operator). A bit read close
+to its logit's zero is uncertain and makes no atom at all.
+
+Learning (after predicators' cluster-and-intersect): transitions are lifted with `?o0` the
+source, `?o1` the target and `?o2`... the other relevant objects (in the order that gives
+the smallest effect, then preconditions), grouped by (grasp, release, objects, effect),
+and a group's preconditions are the atoms present in at least `support` of its
+transitions. Every group seen `min_count` times becomes an operator; one grounded action
+may thus have several operators, one per outcome. An operator's reliability is how often
+its effect followed among all training transitions where its preconditions held for its
+action (any binding of its parameters): the planner's cost, -log of it, makes plans prefer
+reliable outcomes. Operators whose effect is empty (the action did nothing symbolic) are
+not written to the domain but stay alternatives in the reliabilities of the others.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections import defaultdict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_symplan.structs import OFFSETS, SymbolDataset
+from drake_symplan.symbolic.operators import _roles, operator_name
+from drake_symplan.symbolic.states import Atom
+
+# A slot atom: (predicate, object slot[, object slot]); lifted, the slots are parameter
+# indices (?o0 = 0). Kept as small int tuples until written out.
+SlotAtom = tuple
+
+
+@dataclass(frozen=True)
+class EffectLearnConfig:
+    """min_count: transitions a (action, effect) group needs to become an operator.
+    support: share of a group's transitions an atom must hold in to be a precondition.
+    cost_scale: an operator's plan cost is 1 + round(cost_scale * -ln(reliability))."""
+
+    min_count: int = 10
+    support: float = 0.95
+    cost_scale: float = 10.0
+
+    def __post_init__(self):
+        if self.min_count < 1:
+            raise ValueError(f"min_count must be >= 1, got {self.min_count}")
+        if not 0.5 < self.support <= 1.0:
+            raise ValueError(f"support must be in (0.5, 1], got {self.support}")
+
+
+@dataclass
+class EffectOperator:
+    """A lifted operator with preconditions, add and delete lists over ?o0..?o{n-1}."""
+
+    index: int
+    grasp: str
+    release: str
+    n_params: int
+    pre: tuple[SlotAtom, ...]
+    add: tuple[SlotAtom, ...]
+    delete: tuple[SlotAtom, ...]
+    count: int  # transitions in the group
+    applicable: int = 0  # training transitions where the preconditions held for its action
+    succeeded: int = 0  # of those, where its effect followed
+    cost_scale: float = 10.0
+
+    @property
+    def reliability(self) -> float:
+        return self.succeeded / self.applicable if self.applicable else 0.0
+
+    @property
+    def cost(self) -> int:
+        return 1 + round(self.cost_scale * -math.log(max(self.reliability, 1e-3)))
+
+    @property
+    def name(self) -> str:
+        return operator_name(self.grasp, self.release, self.count, self.index)
+
+    @property
+    def params(self) -> tuple[str, ...]:
+        return tuple(f"?o{i}" for i in range(self.n_params))
+
+    def preconditions(self) -> list[Atom]:
+        n = self.n_params
+        different = [("different", f"?o{i}", f"?o{j}") for i in range(n) for j in range(i + 1, n)]
+        return different + [_lift(a) for a in self.pre]
+
+    def effects(self) -> tuple[list[Atom], list[Atom]]:
+        return [_lift(a) for a in self.add], [_lift(a) for a in self.delete]
+
+    def describe(self, n_transitions: int | None = None) -> str:
+        of = f" of {n_transitions}" if n_transitions else ""
+        return (f"rank {self.index}: {self.count}{of} transitions; reliability "
+                f"{self.reliability:.2f} ({self.succeeded}/{self.applicable}), cost {self.cost}")
+
+    def to_dict(self) -> dict:
+        add, delete = self.effects()
+        return {
+            "index": self.index, "name": self.name, "grasp": self.grasp,
+            "release": self.release, "count": self.count, "params": list(self.params),
+            "preconditions": [" ".join(a) for a in self.preconditions()],
+            "add": [" ".join(a) for a in add], "delete": [" ".join(a) for a in delete],
+            "reliability": self.reliability, "applicable": self.applicable,
+            "succeeded": self.succeeded, "cost": self.cost,
+        }
+
+
+@dataclass
+class EffectOperatorSet:
+    operators: list[EffectOperator]  # the domain's: non-empty effect, most frequent first
+    n_unary: int
+    n_relations: int
+    n_transitions: int
+    n_groups: int
+    config: EffectLearnConfig
+    seconds: float = 0.0
+    timings: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        rel = [op.reliability for op in self.operators]
+        return {
+            "learner": "effect", "operators": len(self.operators), "groups": self.n_groups,
+            "transitions": self.n_transitions, "min_count": self.config.min_count,
+            "support": self.config.support,
+            "mean_reliability": float(np.mean(rel)) if rel else 0.0,
+            "seconds": round(self.seconds, 3), "timings": self.timings,
+        }
+
+
+def _lift(a: SlotAtom) -> Atom:
+    return (a[0], *(f"?o{i}" for i in a[1:]))
+
+
+# ---------------------------------------------------------------- states as atom sets
+
+
+def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real) -> frozenset:
+    """The atoms of one state over object slots (see the module docstring).
+
+    unary [N, P], rel [K, N, N] bits; *_unc their uncertainty flags (None: all certain);
+    contacts [N, N] bool; real [N] bool."""
+    return _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real)[0]
+
+
+def _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real):
+    """(atoms, unknown): the certain atoms, and the keys (symbol, slots) of the bits that
+    would make atoms but are uncertain."""
+    slots = np.flatnonzero(real)
+    out, unknown = [], []
+    for i in slots:
+        for j in range(unary.shape[1]):
+            if unary_unc is None or not unary_unc[i, j]:
+                out.append((f"p{j}" if unary[i, j] else f"not_p{j}", int(i)))
+            else:
+                unknown.append((f"p{j}", int(i)))
+    for i in slots:
+        for j in slots:
+            if i == j or not contacts[i, j]:
+                continue
+            for k in range(rel.shape[0]):
+                if rel_unc is None or not rel_unc[k, i, j]:
+                    out.append((f"r{k}" if rel[k, i, j] else f"not_r{k}", int(i), int(j)))
+                else:
+                    unknown.append((f"r{k}", int(i), int(j)))
+    return frozenset(out), frozenset(unknown)
+
+
+def key(atom: SlotAtom) -> tuple:
+    """The bit an atom speaks of: (symbol, slots), polarity dropped."""
+    return (atom[0].removeprefix("not_"), *atom[1:])
+
+
+def changes(before: frozenset, after: frozenset, unknown_before: frozenset,
+            unknown_after: frozenset) -> tuple[frozenset, frozenset]:
+    """(add, delete) between two atom sets; a bit that was uncertain on the other side is no
+    change (it may have held all along), a relation whose contact ended is deleted."""
+    add = frozenset(a for a in after - before if key(a) not in unknown_before)
+    delete = frozenset(a for a in before - after if key(a) not in unknown_after)
+    return add, delete
+
+
+def _rename(atoms, mapping: dict[int, int]) -> frozenset:
+    """Atoms with slots renamed by `mapping`; atoms naming an unmapped slot are dropped."""
+    out = []
+    for a in atoms:
+        if all(s in mapping for s in a[1:]):
+            out.append((a[0], *(mapping[s] for s in a[1:])))
+    return frozenset(out)
+
+
+@dataclass
+class Lifted:
+    """One transition seen from the roles: its atom sets per binding of the other objects."""
+
+    grasp: int
+    release: int
+    n: int  # relevant objects
+    before: frozenset  # slot atoms
+    after: frozenset
+    unknown_before: frozenset  # keys of uncertain bits
+    unknown_after: frozenset
+    bindings: dict  # tuple of other slots (in parameter order) -> slot -> parameter map
+
+
+def lift_transitions(data: SymbolDataset) -> list[Lifted]:
+    """Every transition's slot atom sets and role bindings (contacts required)."""
+    if data.contacts is None or data.next_contacts is None:
+        raise ValueError("effect-first operators need the perceived contacts of each "
+                         "transition (a data set collected with whole scenes)")
+    mask = data.mask.astype(bool)
+    src, tgt, grasp, release = _roles(data.action, mask)
+    out = []
+    for t in range(len(data)):
+        unc = [None if a is None else a[t] for a in (
+            data.unary_uncertain, data.relational_uncertain,
+            data.next_unary_uncertain, data.next_relational_uncertain)]
+        before, unknown_before = _atoms_and_unknown(
+            data.unary[t], unc[0], data.relational[t], unc[1], data.contacts[t], mask[t])
+        after, unknown_after = _atoms_and_unknown(
+            data.next_unary[t], unc[2], data.next_relational[t], unc[3],
+            data.next_contacts[t], mask[t])
+        s, g = int(src[t]), int(tgt[t])
+        others = [int(i) for i in np.flatnonzero(mask[t]) if i not in (s, g)]
+        bindings = {}
+        for r in range(len(others) + 1):
+            for sel in itertools.permutations(others, r):
+                bindings[sel] = {s: 0, g: 1, **{o: 2 + i for i, o in enumerate(sel)}}
+        out.append(Lifted(int(grasp[t]), int(release[t]), int(mask[t].sum()), before, after,
+                          unknown_before, unknown_after, bindings))
+    return out
+
+
+def _sorted(atoms) -> tuple:
+    return tuple(sorted(atoms, key=lambda a: (a[0], a[1:])))
+
+
+def _canonical(tr: Lifted) -> tuple[tuple, tuple, tuple]:
+    """(add, delete, pre) lifted with all objects as parameters, in the order of the other
+    objects that gives the smallest (effect, preconditions)."""
+    best = None
+    full = [sel for sel in tr.bindings if len(sel) == tr.n - 2]
+    for sel in full:
+        add, delete = changes(*(_rename(x, tr.bindings[sel]) for x in (
+            tr.before, tr.after, tr.unknown_before, tr.unknown_after)))
+        candidate = (_sorted(add), _sorted(delete), _sorted(_rename(tr.before, tr.bindings[sel])))
+        if best is None or candidate < best:
+            best = candidate
+    return best
+
+
+# ---------------------------------------------------------------- learning
+
+
+def learn_effect_operators(data: SymbolDataset, config: EffectLearnConfig | None = None,
+                           lifted: list[Lifted] | None = None) -> EffectOperatorSet:
+    """Effect-first operators of a symbolic data set with contacts (module docstring)."""
+    config = config or EffectLearnConfig()
+    t0 = time.perf_counter()
+    lifted = lifted if lifted is not None else lift_transitions(data)
+    if not lifted:
+        raise ValueError("no transitions to learn operators from")
+    t1 = time.perf_counter()
+    groups: dict[tuple, list[tuple]] = defaultdict(list)
+    for tr in lifted:
+        add, delete, pre = _canonical(tr)
+        groups[(tr.grasp, tr.release, tr.n, add, delete)].append(pre)
+    t2 = time.perf_counter()
+    kept = sorted(((k, v) for k, v in groups.items() if len(v) >= config.min_count),
+                  key=lambda kv: (-len(kv[1]), kv[0]))
+    candidates = []
+    for (g, r, n, add, delete), pres in kept:
+        counts: dict = defaultdict(int)
+        for pre in pres:
+            for a in pre:
+                counts[a] += 1
+        need = config.support * len(pres)
+        pre = _sorted(a for a, c in counts.items() if c >= need)
+        candidates.append(EffectOperator(0, OFFSETS[g], OFFSETS[r], n, pre, add, delete,
+                                         len(pres), cost_scale=config.cost_scale))
+    measure_reliability(candidates, lifted)
+    t3 = time.perf_counter()
+    operators = [op for op in candidates if op.add or op.delete]
+    for rank, op in enumerate(operators):
+        op.index = rank
+    return EffectOperatorSet(
+        operators, data.n_unary, data.n_relations, len(lifted), len(groups), config,
+        seconds=t3 - t0,
+        timings={"lift": round(t1 - t0, 3), "group": round(t2 - t1, 3),
+                 "reliability": round(t3 - t2, 3)})
+
+
+def measure_reliability(operators: list[EffectOperator], lifted: list[Lifted]) -> None:
+    """Sets each operator's `applicable` and `succeeded` counts on the transitions."""
+    by_action: dict[tuple, list[Lifted]] = defaultdict(list)
+    for tr in lifted:
+        by_action[(tr.grasp, tr.release)].append(tr)
+    for op in operators:
+        key = (OFFSETS.index(op.grasp), OFFSETS.index(op.release))
+        op.applicable = op.succeeded = 0
+        for tr in by_action.get(key, ()):
+            verdict = follows(op, tr)
+            if verdict is not None:
+                op.applicable += 1
+                op.succeeded += verdict
+
+
+def _grounded(op: EffectOperator, tr: Lifted):
+    """For each binding of the operator's parameters to the transition's objects under
+    which its preconditions hold: the lifted (after, unknown after) sets."""
+    pre = frozenset(op.pre)
+    for sel, m in tr.bindings.items():
+        if len(sel) != op.n_params - 2:
+            continue
+        if pre <= _rename(tr.before, m):
+            yield _rename(tr.after, m), _rename(tr.unknown_after, m)
+
+
+def follows(op: EffectOperator, tr: Lifted) -> bool | None:
+    """None if the operator does not apply to the transition (action or preconditions);
+    else whether its effect followed for some binding: every add holds after (or its bit
+    is uncertain there) and no delete does."""
+    if (OFFSETS.index(op.grasp), OFFSETS.index(op.release)) != (tr.grasp, tr.release):
+        return None
+    applied = False
+    for after, unknown in _grounded(op, tr):
+        applied = True
+        if all(a in after or key(a) in unknown for a in op.add) and \
+                not any(a in after for a in op.delete):
+            return True
+    return False if applied else None
+
+
+def predicts(op: EffectOperator, tr: Lifted) -> bool | None:
+    """None if the operator does not apply; else whether its predicted next state holds
+    every atom observed after (the goal's atoms) for some binding."""
+    if (OFFSETS.index(op.grasp), OFFSETS.index(op.release)) != (tr.grasp, tr.release):
+        return None
+    add, delete = frozenset(op.add), frozenset(op.delete)
+    applied = False
+    for sel, m in tr.bindings.items():
+        if len(sel) != op.n_params - 2:
+            continue
+        before = _rename(tr.before, m)
+        if not frozenset(op.pre) <= before:
+            continue
+        applied = True
+        # Atoms of objects that are not parameters must carry over unchanged.
+        after = _rename(tr.after, {**m, **{s: 100 + s for s in _slots(tr) if s not in m}})
+        before_all = _rename(tr.before, {**m, **{s: 100 + s for s in _slots(tr) if s not in m}})
+        if (after - add) <= (before_all - delete):
+            return True
+    return False if applied else None
+
+
+def _slots(tr: Lifted) -> set[int]:
+    return {s for a in tr.before | tr.after for s in a[1:]}

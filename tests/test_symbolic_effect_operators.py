@@ -1,0 +1,86 @@
+"""Effect-first operators on tiny hand-made symbolic data sets with known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_symplan.structs import Action, SymbolDataset, encode_action
+from drake_symplan.symbolic.effect_operators import (
+    EffectLearnConfig,
+    learn_effect_operators,
+    lift_transitions,
+    predicts,
+    state_atoms,
+)
+
+
+def dataset(rows) -> SymbolDataset:
+    """rows: (unary [2,1], next_unary, contacts_after, rel_after [1,2,2], uncertain_unary)."""
+    t = len(rows)
+    out = {k: [] for k in ("unary", "next_unary", "relational", "next_relational",
+                           "contacts", "next_contacts", "unary_uncertain")}
+    for u, nu, c_after, r_after, unc in rows:
+        out["unary"].append(u)
+        out["next_unary"].append(nu)
+        out["relational"].append(np.zeros((1, 2, 2), np.uint8))
+        out["next_relational"].append(r_after)
+        out["contacts"].append(np.zeros((2, 2), bool))
+        out["next_contacts"].append(c_after)
+        out["unary_uncertain"].append(unc)
+    action = np.stack([encode_action(Action("a", "center", "b", "center"), ["a", "b"])] * t)
+    arrays = {k: np.array(v) for k, v in out.items()}
+    return SymbolDataset(action=action, mask=np.ones((t, 2), bool), **arrays)
+
+
+ON = np.array([[[0, 1], [0, 0]]], np.uint8)  # r0(a, b): a on b
+TOUCH = np.array([[False, True], [True, False]])
+APART = np.zeros((2, 2), bool)
+CERTAIN = np.zeros((2, 1), bool)
+
+
+def stack(u_b: int, works: bool, unc=CERTAIN):
+    u = np.array([[1], [u_b]], np.uint8)
+    return (u, u, TOUCH if works else APART, ON if works else np.zeros((1, 2, 2), np.uint8), unc)
+
+
+def test_an_effect_group_gets_intersected_preconditions_and_its_reliability():
+    rows = [stack(1, True)] * 20 + [stack(0, False)] * 20 + [stack(1, False)] * 5
+    ops = learn_effect_operators(dataset(rows), EffectLearnConfig(min_count=3))
+    assert len(ops.operators) == 1  # the no-effect groups make no operator
+    op = ops.operators[0]
+    assert op.n_params == 2 and (op.grasp, op.release) == ("center", "center")
+    assert sorted(" ".join(a) for a in op.preconditions()) == [
+        "different ?o0 ?o1", "p0 ?o0", "p0 ?o1"]
+    add, delete = op.effects()
+    assert sorted(" ".join(a) for a in add) == ["not_r0 ?o1 ?o0", "r0 ?o0 ?o1"]
+    assert delete == []
+    # Applies where b has p0 (25 transitions), and 20 of them stacked.
+    assert (op.applicable, op.succeeded) == (25, 20) and op.reliability == 0.8
+    assert op.cost == 1 + round(10 * -np.log(0.8))
+
+
+def test_uncertain_bits_make_no_atoms_and_support_tolerates_them():
+    unc = np.array([[False], [True]])  # b's bit uncertain in one transition
+    rows = [stack(1, True)] * 19 + [stack(1, True, unc)]
+    ops = learn_effect_operators(dataset(rows), EffectLearnConfig(min_count=3, support=0.95))
+    pre = sorted(" ".join(a) for a in ops.operators[0].preconditions())
+    assert pre == ["different ?o0 ?o1", "p0 ?o0", "p0 ?o1"]  # 19 of 20 >= 95 %
+    strict = learn_effect_operators(dataset(rows), EffectLearnConfig(min_count=3, support=1.0))
+    assert "p0 ?o1" not in [" ".join(a) for a in strict.operators[0].preconditions()]
+    atoms = state_atoms(np.array([[1], [1]]), unc, np.zeros((1, 2, 2)), None, APART,
+                        np.array([True, True]))
+    assert atoms == {("p0", 0)}
+
+
+def test_relations_only_between_objects_in_contact_and_prediction_of_the_goal():
+    u = np.array([[1], [1]], np.uint8)
+    b_on_a = (u, u, TOUCH, np.array([[[0, 0], [1, 0]]], np.uint8), CERTAIN)
+    lifted = lift_transitions(dataset([stack(1, True), stack(1, False), b_on_a]))
+    assert ("r0", 0, 1) in lifted[0].after and ("not_r0", 1, 0) in lifted[0].after
+    assert not any(a[0].endswith("r0") for a in lifted[1].after)  # apart: no relation atoms
+    op = learn_effect_operators(dataset([stack(1, True)] * 3),
+                                EffectLearnConfig(min_count=1)).operators[0]
+    assert predicts(op, lifted[0]) is True
+    assert predicts(op, lifted[1]) is True  # nothing changed: the goal atoms hold anyway
+    assert predicts(op, lifted[2]) is False  # the goal has b on a, the operator a on b
+
