@@ -164,10 +164,11 @@ def test_plan_command_errors_are_one_line(hanoi_files, tmp_path, monkeypatch, ca
                             "--problem", str(hanoi_files / "p3.pddl")], monkeypatch, capsys)
     assert code == 2 and err.count("\n") == 1 and "no PDDL file" in err
     (tmp_path / "bad.pddl").write_text("(define (domain")
-    code, out, _ = run_cli(["plan", "--domain", str(tmp_path / "bad.pddl"),
-                            "--problem", str(hanoi_files / "p3.pddl"), "--json"],
-                           monkeypatch, capsys)
-    assert code == 0 and json.loads(out)["status"] == "error"
+    code, out, err = run_cli(["plan", "--domain", str(tmp_path / "bad.pddl"),
+                              "--problem", str(hanoi_files / "p3.pddl"), "--json"],
+                             monkeypatch, capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert f"{tmp_path / 'bad.pddl'}: malformed PDDL" in err
 
 
 def test_operators_command_from_saved_symbols(tmp_path, monkeypatch, capsys):

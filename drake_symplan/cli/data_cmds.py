@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import os
 
+from drake_symplan.cli.main import positive_int
+
 
 def register(subparsers) -> None:
     collect = subparsers.add_parser(
@@ -12,7 +14,8 @@ def register(subparsers) -> None:
     collect.add_argument("--backend", choices=("hand", "arm"), default="hand",
                          help="hand: fast weld-constraint hand; arm: UR10 in full physics")
     collect.add_argument("--transitions", type=int, required=True, help="how many in all (exactly); rerun with a larger N to extend a collection")
-    collect.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    collect.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1,
+                         help="worker processes (default: one per CPU)")
     collect.add_argument("--out", required=True, help="data set directory")
     collect.add_argument("--seed", type=int, default=0)
     collect.add_argument("--objects", default="2-4", help="objects per scene: N or MIN-MAX")

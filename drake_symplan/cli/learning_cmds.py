@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from drake_symplan.cli.main import CommandError
+from drake_symplan.cli.main import CommandError, positive_int
 
 MODEL_NAMES = ("relational", "attentive", "deepsym", "reference")
 
@@ -36,7 +36,7 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, help="model initialisation, shuffling and the split")
     p.add_argument("--patience", type=int,
                    help="stop after this many epochs without a better validation loss")
-    p.add_argument("--threads", type=int, help="torch.set_num_threads")
+    p.add_argument("--threads", type=positive_int, help="torch.set_num_threads")
     p.add_argument("--temperature", type=float,
                    help="Gumbel-sigmoid temperature (see learning/gumbel.py)")
     p.add_argument("--soft", dest="hard", action="store_const", const=False,
@@ -95,8 +95,6 @@ def train_config(args: argparse.Namespace):
     from drake_symplan.learning.trainer import TrainConfig
     from drake_symplan.typed_yaml import read_fields
 
-    if args.threads is not None and args.threads < 1:
-        raise CommandError(f"--threads must be at least 1, got {args.threads}")
     values = read_fields(args.config, TrainConfig) if args.config is not None else {}
     values.update({k: getattr(args, k) for k in TRAIN_FLAGS if getattr(args, k) is not None})
     if args.model_option:

@@ -21,13 +21,15 @@ def cmd_perceive(args: argparse.Namespace) -> dict:
 
     import numpy as np
 
+    from drake_symplan.cli.world_cmds import load_scene_file
+
+    scene = load_scene_file(args.scene)  # before Drake is loaded: bad input is told fast
+
     from drake_symplan.perception.evaluation import compare
     from drake_symplan.perception.perceive import Perceiver
     from drake_symplan.world.cameras import DepthNoise, default_cameras
-    from drake_symplan.world.scenes import load_scene
     from drake_symplan.world.station import Station, StationConfig
 
-    scene = load_scene(args.scene)
     station = Station(StationConfig(cameras=default_cameras()))
     station.reset(scene)
     station.settle(args.settle)

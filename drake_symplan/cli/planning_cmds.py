@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from drake_symplan.cli.main import CommandError, NegativeAnswer
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -86,6 +88,7 @@ def cmd_operators(args) -> dict:
 
 def cmd_plan(args) -> dict:
     from drake_symplan.planning.planners import plan
+    from drake_symplan.symbolic.pddl import check_pddl_file
 
     options = {}
     if args.search is not None:
@@ -94,7 +97,13 @@ def cmd_plan(args) -> dict:
         if args.planner != "pyperplan":
             raise ValueError("--heuristic is for --planner pyperplan; give FD's in --search")
         options["heuristic"] = args.heuristic
+    if not args.timeout > 0:
+        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
+    for path in (args.domain, args.problem):
+        check_pddl_file(path)
     result = plan(args.domain, args.problem, args.planner, args.timeout, **options)
+    if result.status == "error":  # input the planner refused, or no planner to run
+        raise CommandError(f"{args.domain} and {args.problem}: {result.message}")
     out = {"status": result.status, "plan": result.plan, "seconds": result.seconds,
            "message": result.message, "planner": result.planner}
     if not args.json:
@@ -102,4 +111,4 @@ def cmd_plan(args) -> dict:
               + (f": {result.message}" if result.message else ""))
         for step in result.plan:
             print(step)
-    return out
+    return out if result.solved else NegativeAnswer(out)  # unsolvable or timeout

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from drake_symplan.cli.main import CommandError, NegativeAnswer
+
 
 def register(subparsers) -> None:
     scene = subparsers.add_parser("scene", help="scene files")
@@ -39,17 +41,34 @@ def cmd_scene_sample(args: argparse.Namespace) -> dict:
     return {"out": args.out, "objects": [o.name for o in scene.objects]}
 
 
-def cmd_act(args: argparse.Namespace) -> dict:
-    from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
-    from drake_symplan.structs import Action
-    from drake_symplan.world.scenes import load_scene
-    from drake_symplan.world.station import Station
-    from drake_symplan.world.visualization import StartMeshcat, recording
+def load_scene_file(path: str):
+    """`world.scenes.load_scene`, with a YAML syntax error told in one line naming the file."""
+    import yaml
 
-    scene = load_scene(args.scene)
+    from drake_symplan.typed_yaml import yaml_problem
+    from drake_symplan.world.scenes import load_scene
+
+    try:
+        return load_scene(path)
+    except ValueError as e:
+        if isinstance(e.__cause__, yaml.YAMLError):
+            raise CommandError(f"{path}: {yaml_problem(e.__cause__)}") from e
+        raise
+
+
+def cmd_act(args: argparse.Namespace) -> dict:
+    from drake_symplan.structs import Action
+
+    # Inputs first, so that bad ones are told before Drake is loaded.
+    scene = load_scene_file(args.scene)
     action = Action.parse(args.pick, args.place)
     for name in (action.source, action.target):
         scene.object(name)  # clear error for an unknown name
+
+    from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
+    from drake_symplan.world.station import Station
+    from drake_symplan.world.visualization import StartMeshcat, recording
+
     meshcat = StartMeshcat() if (args.meshcat or args.record) else None
     station = Station(meshcat=meshcat)
     planner = PickPlacePlanner()
@@ -63,7 +82,8 @@ def cmd_act(args: argparse.Namespace) -> dict:
         result["recording"] = args.record
     if not args.json:
         print(f"{action}: {outcome.status} in {outcome.seconds:.2f} s {outcome.message}")
-    return result
+    # infeasible (no IK solution) or sim_failure: the action could not be done.
+    return result if outcome.status == "ok" else NegativeAnswer(result)
 
 
 def _belief(spec):

@@ -23,6 +23,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
 
 from drake_symplan.structs import OFFSETS, Action
 from drake_symplan.symbolic.operators import Operator
@@ -57,35 +58,48 @@ def domain_pddl(
     n_relations: int,
     name: str = DOMAIN_NAME,
     n_transitions: int | None = None,
+    costs: bool = False,
 ) -> str:
-    """The domain: one action schema per operator, most frequent first."""
+    """The domain: one action schema per operator, most frequent first.
+
+    With `costs` (operators that have a `cost`), each action increases `(total-cost)` by
+    its cost (`:action-costs`, for Fast Downward; pyperplan reads the domain without)."""
     unary, binary = predicate_names(n_unary, n_relations)
     preds = [f"({p} ?x - {TYPE})" for p in unary]
     preds += [f"({p} ?x ?y - {TYPE})" for p in binary + ["different"]]
     lines = [
         f"; Learned by drake_symplan: {n_unary} unary and {n_relations} relational symbols.",
         f"(define (domain {name})",
-        "  (:requirements :strips :typing)",
+        "  (:requirements :strips :typing" + (" :action-costs)" if costs else ")"),
         f"  (:types {TYPE})",
         "  (:predicates",
         *[f"    {p}" for p in preds],
         "  )",
+        *(["  (:functions (total-cost) - number)"] if costs else []),
     ]
     for op in operators:
         add, delete = op.effects()
-        of = f" of {n_transitions}" if n_transitions else ""
+        effect = [_atom(a) for a in add] + [f"(not {_atom(a)})" for a in delete]
+        if costs:
+            effect.append(f"(increase (total-cost) {op.cost})")
         lines += [
-            f"  ; rank {op.index}: {op.count}{of} transitions; this effect in "
-            f"{op.effect_count} ({op.n_effects} distinct effect(s))",
+            f"  ; {_describe(op, n_transitions)}",
             f"  (:action {op.name}",
             "    :parameters (" + " ".join(f"{p} - {TYPE}" for p in op.params) + ")",
             "    :precondition " + _wrap([_atom(a) for a in op.preconditions()], "    "),
-            "    :effect "
-            + _wrap([_atom(a) for a in add] + [f"(not {_atom(a)})" for a in delete], "    "),
+            "    :effect " + _wrap(effect, "    "),
             "  )",
         ]
     lines.append(")")
     return "\n".join(lines) + "\n"
+
+
+def _describe(op, n_transitions: int | None) -> str:
+    if hasattr(op, "describe"):
+        return op.describe(n_transitions)
+    of = f" of {n_transitions}" if n_transitions else ""
+    return (f"rank {op.index}: {op.count}{of} transitions; this effect in "
+            f"{op.effect_count} ({op.n_effects} distinct effect(s))")
 
 
 def problem_pddl(
@@ -109,16 +123,27 @@ def problem_pddl(
         )
     if (start.n_unary, start.n_relations) != (goal.n_unary, goal.n_relations):
         raise ValueError("start and goal have different numbers of symbols")
-    init = start.facts(self_relations) + difference_facts(start.objects)
-    goal_atoms = goal.goal_facts(goal_contacts, self_relations)
+    return problem_from_atoms(start.objects, start.facts(self_relations),
+                              goal.goal_facts(goal_contacts, self_relations), name, domain)
+
+
+def problem_from_atoms(objects, init: Iterable[Atom], goal: Iterable[Atom],
+                       name: str = "problem", domain: str = DOMAIN_NAME,
+                       costs: bool = False) -> str:
+    """A problem over `objects` with the given init and goal atoms (plus the `different`
+    facts); with `costs`, it minimises `(total-cost)`."""
+    objects = tuple(objects)
+    init = list(init) + difference_facts(objects)
     lines = [
         f"(define (problem {name})",
         f"  (:domain {domain})",
-        "  (:objects " + " ".join(start.objects) + f" - {TYPE})",
+        "  (:objects " + " ".join(objects) + f" - {TYPE})",
         "  (:init",
         *[f"    {_atom(a)}" for a in init],
+        *(["    (= (total-cost) 0)"] if costs else []),
         "  )",
-        "  (:goal " + _wrap([_atom(a) for a in goal_atoms], "  ") + ")",
+        "  (:goal " + _wrap([_atom(a) for a in goal], "  ") + ")",
+        *(["  (:metric minimize (total-cost))"] if costs else []),
         ")",
     ]
     return "\n".join(lines) + "\n"
@@ -174,6 +199,20 @@ def parse_sexpr(text: str):
     if len(stack[0]) != 1 or not isinstance(stack[0][0], list):
         raise ValueError("PDDL text is not one (define ...) expression")
     return stack[0][0]
+
+
+def check_pddl_file(path: str | Path) -> None:
+    """Raises, naming `path`, unless it holds one balanced (define ...) expression: a
+    syntax check only, which any planner input passes."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no PDDL file {path}")
+    try:
+        expr = parse_sexpr(path.read_text())
+    except ValueError as e:
+        raise ValueError(f"{path}: malformed PDDL: {e}") from e
+    if expr[:1] != ["define"]:
+        raise ValueError(f"{path}: malformed PDDL: not a (define ...) expression")
 
 
 def _conj(expr) -> list:

@@ -1,0 +1,131 @@
+"""One contract for every command: exit 0 done, 1 negative answer, 2 bad input with one
+line on stderr naming the file or flag, and nothing written."""
+
+from __future__ import annotations
+
+import json
+import sys
+import types
+
+import pytest
+
+from drake_symplan.cli import main as cli_main
+from drake_symplan.cli.main import NegativeAnswer
+
+BAD_YAML = "objects:\n  - name: o0\n    type: [cube\n  bad: :\n"  # error at line 4, column 6
+DOMAIN = """(define (domain d) (:requirements :strips) (:predicates (p ?x) (q ?x))
+  (:action a :parameters (?x) :precondition (q ?x) :effect (p ?x)))
+"""
+UNSOLVABLE = "(define (problem u) (:domain d) (:objects o) (:init) (:goal (p o)))\n"
+
+
+def run(argv, capsys):
+    code = cli_main.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_bad_input(code, out, err, *expected):
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and err.endswith("\n"), err
+    for text in expected:
+        assert text in err, err
+
+
+@pytest.mark.parametrize("command", ["act", "perceive"])
+def test_invalid_scene_yaml_is_one_line_naming_the_file(command, tmp_path, capsys):
+    scene = tmp_path / "scene.yaml"
+    scene.write_text(BAD_YAML)
+    record = tmp_path / "act.html"
+    argv = [command, "--scene", scene]
+    if command == "act":
+        argv += ["--pick", "o0:center", "--place", "o1:center", "--record", record]
+    code, out, err = run(argv, capsys)
+    assert_bad_input(code, out, err)
+    assert err == f"symplan {command}: error: {scene}: invalid YAML (line 4, column 6)\n"
+    assert not record.exists()
+
+
+def test_invalid_config_yaml_is_one_line_naming_the_file(tmp_path, capsys):
+    config = tmp_path / "train.yaml"
+    config.write_text("epochs: [3\n")
+    code, out, err = run(["train", "--config", config, "--out", tmp_path / "run"], capsys)
+    assert_bad_input(code, out, err)
+    assert err == f"symplan train: error: {config}: invalid YAML (line 2, column 1)\n"
+    config.write_text("epochs: 3\nlearning_rate: 0.1\n")
+    code, out, err = run(["train", "--config", config, "--out", tmp_path / "run"], capsys)
+    assert_bad_input(code, out, err, f"{config}: unknown keys ['learning_rate']")
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("workers", ["0", "-3", "two"])
+def test_collect_refuses_workers_below_one(workers, tmp_path, capsys):
+    out_dir = tmp_path / "data"
+    code, out, err = run(["collect", "--transitions", "10", "--workers", workers,
+                          "--out", out_dir], capsys)
+    assert_bad_input(code, out, err, "symplan collect: error: argument --workers: must be a "
+                     f"positive integer, got '{workers}'")
+    assert not out_dir.exists()
+
+
+def test_malformed_pddl_is_bad_input_naming_the_file(tmp_path, capsys):
+    (tmp_path / "d.pddl").write_text(DOMAIN)
+    (tmp_path / "p.pddl").write_text("(define (problem u) (:domain d)")
+    code, out, err = run(["plan", "--domain", tmp_path / "d.pddl", "--problem",
+                          tmp_path / "p.pddl", "--json"], capsys)
+    assert_bad_input(code, out, err,
+                     f"symplan plan: error: {tmp_path / 'p.pddl'}: malformed PDDL: unbalanced")
+    # Balanced but not PDDL the planner reads: named with both files.
+    (tmp_path / "p.pddl").write_text(UNSOLVABLE.replace("(p o)", "(zz o)"))
+    code, out, err = run(["plan", "--domain", tmp_path / "d.pddl", "--problem",
+                          tmp_path / "p.pddl", "--planner", "fd"], capsys)
+    assert_bad_input(code, out, err, f"{tmp_path / 'd.pddl'} and {tmp_path / 'p.pddl'}: ")
+
+
+@pytest.mark.parametrize("planner", ["fd", "pyperplan"])
+def test_unsolvable_problem_exits_1_and_prints_its_json(planner, tmp_path, capsys):
+    (tmp_path / "d.pddl").write_text(DOMAIN)
+    (tmp_path / "p.pddl").write_text(UNSOLVABLE)
+    code, out, err = run(["plan", "--domain", tmp_path / "d.pddl", "--problem",
+                          tmp_path / "p.pddl", "--planner", planner, "--json"], capsys)
+    assert code == 1 and err == ""
+    result = json.loads(out)
+    assert result["status"] == "unsolvable" and result["plan"] == []
+
+
+def test_missing_files_are_one_line_naming_them(tmp_path, capsys):
+    (tmp_path / "d.pddl").write_text(DOMAIN)
+    missing = tmp_path / "missing"
+    for argv, expected in [
+        (["plan", "--domain", tmp_path / "d.pddl", "--problem", missing],
+         f"symplan plan: error: no PDDL file {missing}"),
+        (["data", "stats", missing], f"symplan data stats: error: {missing}"),
+        (["act", "--scene", missing, "--pick", "o0:center", "--place", "o1:center"],
+         f"symplan act: error: scene file {missing} does not exist"),
+        (["train", "--config", missing], f"symplan train: error: {missing}: no such file"),
+        (["operators", "--symbols", missing, "--out", tmp_path / "ops"],
+         f"symplan operators: error: no symbols file {missing}"),
+        (["eval", "effects", missing], f"symplan eval effects: error: run directory {missing}"),
+    ]:
+        code, out, err = run(argv, capsys)
+        assert_bad_input(code, out, err, expected)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.pddl"]
+
+
+def test_negative_answers_exit_1_and_print_like_any_result(monkeypatch, capsys):
+    fake = types.ModuleType("fake_cmds")
+
+    def register(subparsers):
+        p = subparsers.add_parser("probe")
+        p.add_argument("--json", action="store_true")
+        p.add_argument("--ok", action="store_true")
+        p.set_defaults(func=lambda args: {"status": "ok"} if args.ok
+                       else NegativeAnswer(status="infeasible"))
+
+    fake.register = register
+    monkeypatch.setitem(sys.modules, "fake_cmds", fake)
+    monkeypatch.setattr(cli_main, "COMMAND_MODULES", ["fake_cmds"])
+    assert run(["probe", "--json"], capsys) == (1, '{\n  "status": "infeasible"\n}\n', "")
+    assert run(["probe", "--json", "--ok"], capsys)[0] == 0
+    code, out, err = run(["probe", "--nope"], capsys)
+    assert_bad_input(code, out, err, "symplan: error: unrecognized arguments: --nope")
