@@ -129,3 +129,16 @@ def test_negative_answers_exit_1_and_print_like_any_result(monkeypatch, capsys):
     assert run(["probe", "--json", "--ok"], capsys)[0] == 0
     code, out, err = run(["probe", "--nope"], capsys)
     assert_bad_input(code, out, err, "symplan: error: unrecognized arguments: --nope")
+
+
+def test_help_says_what_the_tool_does_and_lists_the_pipeline_in_order(capsys):
+    code, out, err = run(["--help"], capsys)
+    assert code == 0 and err == ""
+    assert out.split("\n\n")[1].startswith("A UR10 in Drake explores pick/place actions")
+    assert "COMMAND_MODULES" not in out and "dispatches" not in out
+    lines = out.split("The pipeline, in order:\n")[1].split("\n\n")[0].splitlines()
+    names = [line[:16].strip() for line in lines]
+    assert names == ["scene sample", "act", "perceive", "collect", "data stats", "train",
+                     "eval effects", "symbols", "operators", "plan"]
+    for name in names:  # every one is a command
+        assert run([*name.split(), "--help"], capsys)[0] == 0

@@ -1,4 +1,5 @@
-"""`symplan` entry point: dispatches to the command modules in COMMAND_MODULES.
+"""`symplan` entry point: builds the parser from the command modules in COMMAND_MODULES,
+runs the command and maps its outcome to the exit status.
 
 Every command keeps one contract, enforced here: exit status 0 when it did its job, 1
 when it ran but its answer is negative (no plan, unsolvable, timeout, infeasible action:
@@ -14,6 +15,7 @@ import importlib
 import json
 import re
 import sys
+import textwrap
 
 # Each module defines `register(subparsers)`, which adds its sub-commands and sets
 # `func` on them; a func takes the parsed args and returns a JSON-able dict (printed
@@ -28,6 +30,30 @@ COMMAND_MODULES = [
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2
+
+# The commands in pipeline order, for `symplan --help`.
+PIPELINE = (
+    ("scene sample", "write a random valid scene file (YAML)"),
+    ("act", "execute one pick/place on a scene in full physics"),
+    ("perceive", "perceive a scene with the depth cameras"),
+    ("collect", "collect random-exploration transitions into a data set"),
+    ("data stats", "summarise a data set"),
+    ("train", "train an effect model (RelationalDeepSym or a baseline) on a data set"),
+    ("eval effects", "test-set effect error of trained runs"),
+    ("symbols", "read unary and relational symbols of a data set out of a trained run"),
+    ("operators", "learn lifted operators from the symbols and write a PDDL domain"),
+    ("plan", "plan on a PDDL domain and problem (Fast Downward or pyperplan)"),
+)
+DESCRIPTION = "\n\n".join([
+    textwrap.fill("A UR10 in Drake explores pick/place actions on blocks it perceives with "
+                  "depth cameras; models learn unary and relational symbols from the effects, "
+                  "and lifted operators over those symbols make a PDDL domain to plan with.", 88),
+    "The pipeline, in order:\n" + "\n".join(f"  {name:<14}{summary}"
+                                             for name, summary in PIPELINE),
+    textwrap.fill("`symplan COMMAND --help` tells a command's options. Exit status: 0 done, 1 "
+                  "a negative answer (no plan, unsolvable, timeout, infeasible action), 2 bad "
+                  "input.", 88),
+])
 
 
 class CommandError(Exception):
@@ -63,7 +89,8 @@ def positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = Parser(prog="symplan", description=__doc__)
+    parser = Parser(prog="symplan", description=DESCRIPTION,
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
     subparsers = parser.add_subparsers(dest="command", required=True)
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(subparsers)
