@@ -27,6 +27,7 @@ COMMAND_MODULES = [
     "drake_symplan.cli.data_cmds",
     "drake_symplan.cli.learning_cmds",
     "drake_symplan.cli.planning_cmds",
+    "drake_symplan.cli.agent_cmds",
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2

@@ -2,6 +2,16 @@
 
 Frames: world origin at the robot base, table top at z = 0. Positions are box centres;
 a long block's long axis is its local y.
+
+An object's orientation is its `yaw` (radians about world z) or, for poses a yaw cannot
+express (a block tipped over a cube's edge, a block standing on its end), `rpy: [roll,
+pitch, yaw]` (radians, Drake's RollPitchYaw: R = Rz(yaw) Ry(pitch) Rx(roll)); a file gives
+one or the other, and `yaw` is then rpy's third angle. Upright objects (local z within
+TILT_TOL of world z, up or down) must rest on the table or on another upright box; a
+tilted object is not checked for support or overlap (physics settles it where it lands),
+and an upright object above the table with a tilted object under its footprint is taken
+as resting on it. Scenes written from a simulator's settled poses use `rpy` for the
+tilted objects only (`scene_to_yaml`).
 """
 
 from __future__ import annotations
@@ -25,6 +35,7 @@ MAX_OBJECTS = 8
 # of another box's top, with overlapping footprints.
 _SUPPORT_TOL = 0.005
 _OVERLAP_TOL = 1e-4
+TILT_TOL = math.radians(1.0)  # rad: a body z axis this close to world z (or -z) is upright
 
 
 class SceneError(ValueError):
@@ -37,10 +48,28 @@ class ObjectSpec:
     type: str = "cube"
     position: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, 0.0])
     yaw: float = 0.0
+    rpy: list[float] | None = None  # full orientation; None: upright at `yaw`
+
+    def __post_init__(self):
+        if self.rpy is not None and len(self.rpy) == 3:
+            self.yaw = float(self.rpy[2])  # one yaw, whichever field the caller set
 
     @property
     def half_extents(self) -> np.ndarray:
         return np.array(HALF_EXTENTS[self.type])
+
+    @property
+    def orientation(self) -> list[float]:
+        """[roll, pitch, yaw] (radians): `rpy`, or [0, 0, yaw] for an upright object."""
+        return list(self.rpy) if self.rpy is not None else [0.0, 0.0, self.yaw]
+
+    @property
+    def tilted(self) -> bool:
+        """Is the local z axis more than TILT_TOL away from world z (and from -z)?"""
+        if self.rpy is None:
+            return False
+        roll, pitch, _ = self.rpy
+        return abs(math.cos(roll) * math.cos(pitch)) < math.cos(TILT_TOL)
 
 
 @dc.dataclass
@@ -93,15 +122,19 @@ def validate_scene(scene: Scene) -> Scene:
             )
         if len(o.position) != 3 or not all(math.isfinite(v) for v in o.position):
             raise SceneError(f"object {o.name!r} position must be 3 finite numbers")
+        if o.rpy is not None and (len(o.rpy) != 3 or not all(math.isfinite(v) for v in o.rpy)):
+            raise SceneError(f"object {o.name!r} rpy must be 3 finite numbers")
         x, y, _ = o.position
         if not (WORKSPACE_X[0] <= x <= WORKSPACE_X[1] and WORKSPACE_Y[0] <= y <= WORKSPACE_Y[1]):
             raise SceneError(
                 f"object {o.name!r} at ({x:.3f}, {y:.3f}) is outside the workspace "
                 f"x in {WORKSPACE_X}, y in {WORKSPACE_Y}"
             )
-    for i, a in enumerate(scene.objects):
+    upright = [o for o in scene.objects if not o.tilted]
+    tilted = [o for o in scene.objects if o.tilted]
+    for i, a in enumerate(upright):
         za, ha = a.position[2], HALF_EXTENTS[a.type][2]
-        for b in scene.objects[i + 1:]:
+        for b in upright[i + 1:]:
             zb, hb = b.position[2], HALF_EXTENTS[b.type][2]
             z_overlap = min(za + ha, zb + hb) - max(za - ha, zb - hb)
             if z_overlap > _SUPPORT_TOL and _footprints_overlap(a, b, _OVERLAP_TOL):
@@ -112,8 +145,8 @@ def validate_scene(scene: Scene) -> Scene:
         supported = any(
             abs(bottom - (b.position[2] + HALF_EXTENTS[b.type][2])) <= _SUPPORT_TOL
             and _footprints_overlap(a, b, _OVERLAP_TOL)
-            for b in scene.objects if b is not a
-        )
+            for b in upright if b is not a
+        ) or any(b.position[2] < za and _footprints_overlap(a, b, _OVERLAP_TOL) for b in tilted)
         if not supported:
             raise SceneError(
                 f"object {a.name!r} (bottom at z = {bottom:.3f}) rests on neither the table "
@@ -135,9 +168,17 @@ def scene_from_dict(data: object, source: str = "scene") -> Scene:
         if unknown:
             raise SceneError(f"malformed {source}: objects[{i}] has unknown keys {sorted(unknown)}")
         try:
+            rpy = None if item.get("rpy") is None else [float(v) for v in item["rpy"]]
+            yaw = float(item.get("yaw", 0.0))
+            if rpy is not None:
+                if len(rpy) != 3:
+                    raise ValueError(f"rpy must be [roll, pitch, yaw], got {rpy}")
+                if "yaw" in item and not math.isclose(yaw, rpy[2], abs_tol=1e-6):
+                    raise ValueError(f"yaw {yaw} differs from rpy's yaw {rpy[2]}")
+                yaw = rpy[2]
             objects.append(ObjectSpec(
                 name=str(item["name"]), type=str(item.get("type", "cube")),
-                position=[float(v) for v in item["position"]], yaw=float(item.get("yaw", 0.0))))
+                position=[float(v) for v in item["position"]], yaw=yaw, rpy=rpy))
         except (KeyError, TypeError, ValueError) as e:
             raise SceneError(f"malformed {source}: objects[{i}]: {e!r}") from e
     return Scene(objects)
@@ -161,9 +202,12 @@ def scene_to_yaml(scene: Scene) -> str:
     lines = ["objects:"]
     for o in scene.objects:
         pos = ", ".join(f"{v:.4f}" for v in o.position)
-        lines.append(
-            f"  - {{name: {o.name}, type: {o.type}, position: [{pos}], yaw: {o.yaw:.4f}}}"
-        )
+        if o.rpy is not None:
+            angles = ", ".join(f"{v:.4f}" for v in o.rpy)
+            pose = f"rpy: [{angles}]"
+        else:
+            pose = f"yaw: {o.yaw:.4f}"
+        lines.append(f"  - {{name: {o.name}, type: {o.type}, position: [{pos}], {pose}}}")
     return "\n".join(lines) + "\n"
 
 

@@ -1,0 +1,201 @@
+"""The planning evaluation (paper IV-C and its planning figure): model bundles solve the
+same problem set, with execution monitoring and without it (open-loop, as the paper).
+
+`evaluate_planning` runs every (run, monitoring, problem) with one station and returns per
+run and monitoring mode: the success rate overall, by object count and by k; the planning
+time; the length of the first plan against k; the failure causes with counts; and beside
+the perceived check, the simulator's (`success_true`: every object's simulated final
+position within 5 cm of its position in goal.yaml; evaluation only). `records` holds one
+line per solve; with `records_path` each is appended to a JSON-lines file as it finishes,
+and a re-run skips the solves already there (resume).
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from drake_symplan.agent.problems import load_problems
+from drake_symplan.agent.solve import GOAL_TOLERANCE
+
+MODES = {True: "monitor", False: "open_loop"}
+
+
+def run_label(run) -> str:
+    """A run directory's label in the results: its last two path parts."""
+    parts = Path(run).resolve().parts
+    return "/".join(parts[-2:]) if len(parts) > 1 else str(run)
+
+
+def true_success(objects: dict, goal_scene) -> bool:
+    """The simulator's check: every final_true within GOAL_TOLERANCE of goal.yaml."""
+    for o in goal_scene.objects:
+        final = objects.get(o.name, {}).get("final_true")
+        if final is None or np.linalg.norm(np.subtract(final, o.position)) > GOAL_TOLERANCE:
+            return False
+    return True
+
+
+def solve_record(agent, bundle, problem: dict, planner: str, timeout: float, monitor: bool,
+                 max_replans: int) -> dict:
+    """One solve of `problem` (a load_problems entry) as an evaluation record."""
+    from drake_symplan.world.scenes import load_scene
+
+    folder = Path(problem["dir"])
+    start, goal = load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml")
+    result = agent.solve(start, goal, bundle, planner, timeout, monitor, max_replans)
+    return {
+        "problem": str(folder), "n_objects": problem["n_objects"], "k": problem["k"],
+        "monitor": monitor, "status": result.status, "failure_cause": result.failure_cause,
+        "success_true": true_success(result.objects, goal), "plan_length": len(result.plan),
+        "executed": len(result.executed), "replans": result.replans,
+        "seconds": {k: round(v, 4) for k, v in result.seconds.items()},
+        "error_cm": {n: o["error_cm"] for n, o in result.objects.items()},
+    }
+
+
+def evaluate_planning(runs: list, problems_dir, planner: str = "fd", backend: str = "arm",
+                      monitor=(True, False), timeout: float = 10.0, max_replans: int = 2,
+                      limit: int | None = None, records_path=None, agent=None,
+                      load_bundle=None, progress=None) -> dict:
+    """Solves every problem under `problems_dir` with each run's bundle (`runs`: bundle
+    directories), with and without monitoring; returns {"settings", "runs": {label: {mode:
+    summary}}, "records": [...]}. `load_bundle(run)` defaults to ModelBundle.load."""
+    if not runs:
+        raise ValueError("give at least one run (a model bundle directory)")
+    problems = load_problems(problems_dir)[:limit]
+    if load_bundle is None:
+        from drake_symplan.symbolic.bundle import ModelBundle
+
+        load_bundle = ModelBundle.load
+    bundles = {run_label(run): load_bundle(run) for run in runs}  # bad runs fail up front
+    done, records = _resume(records_path)
+    if agent is None:
+        from drake_symplan.agent.solve import Agent
+
+        agent = Agent(backend)
+    for label, bundle in bundles.items():
+        for mode in monitor:
+            for problem in problems:
+                key = (label, bool(mode), str(Path(problem["dir"])))
+                if key in done:
+                    continue
+                record = {"run": label, **solve_record(agent, bundle, problem, planner, timeout,
+                                                       bool(mode), max_replans)}
+                records.append(record)
+                if records_path is not None:
+                    with open(records_path, "a") as f:
+                        f.write(json.dumps(record) + "\n")
+                if progress:
+                    progress(record)
+    wanted = {(label, bool(mode), str(Path(p["dir"])))
+              for label in bundles for mode in monitor for p in problems}
+    records = [r for r in records if (r["run"], r["monitor"], r["problem"]) in wanted]
+    return {"settings": {"problems_dir": str(problems_dir), "problems": len(problems),
+                         "planner": planner, "backend": backend, "timeout": timeout,
+                         "max_replans": max_replans},
+            "runs": summarise(records), "records": records}
+
+
+def _resume(records_path) -> tuple[set, list[dict]]:
+    if records_path is None or not Path(records_path).is_file():
+        return set(), []
+    records = [json.loads(line) for line in Path(records_path).read_text().splitlines()
+               if line.strip()]
+    return {(r["run"], r["monitor"], r["problem"]) for r in records}, records
+
+
+def _rate(records: list[dict], key: str = "status") -> float:
+    if key == "status":
+        return sum(r["status"] == "success" for r in records) / len(records)
+    return sum(bool(r[key]) for r in records) / len(records)
+
+
+def _group(records: list[dict], field: str) -> dict[str, dict]:
+    groups = defaultdict(list)
+    for r in records:
+        groups[r[field]].append(r)
+    out = {}
+    for value in sorted(groups):
+        rs = groups[value]
+        out[str(value)] = {"problems": len(rs), "success": round(_rate(rs), 4),
+                           "success_true": round(_rate(rs, "success_true"), 4),
+                           "plan_length_mean": round(float(np.mean([r["plan_length"]
+                                                                    for r in rs])), 3)}
+    return out
+
+
+def summarise(records: list[dict]) -> dict:
+    """{run: {"monitor"|"open_loop": summary}} over evaluation records."""
+    out: dict[str, dict] = {}
+    by_run = defaultdict(list)
+    for r in records:
+        by_run[(r["run"], MODES[r["monitor"]])].append(r)
+    for (run, mode), rs in sorted(by_run.items()):
+        plan_s = [r["seconds"]["plan"] for r in rs]
+        solved = [r for r in rs if r["plan_length"] > 0]
+        out.setdefault(run, {})[mode] = {
+            "problems": len(rs),
+            "success": round(_rate(rs), 4),
+            "success_true": round(_rate(rs, "success_true"), 4),
+            "by_objects": _group(rs, "n_objects"),
+            "by_k": _group(rs, "k"),
+            "plan_seconds": {"median": round(statistics.median(plan_s), 4),
+                             "mean": round(float(np.mean(plan_s)), 4)},
+            "plan_length_minus_k": round(float(np.mean(
+                [r["plan_length"] - r["k"] for r in solved])), 3) if solved else None,
+            "replans_mean": round(float(np.mean([r["replans"] for r in rs])), 3),
+            "failure_causes": dict(Counter(r["failure_cause"] for r in rs
+                                           if r["status"] != "success").most_common()),
+        }
+    return out
+
+
+def plot_planning(summary: dict, path) -> None:
+    """Success rate against k and against the object count, plan length against k, and the
+    failure causes, one line or bar per run and monitoring mode."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    causes = sorted({c for modes in summary.values() for s in modes.values()
+                     for c in s["failure_causes"]})
+    series = [(f"{run} ({mode})", s) for run, modes in summary.items()
+              for mode, s in modes.items()]
+    width = 0.8 / max(len(series), 1)
+    for i, (label, s) in enumerate(series):
+        style = "-o" if "monitor" in label else "--s"
+        ks = sorted(s["by_k"], key=int)
+        axes[0].plot([int(k) for k in ks], [s["by_k"][k]["success"] for k in ks], style,
+                     label=label)
+        ns = sorted(s["by_objects"], key=int)
+        axes[1].plot([int(n) for n in ns], [s["by_objects"][n]["success"] for n in ns], style,
+                     label=label)
+        axes[2].plot([int(k) for k in ks], [s["by_k"][k]["plan_length_mean"] for k in ks],
+                     style, label=label)
+        axes[3].bar(np.arange(len(causes)) + i * width,
+                    [s["failure_causes"].get(c, 0) for c in causes], width, label=label)
+    ks_all = sorted({int(k) for _, s in series for k in s["by_k"]})
+    if ks_all:
+        axes[2].plot(ks_all, ks_all, ":", color="grey", label="plan length = k")
+    for ax, xlabel, ylabel in ((axes[0], "k (actions that made the goal)", "success rate"),
+                               (axes[1], "objects", "success rate"),
+                               (axes[2], "k", "first plan length (mean)")):
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylim(-0.02, 1.02)
+    axes[1].set_ylim(-0.02, 1.02)
+    axes[3].set_xticks(np.arange(len(causes)) + 0.4 - width / 2, causes, rotation=20)
+    axes[3].set_ylabel("failures")
+    axes[0].legend(fontsize=7)
+    fig.suptitle("Planning evaluation: solved within 5 cm (perceived check)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

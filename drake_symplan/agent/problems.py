@@ -1,0 +1,189 @@
+"""Random problem sets, as in the paper's planning experiment: a random start scene, k random
+actions executed by the robot, the scene they leave is the goal.
+
+Each kept problem is a directory `pNNN/` with
+- `start.yaml`: the sampled start scene (world/scenes.py format);
+- `goal.yaml`: the end state as the *simulator* left it (positions and orientations of the
+  settled bodies; tilted objects with `rpy`). It is a world description, not a belief:
+  `solve` only puts it on the table and perceives it, and so the goal a planner sees is the
+  perceived one;
+- `problem.json`: {"k", "seed", "n_objects"} and bookkeeping (the actions, how far the
+  farthest object moved). `seed` alone regenerates the problem: numpy's
+  default_rng(seed) drives the scene sampler and the actions.
+
+Actions are chosen over the *perceived* objects (data/exploration.random_action), each
+executed on the perceived scene, whose names follow the objects through perception's
+association. Only non-trivial goals are kept: some object ends more than 5 cm from where it
+was perceived at the start (`is_nontrivial`; the peer counted goals that already held as
+solved). A problem is also dropped when an object leaves the table, perception loses an
+object, the goal file does not re-render to what was perceived (`goal_unstable`), or the
+goal is not a valid scene; `problems.json` counts the reasons.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from drake_symplan.agent import beliefs
+
+NONTRIVIAL_DISTANCE = 0.05  # m: a goal is non-trivial if some object moved farther
+GOAL_RERENDER_TOLERANCE = 0.02  # m: the goal file, shown and perceived, vs the end state
+MAX_INFEASIBLE = 10  # unreachable actions in a row before the attempt is given up
+SUMMARY = "problems.json"
+
+
+def displacement(start: dict[str, np.ndarray], end: dict[str, np.ndarray]) -> float:
+    """The largest distance (m) an object of `start` moved to its position in `end`."""
+    missing = sorted(set(start) - set(end))
+    if missing:
+        raise ValueError(f"objects {missing} have no end position")
+    return max((float(np.linalg.norm(np.asarray(end[n]) - np.asarray(p)))
+                for n, p in start.items()), default=0.0)
+
+
+def is_nontrivial(start: dict[str, np.ndarray], end: dict[str, np.ndarray],
+                  distance: float = NONTRIVIAL_DISTANCE) -> bool:
+    """Does some object end more than `distance` from its start position?"""
+    return displacement(start, end) > distance
+
+
+def scene_from_poses(poses: dict, types: dict[str, str]):
+    """A scene (world.scenes.Scene) of bodies at `poses` (name -> RigidTransform): upright
+    objects with their yaw, tilted ones with their full rpy."""
+    from pydrake.math import RollPitchYaw
+
+    from drake_symplan.world.scenes import TILT_TOL, ObjectSpec, Scene
+
+    objects = []
+    for name, X in poses.items():
+        R = X.rotation()
+        rpy = RollPitchYaw(R).vector()
+        upright = abs(R.matrix()[2, 2]) >= np.cos(TILT_TOL)
+        objects.append(ObjectSpec(name, types[name], [float(v) for v in X.translation()],
+                                  float(rpy[2]), None if upright else [float(v) for v in rpy]))
+    return Scene(objects)
+
+
+def problem_seed(seed: int, attempt: int) -> int:
+    """The seed of attempt `attempt` of a set seeded `seed` (stored in problem.json)."""
+    return int(np.random.SeedSequence([seed, attempt]).generate_state(1)[0])
+
+
+def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float = 0.5):
+    """(start, goal, info) for one random problem, or the reason it was dropped (a string)."""
+    from drake_symplan.data.exploration import left_workspace, random_action
+    from drake_symplan.world.scenes import SceneError, sample_scene, validate_scene
+
+    rng = np.random.default_rng(seed)
+    start = sample_scene(rng, n_objects, long_fraction=long_fraction)
+    seen = agent.look(start)
+    if seen.lost or seen.extra:
+        return "perception_start"
+    first = now = seen.scene
+    actions, infeasible = [], 0
+    while len(actions) < k:
+        action = random_action(rng, now.names)
+        execution = agent.backend.execute(action, now)
+        if execution.status == "infeasible":
+            infeasible += 1
+            if infeasible >= MAX_INFEASIBLE:
+                return "too_many_infeasible"
+            continue
+        if execution.status != "ok":
+            return "sim_failure"
+        infeasible = 0
+        actions.append(str(action))
+        seen = beliefs.follow(now, execution.after, action)
+        if left_workspace(agent.backend.ground_truth_states()):
+            return "left_table"
+        if seen.lost:
+            return "perception_lost"
+        now = seen.scene
+    end = beliefs.positions(now)
+    moved = displacement(beliefs.positions(first), end)
+    if moved <= NONTRIVIAL_DISTANCE:
+        return "trivial"
+    goal = scene_from_poses(agent.station.object_poses(), agent.station.types)
+    try:
+        validate_scene(goal)
+    except SceneError:
+        return "goal_invalid"
+    shown = agent.look(goal)
+    if shown.lost or displacement(end, beliefs.positions(shown.scene)) > GOAL_RERENDER_TOLERANCE:
+        return "goal_unstable"
+    return start, goal, {"actions": actions, "moved_cm": round(moved * 100, 2)}
+
+
+def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: str = "arm",
+                  max_attempts: int | None = None, agent=None, progress=None) -> dict:
+    """Writes `count` non-trivial problems with `n_objects` objects to `out_dir`/pNNN.
+
+    `k`: actions per problem, an int or a list taken in turn. A re-run with the same
+    arguments resumes (existing problems are kept; attempts go on from the last one).
+    Returns the summary written to `out_dir`/problems.json."""
+    from drake_symplan.atomic import write_atomic
+    from drake_symplan.world.scenes import save_scene
+
+    ks = [int(k)] if np.isscalar(k) else [int(v) for v in k]
+    if not ks or min(ks) < 1:
+        raise ValueError(f"k must be at least 1, got {k}")
+    if count < 1:
+        raise ValueError(f"count must be at least 1, got {count}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    summary_path = out / SUMMARY
+    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    settings = {"n_objects": n_objects, "k": ks, "seed": seed, "backend": backend}
+    if summary and summary.get("settings") != settings:
+        raise ValueError(f"{out} holds problems made with {summary.get('settings')}, "
+                         f"not {settings}")
+    kept = len(list(out.glob("p*/problem.json")))
+    attempt = summary.get("attempts", 0)
+    rejected = Counter(summary.get("rejected", {}))
+    max_attempts = max_attempts if max_attempts is not None else 20 * count
+    if agent is None and kept < count:
+        from drake_symplan.agent.solve import Agent
+
+        agent = Agent(backend)
+    while kept < count and attempt < max_attempts:
+        kk = ks[kept % len(ks)]
+        pseed = problem_seed(seed, attempt)
+        attempt += 1
+        made = make_problem(agent, pseed, n_objects, kk)
+        if isinstance(made, str):
+            rejected[made] += 1
+        else:
+            start, goal, info = made
+            folder = out / f"p{kept:03d}"
+            folder.mkdir(exist_ok=True)
+            save_scene(start, folder / "start.yaml")
+            save_scene(goal, folder / "goal.yaml")
+            record = {"k": kk, "seed": pseed, "n_objects": n_objects, "backend": backend,
+                      "attempt": attempt - 1, **info}
+            write_atomic(folder / "problem.json", json.dumps(record, indent=1) + "\n")
+            kept += 1
+        summary = {"settings": settings, "kept": kept, "attempts": attempt,
+                   "rejected": dict(sorted(rejected.items()))}
+        write_atomic(summary_path, json.dumps(summary, indent=1) + "\n")
+        if progress:
+            progress(summary)
+    return summary
+
+
+def load_problems(problems_dir) -> list[dict]:
+    """Every problem under `problems_dir` (any depth): its problem.json plus "dir"."""
+    root = Path(problems_dir)
+    if not root.is_dir():
+        raise FileNotFoundError(f"no problems directory {root}")
+    found = []
+    for path in sorted(root.glob("**/problem.json")):
+        record = json.loads(path.read_text())
+        record["dir"] = str(path.parent)
+        found.append(record)
+    if not found:
+        raise ValueError(f"no problems (*/problem.json) under {root}")
+    return found

@@ -1,0 +1,166 @@
+"""`symplan solve`, `symplan problems make`, `symplan eval planning`: the closed loop.
+
+    symplan solve --start start.yaml --goal goal.yaml [--model DIR] [--planner fd|pyperplan]
+                  [--timeout 10] [--no-monitor] [--meshcat] [--record out.html] --json
+    symplan problems make --out DIR --objects N --k K [K ...] --count C --seed S
+    symplan eval planning --runs RUN [RUN ...] --problems DIR --json --plot out.png
+
+Exit status: 0 solved (made, evaluated), 1 a verdict that is not success, 2 bad input (one
+line on stderr). Drake and torch are imported inside the command functions.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from drake_symplan.cli.learning_cmds import eval_subparsers
+from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
+
+PLANNERS = ("fd", "pyperplan")
+BACKENDS = ("arm", "hand")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "solve", help="solve a goal scene from a start scene in full physics",
+        description="Perceives both scenes, plans with a model bundle's symbols and domain, "
+        "executes the plan with the robot and checks every object within 5 cm of the "
+        "perceived goal.")
+    p.add_argument("--start", required=True, type=Path, help="start scene YAML")
+    p.add_argument("--goal", required=True, type=Path,
+                   help="goal scene YAML (only perceived; the file names the objects)")
+    p.add_argument("--model", type=Path, default=None,
+                   help="model bundle directory (default: the shipped models/learned/)")
+    p.add_argument("--planner", choices=PLANNERS, default="fd")
+    p.add_argument("--timeout", type=float, default=10.0, help="planner seconds (default 10)")
+    p.add_argument("--no-monitor", action="store_true",
+                   help="run the first plan open-loop (no replanning on a mismatch)")
+    p.add_argument("--max-replans", type=int, default=2)
+    p.add_argument("--backend", choices=BACKENDS, default="arm",
+                   help="arm: the UR10 in full physics (default); hand: the fast hand")
+    p.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
+    p.add_argument("--record", type=Path, help="write a self-contained HTML recording here")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_solve)
+
+    problems = subparsers.add_parser("problems", help="planning problem sets")
+    problems_sub = problems.add_subparsers(dest="problems_command", required=True)
+    p = problems_sub.add_parser(
+        "make", help="random non-trivial problems: a start scene, k random actions, the end "
+        "state as goal")
+    p.add_argument("--out", required=True, type=Path, help="directory (a re-run resumes)")
+    p.add_argument("--objects", required=True, type=positive_int, help="objects per scene")
+    p.add_argument("--k", required=True, type=positive_int, nargs="+",
+                   help="actions per problem; several values are taken in turn")
+    p.add_argument("--count", required=True, type=positive_int, help="problems to keep")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--backend", choices=BACKENDS, default="arm")
+    p.add_argument("--max-attempts", type=positive_int, default=None,
+                   help="give up after this many attempts (default 20 x count)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_problems_make)
+
+    p = eval_subparsers(subparsers).add_parser(
+        "planning", help="success rates of model bundles on a problem set, with and "
+        "without monitoring")
+    p.add_argument("--runs", required=True, nargs="+", type=Path,
+                   help="model bundle directories")
+    p.add_argument("--problems", required=True, type=Path,
+                   help="problem set directory (problems at any depth)")
+    p.add_argument("--planner", choices=PLANNERS, default="fd")
+    p.add_argument("--backend", choices=BACKENDS, default="arm",
+                   help="arm: the headline; hand: for large sweeps, reported as such")
+    p.add_argument("--timeout", type=float, default=10.0)
+    p.add_argument("--monitor", choices=("both", "on", "off"), default="both")
+    p.add_argument("--max-replans", type=int, default=2)
+    p.add_argument("--limit", type=positive_int, default=None, help="first N problems only")
+    p.add_argument("--records", type=Path, default=None,
+                   help="append one JSON line per solve here; a re-run resumes from it")
+    p.add_argument("--plot", type=Path, default=None, help="write the figure to this PNG")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_eval_planning)
+
+
+def load_bundle(path: Path | None):
+    """The model bundle at `path` (None: the shipped default); BundleError is bad input."""
+    from drake_symplan.symbolic.bundle import ModelBundle
+
+    if path is not None and not path.is_dir():
+        raise CommandError(f"no model directory {path}")
+    return ModelBundle.load(path)
+
+
+def _check_planning(args) -> None:
+    if not args.timeout > 0:
+        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
+    if args.max_replans < 0:
+        raise CommandError(f"--max-replans must be 0 or more, got {args.max_replans}")
+
+
+def cmd_solve(args: argparse.Namespace) -> dict:
+    from drake_symplan.agent.beliefs import check_scene_pair
+    from drake_symplan.world.scenes import load_scene
+
+    _check_planning(args)
+    start, goal = load_scene(args.start), load_scene(args.goal)
+    check_scene_pair(start, goal)
+    bundle = load_bundle(args.model)
+
+    from drake_symplan.agent.solve import solve
+    from drake_symplan.world.visualization import StartMeshcat
+
+    meshcat = StartMeshcat() if (args.meshcat or args.record) else None
+    result = solve(start, goal, bundle, args.planner, args.timeout, not args.no_monitor,
+                   args.max_replans, meshcat=meshcat, record=args.record, backend=args.backend)
+    out = result.to_json()
+    if args.record:
+        out["recording"] = str(args.record)
+    if not args.json:
+        print(f"{result.status}: {len(result.executed)} step(s) executed, {result.replans} "
+              f"replan(s), {result.seconds['total']:.1f} s")
+        for name, o in result.objects.items():
+            print(f"  {name}: {o['error_cm']} cm from its goal")
+        if result.message:
+            print(f"  {result.failure_cause}: {result.message}")
+    if args.meshcat:
+        input("Meshcat is serving the scene; press Enter to quit.")
+    return out if result.success else NegativeAnswer(out)
+
+
+def cmd_problems_make(args: argparse.Namespace) -> dict:
+    from drake_symplan.agent.problems import make_problems
+    from drake_symplan.world.scenes import MAX_OBJECTS
+
+    if not 2 <= args.objects <= MAX_OBJECTS:
+        raise CommandError(f"--objects must be in [2, {MAX_OBJECTS}], got {args.objects}")
+    summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
+                            args.backend, args.max_attempts)
+    out = {"out": str(args.out), **summary}
+    if not args.json:
+        print(f"{summary['kept']} problem(s) in {args.out} after {summary['attempts']} "
+              f"attempt(s); dropped: {summary['rejected']}")
+    return out if summary["kept"] >= args.count else NegativeAnswer(out)
+
+
+def cmd_eval_planning(args: argparse.Namespace) -> dict:
+    from drake_symplan.agent.evaluation import evaluate_planning, plot_planning
+
+    _check_planning(args)
+    for run in args.runs:
+        if not run.is_dir():
+            raise CommandError(f"no model directory {run}")
+    monitor = {"both": (True, False), "on": (True,), "off": (False,)}[args.monitor]
+    result = evaluate_planning(args.runs, args.problems, args.planner, args.backend, monitor,
+                               args.timeout, args.max_replans, args.limit, args.records,
+                               load_bundle=load_bundle)
+    out = {"settings": result["settings"], "runs": result["runs"]}
+    if args.plot:
+        plot_planning(result["runs"], args.plot)
+        out["plot"] = str(args.plot)
+    if not args.json:
+        for run, modes in result["runs"].items():
+            for mode, s in modes.items():
+                print(f"{run} ({mode}): {s['success']:.0%} of {s['problems']} solved; "
+                      f"failures {s['failure_causes']}")
+    return out

@@ -1,0 +1,226 @@
+"""The closed loop on a fake world (no simulator, no learned model): naming perceived boxes
+after the scene file, the monitor's replanning, goal contacts, the check and its JSON.
+
+FakeBackend moves a picked box onto the target's top and perceives exact boxes;
+OracleBundle reads "a rests on b" from the features and plans with a one-action domain
+(Fast Downward or pyperplan run for real)."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+
+from drake_symplan.agent import beliefs
+from drake_symplan.agent.solve import Agent, SolveResult
+from drake_symplan.data.backends import Execution
+from drake_symplan.perception.features import object_features
+from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
+from drake_symplan.structs import Action, ObjectState
+from drake_symplan.symbolic.states import SymbolicState
+from drake_symplan.world.scenes import ObjectSpec, Scene
+
+DOMAIN = """(define (domain oracle) (:requirements :strips :typing) (:types obj)
+ (:predicates (on ?x ?y - obj) (free ?x - obj))
+ (:action pick_center_place_center_n1_op0 :parameters (?a ?b - obj)
+  :precondition (and (free ?a) (free ?b))
+  :effect (and (on ?a ?b) (not (free ?b)))))
+"""
+
+
+class FakeStation:
+    def __init__(self):
+        self.truth: dict[str, np.ndarray] = {}
+        self.types: dict[str, str] = {}
+
+    def reset(self, scene):
+        self.truth = {o.name: np.array(o.position, float) for o in scene.objects}
+        self.types = {o.name: o.type for o in scene.objects}
+
+    def settle(self, seconds):
+        pass
+
+    def object_states(self):
+        return {n: ObjectState(n, self.types[n], p.copy()) for n, p in self.truth.items()}
+
+
+class FakeBackend:
+    """Exact perception of the fake station; pick/place puts the source on the target."""
+
+    perception_seconds = 0.0
+
+    def __init__(self):
+        self.station = FakeStation()
+        self.executed: list[Action] = []
+
+    def perceive(self, prior=None):
+        items = sorted(self.station.truth.items(), key=lambda kv: tuple(kv[1]))
+        objects = [PerceivedObject(f"p{i}", self.station.types[n], p.copy(), 0.0, 0.0,
+                                   object_features(self.station.types[n], p, np.eye(3)),
+                                   False, np.eye(3)) for i, (n, p) in enumerate(items)]
+        contacts = {tuple(sorted((a.name, b.name))) for a in objects for b in objects
+                    if a.name != b.name and _on(a.position, b.position)}
+        return PerceivedScene(objects, contacts)
+
+    def execute(self, action, before):
+        self.executed.append(action)
+        # The belief names are the scene names (the agent names boxes after the file).
+        target = self.station.truth[action.target]
+        self.station.truth[action.source] = target + [0.0, 0.0, 0.05]
+        return Execution("ok", None, self.perceive(before))
+
+
+def _on(a, b) -> bool:
+    return abs(a[2] - b[2] - 0.05) < 0.01 and np.linalg.norm(a[:2] - b[:2]) < 0.03
+
+
+@dc.dataclass
+class Reading:
+    state: SymbolicState
+    unary_uncertain: np.ndarray
+    relational_uncertain: np.ndarray
+
+
+class OracleBundle:
+    """A model bundle that knows the fake world: p0 = free (nothing rests on it),
+    r0(a, b) = a rests on b, read from the features' positions."""
+
+    domain = DOMAIN
+
+    def __init__(self, force_mismatches: int = 0):
+        self.force_mismatches = force_mismatches
+        self.goal_contacts = []
+
+    def read(self, names, features):
+        pos = np.asarray(features)[:, :3]
+        n = len(names)
+        on = np.array([[i != j and _on(pos[i], pos[j]) for j in range(n)] for i in range(n)])
+        free = ~on.any(axis=0)
+        state = SymbolicState(tuple(names), free[:, None], on[None])
+        return Reading(state, np.zeros((n, 1), bool), np.zeros((1, n, n), bool))
+
+    def _atoms(self, reading, pairs=None):
+        s = reading.state
+        atoms = {("free", o) for o, f in zip(s.objects, s.unary[:, 0], strict=True) if f}
+        for i, a in enumerate(s.objects):
+            for j, b in enumerate(s.objects):
+                if s.relational[0, i, j] and (pairs is None or (a, b) in pairs):
+                    atoms.add(("on", a, b))
+        return atoms
+
+    def problem(self, start, goal, goal_contacts, name="goal"):
+        self.goal_contacts.append(set(goal_contacts))
+        pairs = {p for a, b in goal_contacts for p in ((a, b), (b, a))}
+        goal_atoms = {a for a in self._atoms(goal, pairs) if a[0] == "on"}
+        fmt = lambda atoms: " ".join("(" + " ".join(a) + ")" for a in sorted(atoms))  # noqa: E731
+        return (f"(define (problem {name}) (:domain oracle) (:objects "
+                f"{' '.join(start.state.objects)} - obj) (:init {fmt(self._atoms(start))}) "
+                f"(:goal (and {fmt(goal_atoms)})))")
+
+    def action_of(self, step):
+        _, a, b = step.strip("()").split()
+        return Action(a, "center", b, "center")
+
+    def mismatches(self, after, step, before):
+        if self.force_mismatches > 0:
+            self.force_mismatches -= 1
+            return [("free", "forced")]
+        _, a, b = step.strip("()").split()
+        return [] if ("on", a, b) in self._atoms(after) else [("on", a, b)]
+
+
+def cube(name, x, y, z=0.025):
+    return ObjectSpec(name, "cube", [x, y, z])
+
+
+START = Scene([cube("a", 0.6, -0.2), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25)])
+GOAL = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25)])
+
+
+def solve(bundle, monitor=True, max_replans=2, start=START, goal=GOAL) -> tuple[SolveResult,
+                                                                              FakeBackend]:
+    backend = FakeBackend()
+    result = Agent(backend).solve(start, goal, bundle, "fd", 20.0, monitor, max_replans)
+    return result, backend
+
+
+def test_solves_a_one_action_goal_and_reports_the_documented_json():
+    bundle = OracleBundle()
+    result, backend = solve(bundle)
+    assert result.status == "success", result.to_json()
+    assert result.plan == result.executed == ["(pick_center_place_center_n1_op0 a b)"]
+    assert backend.executed == [Action("a", "center", "b", "center")]
+    out = result.to_json()
+    assert set(out) == {"status", "plan", "executed", "replans", "objects", "seconds"}
+    assert set(out["seconds"]) == {"perceive", "symbols", "plan", "execute", "total"}
+    assert set(out["objects"]["a"]) == {"goal", "final", "final_true", "error_cm"}
+    assert out["objects"]["a"]["error_cm"] == 0.0
+    assert out["objects"]["a"]["final_true"] == [0.8, 0.0, 0.075]
+
+
+def test_goal_contacts_are_the_perceived_goal_contacts_under_file_names():
+    bundle = OracleBundle()
+    solve(bundle)
+    assert bundle.goal_contacts[0] == {("a", "b")}  # c touches nothing in the goal
+
+
+def test_the_monitor_replans_on_a_forced_mismatch():
+    result, _ = solve(OracleBundle(force_mismatches=1))
+    assert result.replans == 1
+    assert result.status == "success"  # the replan from the perceived state is empty
+    open_loop, _ = solve(OracleBundle(force_mismatches=1), monitor=False)
+    assert open_loop.replans == 0 and open_loop.status == "success"
+    tower = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.125)])
+    twice, _ = solve(OracleBundle(force_mismatches=5), goal=tower)
+    assert twice.replans == 2 and len(twice.executed) == 2
+    capped, _ = solve(OracleBundle(force_mismatches=5), max_replans=1, goal=tower)
+    assert capped.replans == 1 and capped.status == "success"
+    assert capped.executed == ["(pick_center_place_center_n1_op0 a b)",
+                               "(pick_center_place_center_n1_op0 c a)"]
+
+
+def test_no_plan_is_a_verdict_with_its_cause():
+    # a and c both on b: once one is there, b is not free for the other.
+    goal = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.075)])
+    result, backend = solve(OracleBundle(), goal=goal)
+    assert result.status == "no_plan" and result.failure_cause == "no_plan"
+    assert backend.executed == []
+    assert result.to_json()["failure_cause"] == "no_plan"
+
+
+def test_an_object_left_short_of_its_goal_is_an_execution_failure():
+    class Nudging(FakeBackend):
+        def execute(self, action, before):
+            super().execute(action, before)
+            self.station.truth["c"] = self.station.truth["c"] + [0.0, 0.08, 0.0]
+            return Execution("ok", None, self.perceive(before))
+
+    backend = Nudging()
+    result = Agent(backend).solve(START, GOAL, OracleBundle(), "fd", 20.0, False)
+    assert result.status == "failure" and result.failure_cause == "execution"
+    assert result.objects["c"]["error_cm"] == pytest.approx(8.0)
+
+
+def test_boxes_are_named_after_the_nearest_file_object():
+    seen = PerceivedScene([
+        PerceivedObject("p0", "cube", np.array([0.61, 0.0, 0.025]), 0, 0, np.zeros(9), False,
+                        np.eye(3)),
+        PerceivedObject("p1", "cube", np.array([0.9, 0.3, 0.025]), 0, 0, np.zeros(9), False,
+                        np.eye(3)),
+    ], {("p0", "p1")})
+    spec = Scene([cube("x", 0.6, 0.0), cube("y", 0.6, -0.3)])
+    named = beliefs.name_by_file(seen, spec)
+    assert named.scene.names == ["x"]
+    assert named.lost == ["y"] and named.extra == ["p1"]
+    assert named.scene.contacts == set()  # its partner was not named
+
+
+def test_scene_pairs_must_hold_the_same_objects():
+    with pytest.raises(beliefs.ScenePairError, match="unknown objects in the goal: \\['d'\\]"):
+        beliefs.check_scene_pair(START, Scene([*GOAL.objects, cube("d", 0.5, 0.3)]))
+    with pytest.raises(beliefs.ScenePairError, match="lacks start objects \\['c'\\]"):
+        beliefs.check_scene_pair(START, Scene(GOAL.objects[:2]))
+    longer = Scene([*GOAL.objects[:2], ObjectSpec("c", "long", [0.6, 0.25, 0.025])])
+    with pytest.raises(beliefs.ScenePairError, match="change type"):
+        beliefs.check_scene_pair(START, longer)
