@@ -146,7 +146,7 @@ def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real) -> frozenset:
     """The atoms of one state over object slots (see the module docstring).
 
     unary [N, P], rel [K, N, N] bits; *_unc their uncertainty flags (None: all certain);
-    contacts [N, N] bool; real [N] bool."""
+    contacts [N, N] bool (None: every pair); real [N] bool."""
     return _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real)[0]
 
 
@@ -154,6 +154,8 @@ def _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real):
     """(atoms, unknown): the certain atoms, and the keys (symbol, slots) of the bits that
     would make atoms but are uncertain."""
     slots = np.flatnonzero(real)
+    if contacts is None:
+        contacts = np.ones((len(real), len(real)), bool)
     out, unknown = [], []
     for i in slots:
         for j in range(unary.shape[1]):
@@ -210,23 +212,37 @@ class Lifted:
     bindings: dict  # tuple of other slots (in parameter order) -> slot -> parameter map
 
 
-def lift_transitions(data: SymbolDataset) -> list[Lifted]:
-    """Every transition's slot atom sets and role bindings (contacts required)."""
-    if data.contacts is None or data.next_contacts is None:
-        raise ValueError("effect-first operators need the perceived contacts of each "
+@dataclass(frozen=True)
+class Semantics:
+    """Which bits make atoms. The learner here: certain bits, relations between objects in
+    contact. The paper's operators as implemented (`PAPER`): every bit, every pair."""
+
+    certain_only: bool = True
+    contacts_only: bool = True
+
+
+EFFECT = Semantics()
+PAPER = Semantics(certain_only=False, contacts_only=False)
+
+
+def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list[Lifted]:
+    """Every transition's slot atom sets and role bindings."""
+    if semantics.contacts_only and (data.contacts is None or data.next_contacts is None):
+        raise ValueError("operators over contacts need the perceived contacts of each "
                          "transition (a data set collected with whole scenes)")
     mask = data.mask.astype(bool)
     src, tgt, grasp, release = _roles(data.action, mask)
     out = []
     for t in range(len(data)):
-        unc = [None if a is None else a[t] for a in (
+        unc = [None if a is None or not semantics.certain_only else a[t] for a in (
             data.unary_uncertain, data.relational_uncertain,
             data.next_unary_uncertain, data.next_relational_uncertain)]
+        c0, c1 = ((data.contacts[t], data.next_contacts[t]) if semantics.contacts_only
+                  else (None, None))
         before, unknown_before = _atoms_and_unknown(
-            data.unary[t], unc[0], data.relational[t], unc[1], data.contacts[t], mask[t])
+            data.unary[t], unc[0], data.relational[t], unc[1], c0, mask[t])
         after, unknown_after = _atoms_and_unknown(
-            data.next_unary[t], unc[2], data.next_relational[t], unc[3],
-            data.next_contacts[t], mask[t])
+            data.next_unary[t], unc[2], data.next_relational[t], unc[3], c1, mask[t])
         s, g = int(src[t]), int(tgt[t])
         others = [int(i) for i in np.flatnonzero(mask[t]) if i not in (s, g)]
         bindings = {}
@@ -358,6 +374,18 @@ def predicts(op: EffectOperator, tr: Lifted) -> bool | None:
         if (after - add) <= (before_all - delete):
             return True
     return False if applied else None
+
+
+def from_paper(op, cost_scale: float = 10.0) -> EffectOperator:
+    """The paper's operator (symbolic/operators.py, bit arrays) as atom lists, so that both
+    are measured the same way (reliability, coverage, precision)."""
+    def slots(atoms):
+        return tuple((a[0], *(int(x[2:]) for x in a[1:])) for a in atoms if a[0] != "different")
+
+    add, delete = op.effects()
+    return EffectOperator(op.index, op.grasp, op.release, op.n_params,
+                          slots(op.preconditions()), slots(add), slots(delete), op.count,
+                          cost_scale=cost_scale)
 
 
 def _slots(tr: Lifted) -> set[int]:

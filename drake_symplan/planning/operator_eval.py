@@ -1,0 +1,215 @@
+"""`symplan eval operators`: a learned domain measured at the symbolic level, no arm.
+
+Problems come from held-out episodes (a data set collected with whole scenes, with a seed
+the model never saw): start = the symbols of the perceived scene at step t, goal = the
+symbols at step t+k (unary atoms, and relation atoms only between objects perceived in
+contact then), over steps t..t+k-1 of one identity chain; goals the start already
+satisfies are left out. Each problem is solved once, with one domain (never "solved if
+any of N sampled domains works"). A found plan's reliability is the product of its
+operators' reliabilities.
+
+Beside planning: coverage (held-out transitions whose symbols change and that some
+operator of the action applies to) and precision (of those, the share where one of the
+applicable operators predicts every atom observed after), and a symbol-stability report.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import Counter, defaultdict
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from drake_symplan.planning.planners import plan_pddl
+from drake_symplan.structs import OFFSETS, SceneSymbols, SymbolDataset
+from drake_symplan.symbolic.effect_operators import (
+    EFFECT,
+    EffectOperator,
+    Semantics,
+    _atoms_and_unknown,
+    changes,
+    lift_transitions,
+    predicts,
+)
+from drake_symplan.symbolic.pddl import domain_pddl, problem_from_atoms
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    ks: tuple[int, ...] = (1, 2, 3)
+    planner: str = "fd"
+    timeout: float = 10.0
+    max_problems: int = 50  # per (k, object count), sampled with `seed`
+    seed: int = 0
+    workers: int = 2  # planner calls in parallel
+
+
+@dataclass
+class Problem:
+    k: int
+    n_objects: int
+    objects: tuple[str, ...]
+    init: list
+    goal: list
+
+
+def scene_atoms(scenes: SceneSymbols, row: int, after: bool, semantics: Semantics,
+                names: dict[int, str], contacts_only: bool | None = None) -> list:
+    """Named atoms of a whole scene (before or after the action of `row`)."""
+    p = "next_" if after else ""
+    unc = (lambda a: a[row]) if semantics.certain_only else (lambda a: None)
+    use_contacts = semantics.contacts_only if contacts_only is None else contacts_only
+    contacts = getattr(scenes, f"{p}contacts")[row] if use_contacts else None
+    atoms, _ = _atoms_and_unknown(
+        getattr(scenes, f"{p}unary")[row], unc(getattr(scenes, f"{p}unary_uncertain")),
+        getattr(scenes, f"{p}relational")[row],
+        unc(getattr(scenes, f"{p}relational_uncertain")), contacts, scenes.mask[row])
+    return sorted((a[0], *(names[s] for s in a[1:])) for a in atoms)
+
+
+def make_problems(scenes: SceneSymbols, semantics: Semantics, config: EvalConfig
+                  ) -> list[Problem]:
+    """Non-trivial k-step problems from the chains of the held-out scenes (module doc)."""
+    rng = np.random.default_rng(config.seed)
+    index = {(int(e), int(c), int(s)): i for i, (e, c, s) in
+             enumerate(zip(scenes.episode, scenes.chain, scenes.step, strict=True))}
+    problems = []
+    for k in config.ks:
+        cells: dict[int, list[Problem]] = defaultdict(list)
+        for (e, c, s), i in index.items():
+            rows = [index.get((e, c, s + d)) for d in range(k)]
+            if any(r is None for r in rows):
+                continue
+            j = rows[-1]
+            slots = np.flatnonzero(scenes.mask[i])
+            names = {int(x): f"o{x}" for x in slots}
+            init = scene_atoms(scenes, i, False, semantics, names)
+            # Goal: unary atoms, relations only between objects in contact (paper IV-C).
+            goal = scene_atoms(scenes, j, True, semantics, names, contacts_only=True)
+            if set(goal) <= set(init):
+                continue
+            cells[len(slots)].append(Problem(k, len(slots), tuple(names.values()), init, goal))
+        for n in sorted(cells):
+            chosen = rng.permutation(len(cells[n]))[:config.max_problems]
+            problems += [cells[n][i] for i in sorted(chosen)]
+    return problems
+
+
+def solve_problems(operators: list[EffectOperator], n_unary: int, n_relations: int,
+                   problems: list[Problem], config: EvalConfig) -> list[dict]:
+    """Plans every problem with the domain of `operators`; one result dict per problem."""
+    costs = config.planner == "fd"
+    domain = domain_pddl(operators, n_unary, n_relations, costs=costs)
+    by_name = {op.name: op for op in operators}
+
+    def one(p: Problem) -> dict:
+        text = problem_from_atoms(p.objects, p.init, p.goal, costs=costs)
+        r = plan_pddl(domain, text, config.planner, config.timeout)
+        reliability = math.prod(by_name[s.strip("()").split()[0]].reliability
+                                for s in r.plan) if r.solved else 0.0
+        return {"k": p.k, "objects": p.n_objects, "status": r.status, "length": len(r.plan),
+                "seconds": r.seconds, "reliability": reliability}
+
+    with ThreadPoolExecutor(max(1, config.workers)) as pool:
+        return list(pool.map(one, problems))
+
+
+def prediction_scores(operators: list[EffectOperator], data: SymbolDataset,
+                      semantics: Semantics = EFFECT) -> dict:
+    """Coverage and precision on the transitions whose symbols change (module doc)."""
+    lifted = lift_transitions(data, semantics)
+    by_action = defaultdict(list)
+    for op in operators:
+        by_action[(op.grasp, op.release)].append(op)
+    changed = covered = predicted = 0
+    for tr in lifted:
+        add, delete = changes(tr.before, tr.after, tr.unknown_before, tr.unknown_after)
+        if not add and not delete:
+            continue
+        changed += 1
+        verdicts = [predicts(op, tr) for op in by_action[(OFFSETS[tr.grasp], OFFSETS[tr.release])]]
+        if any(v is not None for v in verdicts):
+            covered += 1
+            predicted += any(verdicts)
+    return {"changed": changed, "coverage": covered / changed if changed else 0.0,
+            "precision": predicted / covered if covered else 0.0}
+
+
+def stability(data: SymbolDataset, outcome: np.ndarray | None,
+              semantics: Semantics = EFFECT) -> dict:
+    """Share of uncertain bits; within groups of equal action and preconditions, how often
+    the most frequent symbolic effect (and physical outcome class) occurs."""
+    mask = data.mask.astype(bool)
+    out = {"uncertain_unary": float(data.unary_uncertain[mask].mean())
+           if data.unary_uncertain is not None else 0.0}
+    if data.n_relations and data.relational_uncertain is not None and data.contacts is not None:
+        touching = data.contacts[:, None] & np.ones(data.n_relations, bool)[None, :, None, None]
+        vals = data.relational_uncertain[touching]
+        out["uncertain_relational_in_contact"] = float(vals.mean()) if vals.size else 0.0
+    groups: dict[tuple, list] = defaultdict(list)
+    for t, tr in enumerate(lift_transitions(data, semantics)):
+        add, delete = changes(tr.before, tr.after, tr.unknown_before, tr.unknown_after)
+        m = tr.bindings[max(tr.bindings, key=len)]
+        pre = frozenset((a[0], *(m[s] for s in a[1:])) for a in tr.before)
+        effect = (frozenset((a[0], *(m[s] for s in a[1:])) for a in add),
+                  frozenset((a[0], *(m[s] for s in a[1:])) for a in delete))
+        cls = int(outcome[t]) if outcome is not None else 0
+        groups[(tr.grasp, tr.release, tr.n, pre)].append((effect, cls))
+    top_effect = top_class = total = 0
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        total += len(members)
+        top_effect += Counter(e for e, _ in members).most_common(1)[0][1]
+        top_class += Counter(c for _, c in members).most_common(1)[0][1]
+    out["effect_consistency"] = top_effect / total if total else 0.0
+    if outcome is not None:
+        out["outcome_consistency"] = top_class / total if total else 0.0
+    return out
+
+
+def summarise(results: list[dict]) -> dict:
+    """`by_k` and `by_objects` tables: solved fraction, problems, mean plan length, median
+    planning seconds, mean reliability over solved problems."""
+    def table(key):
+        cells = defaultdict(list)
+        for r in results:
+            cells[str(r[key])].append(r)
+        return {c: _cell(rs) for c, rs in sorted(cells.items(), key=lambda kv: int(kv[0]))}
+
+    by_both = defaultdict(list)
+    for r in results:
+        by_both[f"{r['k']}/{r['objects']}"].append(r)
+    return {"by_k": table("k"), "by_objects": table("objects"),
+            "by_k_objects": {c: _cell(rs) for c, rs in sorted(by_both.items())},
+            "overall": _cell(results)}
+
+
+def _cell(rs: list[dict]) -> dict:
+    solved = [r for r in rs if r["status"] == "solved"]
+    return {"problems": len(rs), "solved": len(solved) / len(rs) if rs else 0.0,
+            "reliability": float(np.mean([r["reliability"] for r in solved])) if solved else 0.0,
+            "plan_length": float(np.mean([r["length"] for r in solved])) if solved else 0.0,
+            "seconds_median": float(np.median([r["seconds"] for r in rs])) if rs else 0.0,
+            "statuses": dict(Counter(r["status"] for r in rs))}
+
+
+def evaluate_operators(operators: list[EffectOperator], n_unary: int, n_relations: int,
+                       heldout: SymbolDataset, scenes: SceneSymbols,
+                       outcome: np.ndarray | None, semantics: Semantics,
+                       config: EvalConfig) -> dict:
+    """The whole report: planning tables, coverage/precision (merged into each by_k cell,
+    where they do not depend on k) and stability."""
+    t0 = time.perf_counter()
+    problems = make_problems(scenes, semantics, config)
+    results = solve_problems(operators, n_unary, n_relations, problems, config)
+    report = summarise(results)
+    scores = prediction_scores(operators, heldout, semantics)
+    for cell in report["by_k"].values():
+        cell.update(coverage=scores["coverage"], precision=scores["precision"])
+    report.update(scores, operators=len(operators), stability=stability(
+        heldout, outcome, semantics), seconds=round(time.perf_counter() - t0, 2))
+    return report

@@ -1,0 +1,52 @@
+"""The symbolic-level evaluation on hand-made scene symbols: problems from chains of steps,
+trivial goals left out, goal relations only between objects in contact."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_symplan.planning.operator_eval import EvalConfig, make_problems
+from drake_symplan.structs import SceneSymbols
+from drake_symplan.symbolic.effect_operators import EFFECT
+
+
+def scenes(unary_steps, contacts_steps, episode=None, chain=None):
+    """One scene row per step: unary [T+1 states][M, 1]; the relation r0 is 'a on b'."""
+    t = len(unary_steps) - 1
+    m = len(unary_steps[0])
+    u = np.array(unary_steps, np.uint8)[..., None]
+    rel = np.zeros((t + 1, 1, m, m), np.uint8)
+    rel[:, 0, 0, 1] = 1  # r0(o0, o1) is read everywhere, meaningful only in contact
+    c = np.array(contacts_steps, bool)
+    z = np.zeros_like
+    return SceneSymbols(
+        unary=u[:-1], relational=rel[:-1], unary_uncertain=z(u[:-1], bool),
+        relational_uncertain=z(rel[:-1], bool), next_unary=u[1:], next_relational=rel[1:],
+        next_unary_uncertain=z(u[1:], bool), next_relational_uncertain=z(rel[1:], bool),
+        mask=np.ones((t, m), bool), contacts=c[:-1], next_contacts=c[1:],
+        episode=np.zeros(t, np.int64) if episode is None else np.array(episode),
+        step=np.arange(t), chain=np.zeros(t, np.int64) if chain is None else np.array(chain))
+
+
+APART = [[False, False], [False, False]]
+TOUCH = [[False, True], [True, False]]
+
+
+def test_problems_from_chains_skip_trivial_goals_and_use_contact_relations():
+    # Step 0 changes nothing; step 1 brings o0 onto o1 (contact); step 2 flips o1's bit.
+    sc = scenes([[1, 1], [1, 1], [1, 1], [1, 0]], [APART, APART, TOUCH, TOUCH])
+    problems = make_problems(sc, EFFECT, EvalConfig(ks=(1, 2, 3)))
+    by_k = {}
+    for p in problems:
+        by_k.setdefault(p.k, []).append(p)
+    assert [len(by_k[k]) for k in (1, 2, 3)] == [2, 2, 1]  # k=1 from step 0 is trivial
+    first = by_k[1][0]
+    assert ("r0", "o0", "o1") in first.goal and ("not_r0", "o1", "o0") in first.goal
+    assert not any(a[0].endswith("r0") for a in first.init)  # apart: no relation atoms
+    assert ("p0", "o0") in by_k[3][0].goal and ("not_p0", "o1") in by_k[3][0].goal
+
+
+def test_problems_never_span_two_chains():
+    sc = scenes([[1, 1], [1, 1], [1, 0]], [APART, TOUCH, TOUCH], chain=[0, 1])
+    problems = make_problems(sc, EFFECT, EvalConfig(ks=(1, 2)))
+    assert [p.k for p in problems] == [1, 1]
