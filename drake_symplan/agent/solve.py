@@ -118,9 +118,17 @@ class Agent:
                                                                     list(o.position)))
         self.station.settle(RESET_SETTLE)
 
-    def look(self, scene) -> beliefs.Named:
-        """Shows `scene` and perceives it, the boxes named after the file's objects."""
+    def look(self, scene, clock: _Clock | None = None) -> beliefs.Named:
+        """Shows `scene` and perceives it, the boxes named after the file's objects; the
+        perception (not the showing) counts on `clock` as "perceive"."""
         self.show(scene)
+        if clock is None:
+            return self.see(scene)
+        with clock("perceive"):
+            return self.see(scene)
+
+    def see(self, scene) -> beliefs.Named:
+        """Perceives the table as it is now, the boxes named after `scene`'s objects."""
         return beliefs.name_by_file(self.backend.perceive(), scene)
 
     def solve(self, start_scene, goal_scene, bundle, planner: str = "fd", timeout: float = 10.0,
@@ -134,9 +142,9 @@ class Agent:
         t0 = time.perf_counter()
         run = _Run(self, bundle, clock, planner, timeout, monitor, max_replans)
         try:
-            goal = self.look(goal_scene)
+            goal = self.look(goal_scene, clock)
             with recording(self.station, record):  # from the start scene on
-                start = self.look(start_scene)
+                start = self.look(start_scene, clock)
                 result = run.go(start, goal)
         except PerceptionFailure as e:  # perception raised: the loop cannot go on
             result = run.result
