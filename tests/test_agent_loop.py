@@ -224,3 +224,27 @@ def test_scene_pairs_must_hold_the_same_objects():
     longer = Scene([*GOAL.objects[:2], ObjectSpec("c", "long", [0.6, 0.25, 0.025])])
     with pytest.raises(beliefs.ScenePairError, match="change type"):
         beliefs.check_scene_pair(START, longer)
+
+
+def test_evaluate_planning_on_a_fake_world(tmp_path):
+    import json
+
+    from drake_symplan.agent.evaluation import evaluate_planning
+    from drake_symplan.world.scenes import save_scene
+
+    folder = tmp_path / "set" / "p000"
+    folder.mkdir(parents=True)
+    save_scene(START, folder / "start.yaml")
+    save_scene(GOAL, folder / "goal.yaml")
+    (folder / "problem.json").write_text(json.dumps({"k": 1, "seed": 0, "n_objects": 3}))
+    records = tmp_path / "records.jsonl"
+    kwargs = dict(agent=Agent(FakeBackend()), load_bundle=lambda run: OracleBundle(),
+                  records_path=records)
+    result = evaluate_planning([tmp_path / "oracle"], tmp_path, **kwargs)
+    summary = result["runs"][f"{tmp_path.name}/oracle"]
+    assert summary["monitor"]["success"] == summary["open_loop"]["success"] == 1.0
+    assert summary["monitor"]["by_k"]["1"]["plan_length_mean"] == 1.0
+    assert len(records.read_text().splitlines()) == 2
+    again = evaluate_planning([tmp_path / "oracle"], tmp_path, **kwargs)  # resumes
+    assert len(records.read_text().splitlines()) == 2
+    assert again["runs"] == result["runs"]

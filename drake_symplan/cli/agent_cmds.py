@@ -84,10 +84,10 @@ def register(subparsers) -> None:
 
 def load_bundle(path: Path | None):
     """The model bundle at `path` (None: the shipped default); BundleError is bad input."""
-    from drake_symplan.symbolic.bundle import ModelBundle
-
     if path is not None and not path.is_dir():
         raise CommandError(f"no model directory {path}")
+    from drake_symplan.symbolic.bundle import ModelBundle
+
     return ModelBundle.load(path)
 
 
@@ -100,10 +100,11 @@ def _check_planning(args) -> None:
 
 def cmd_solve(args: argparse.Namespace) -> dict:
     from drake_symplan.agent.beliefs import check_scene_pair
-    from drake_symplan.world.scenes import load_scene
+    from drake_symplan.cli.world_cmds import load_scene_file
 
+    # Inputs first, so that bad ones are told before Drake is loaded.
     _check_planning(args)
-    start, goal = load_scene(args.start), load_scene(args.goal)
+    start, goal = load_scene_file(args.start), load_scene_file(args.goal)
     check_scene_pair(start, goal)
     bundle = load_bundle(args.model)
 
