@@ -238,3 +238,24 @@ def test_every_model_rebuilds_from_its_checkpoint(name):
     loaded = model_from_checkpoint(ckpt).eval()
     state, action, mask = _batch()
     torch.testing.assert_close(loaded(state, action, mask), model(state, action, mask))
+
+
+@torch.no_grad()
+def test_invariant_relational_symbols_and_effects_ignore_a_shift_of_the_table():
+    torch.manual_seed(0)
+    model = build_model("relational", state_dim=D, invariant=True).eval()
+    state, action, mask = _batch()
+    shifted = state.clone()
+    shifted[..., :2] += torch.tensor([0.3, -0.2])  # every object moved together in x, y
+    torch.testing.assert_close(model(shifted, action, mask), model(state, action, mask))
+    torch.testing.assert_close(model.relation_logits(shifted, mask),
+                               model.relation_logits(state, mask))
+    torch.testing.assert_close(model.unary_logits(shifted), model.unary_logits(state))
+    lifted = state.clone()
+    lifted[:, 0, 2] += 0.05  # one object higher: its relations to the others change
+    assert not torch.allclose(model.relation_logits(lifted, mask)[:, :, 0, 1],
+                              model.relation_logits(state, mask)[:, :, 0, 1])
+    perm = torch.tensor([2, 0, 3, 1])
+    mask[:] = True
+    torch.testing.assert_close(model.relation_logits(state[:, perm], mask[:, perm]),
+                               model.relation_logits(state, mask)[:, :, perm][:, :, :, perm])

@@ -123,6 +123,9 @@ def object_transformer(d_model: int, n_heads: int, n_blocks: int, hidden: int) -
     return nn.TransformerEncoder(block, n_blocks, enable_nested_tensor=False)
 
 
+OFFSET_SCALE = 0.05  # m: relative positions in box sizes
+
+
 class RelationalDeepSym(EffectModel):
     """Unary symbols + K relation types from value-less sigmoid self-attention."""
 
@@ -138,19 +141,43 @@ class RelationalDeepSym(EffectModel):
         temperature: float = DEFAULT_TEMPERATURE,
         hard: bool = DEFAULT_HARD,
         own_message: bool = True,
+        invariant: bool = False,
     ):
         super().__init__(state_dim, n_unary, hidden, layers, temperature, hard)
         self._config.update(n_relations=n_relations, key_dim=key_dim, z_dim=z_dim,
-                            own_message=own_message)
+                            own_message=own_message, invariant=invariant)
         self.n_relations = n_relations
         self.key_dim = key_dim
         self.own_message = own_message
-        self.attention = MLP(state_dim, [hidden] * layers, 2 * n_relations * key_dim)
+        self.invariant = invariant
+        if invariant:
+            # Symbols that do not move with the table: the unary encoder does not see the
+            # absolute x, y; a relation reads both objects (without x, y) and their offset.
+            self.encoder = MLP(state_dim - 2, [hidden] * layers)
+            self.pair = MLP(2 * (state_dim - 2) + 3, [hidden] * layers)
+            self.pair_head = NormedLinear(hidden, n_relations)
+        else:
+            self.attention = MLP(state_dim, [hidden] * layers, 2 * n_relations * key_dim)
         self.message = MLP(n_unary + ACTION_DIM, [hidden] * layers, z_dim)
         self.decoder = MLP((n_relations + own_message) * z_dim, [hidden] * layers, EFFECT_DIM)
 
+    def _features(self, state: torch.Tensor) -> torch.Tensor:
+        f = super()._features(state)
+        return f[..., 2:] if self.invariant else f
+
     def relation_logits(self, state: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        if self.invariant:
+            return self._invariant_logits(self._features(state), state)
         return self._pair_logits(self.attention(self._features(state)))
+
+    def _invariant_logits(self, f: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+        """[B, K, N, N] from MLP([f_i; f_j; (p_j - p_i) / OFFSET_SCALE])."""
+        b, n, d = f.shape
+        p = state[..., :3]
+        offset = (p.unsqueeze(1) - p.unsqueeze(2)) / OFFSET_SCALE  # [B, i, j, 3] = p_j - p_i
+        pair = torch.cat([f.unsqueeze(2).expand(b, n, n, d), f.unsqueeze(1).expand(b, n, n, d),
+                          offset], dim=-1)
+        return self.pair_head(self.pair(pair)).permute(0, 3, 1, 2)
 
     def _pair_logits(self, qk: torch.Tensor) -> torch.Tensor:
         """[B, K, N, N] q^k_i . k^k_j from the attention MLP's output [B, N, 2 K key_dim]."""
@@ -174,8 +201,11 @@ class RelationalDeepSym(EffectModel):
         x = packed.pack(self._features(state))
         unary = self._unary_bits(x)
         z = self.message(torch.cat([unary, packed.pack(action)], dim=-1))  # [M, D]
-        qk = packed.unpack(self.attention(x))
-        alpha = self._relation_bits(self._pair_logits(qk), mask)  # [B, K, N, N]
+        if self.invariant:
+            logits = self._invariant_logits(packed.unpack(x), state)
+        else:
+            logits = self._pair_logits(packed.unpack(self.attention(x)))
+        alpha = self._relation_bits(logits, mask)  # [B, K, N, N]
         h = (alpha.reshape(b, self.n_relations * n, n) @ packed.unpack(z))
         h = h.view(b, self.n_relations, n, -1).transpose(1, 2).reshape(b, n, -1)
         h = packed.pack(h)  # [M, K * D], heads concatenated
