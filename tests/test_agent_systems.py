@@ -1,0 +1,27 @@
+"""Systems test: the closed loop in full physics with the UR10 and a model bundle (the
+shipped default): put one cube onto another and check it within 5 cm. Slow (~1 minute)."""
+
+from __future__ import annotations
+
+import pytest
+
+from drake_symplan.world.scenes import ObjectSpec, Scene
+
+
+@pytest.mark.slow
+def test_solves_a_cube_onto_cube_goal_with_the_arm():
+    bundle_module = pytest.importorskip("drake_symplan.symbolic.bundle")
+    from drake_symplan.agent.solve import solve
+
+    bundle = bundle_module.ModelBundle.load()
+    start = Scene([ObjectSpec("o0", "cube", [0.60, -0.15, 0.025]),
+                   ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
+    goal = Scene([ObjectSpec("o0", "cube", [0.80, 0.10, 0.075]),
+                  ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
+    result = solve(start, goal, bundle, planner="fd", timeout=30.0)
+    out = result.to_json()
+    assert result.status == "success", out
+    assert result.executed, out
+    for name, z in {"o0": 0.075, "o1": 0.025}.items():  # o0 rests on o1 in the simulator too
+        assert out["objects"][name]["error_cm"] <= 5.0, out
+        assert out["objects"][name]["final_true"][2] == pytest.approx(z, abs=0.01), out
