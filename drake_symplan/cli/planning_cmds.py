@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drake_symplan.cli.main import CommandError, NegativeAnswer
+from drake_symplan.cli.learning_cmds import eval_subparsers
+from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
 
 
 def register(subparsers) -> None:
@@ -35,6 +36,47 @@ def register(subparsers) -> None:
                    help="leave out transitions with an uncertain symbol bit")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_operators)
+
+    b = subparsers.add_parser(
+        "bundle",
+        help="make a model bundle: a trained run and its learned operators in one directory",
+        description="Reads the symbols of a data set's whole scenes out of RUN, learns "
+        "operators (effect-first by default; 'paper': the paper's method as implemented) and "
+        "writes the bundle (model.pt, operators.json, domain.pddl, domain_strips.pddl, "
+        "provenance.json) that `symplan solve` and `symplan eval operators` read.")
+    b.add_argument("--run", type=Path, required=True, help="trained run directory")
+    b.add_argument("--data", type=Path, required=True,
+                   help="data set collected with whole scenes (the run's training set)")
+    b.add_argument("--out", type=Path, required=True, help="bundle directory to write")
+    b.add_argument("--learner", choices=("effect", "paper"), default="effect")
+    b.add_argument("--min-count", type=positive_int, default=10,
+                   help="transitions an operator needs (default 10)")
+    b.add_argument("--support", type=float, default=0.95,
+                   help="effect learner: share of a group a precondition holds in (0.95)")
+    b.add_argument("--margin", type=float, default=3.0,
+                   help="a bit is uncertain when |logit| < margin (default 3)")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bundle)
+
+    e = eval_subparsers(subparsers).add_parser(
+        "operators", help="a learned domain on held-out episodes at the symbolic level",
+        description="Problems from held-out episodes (start: symbols at step t, goal: at t+k, "
+        "relations only between objects in contact), planned once each with the bundle's "
+        "domain; solved rate, plan reliability, coverage, precision and symbol stability.")
+    e.add_argument("--model", type=Path, default=None,
+                   help="bundle directory (default: the shipped models/learned)")
+    e.add_argument("--data", type=Path, required=True,
+                   help="held-out data set with whole scenes (a seed the model never saw)")
+    e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3])
+    e.add_argument("--max-problems", type=positive_int, default=50,
+                   help="problems per k and object count (default 50)")
+    e.add_argument("--planner", choices=("fd", "pyperplan"), default="fd")
+    e.add_argument("--timeout", type=float, default=10.0)
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--out", type=Path, help="also write the report as JSON here")
+    e.add_argument("--plot", type=Path, help="write a plot (PNG) here")
+    e.add_argument("--json", action="store_true")
+    e.set_defaults(func=cmd_eval_operators)
 
     q = subparsers.add_parser(
         "plan",
@@ -112,3 +154,47 @@ def cmd_plan(args) -> dict:
         for step in result.plan:
             print(step)
     return out if result.solved else NegativeAnswer(out)  # unsolvable or timeout
+
+
+def cmd_bundle(args) -> dict:
+    import json
+    import shlex
+    import sys
+
+    from drake_symplan.learning.checkpoint import load_run
+    from drake_symplan.learning.readout import readout_scenes
+    from drake_symplan.shards import fingerprint
+    from drake_symplan.symbolic.bundle import learn_bundle_operators, write_bundle
+
+    model, _ = load_run(args.run)
+    data, _ = readout_scenes(model, args.data, args.margin)
+    operators, semantics, info = learn_bundle_operators(data, args.learner, args.min_count,
+                                                        args.support)
+    run_config = json.loads((args.run / "config.json").read_text()) \
+        if (args.run / "config.json").is_file() else {}
+    provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]),
+                  "run": str(args.run), "run_config": run_config,
+                  "data": str(args.data), "data_fingerprint": fingerprint(args.data)}
+    write_bundle(args.out, args.run, operators, semantics, info, provenance, args.margin)
+    return {"out": str(args.out), "operators": len(operators), **info}
+
+
+def cmd_eval_operators(args) -> dict:
+    import json
+
+    from drake_symplan.planning.operator_eval import EvalConfig, evaluate_bundle, plot_report
+    from drake_symplan.symbolic.bundle import ModelBundle
+
+    if not args.timeout > 0:
+        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
+    bundle = ModelBundle.load(args.model)
+    config = EvalConfig(ks=tuple(args.k), planner=args.planner, timeout=args.timeout,
+                        max_problems=args.max_problems, seed=args.seed)
+    report = evaluate_bundle(bundle, args.data, config)
+    if args.out is not None:
+        from drake_symplan.atomic import write_atomic
+
+        write_atomic(args.out, json.dumps(report, indent=1))
+    if args.plot is not None:
+        plot_report(report, args.plot)
+    return report

@@ -19,7 +19,7 @@ import math
 import time
 from collections import Counter, defaultdict
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -213,3 +213,44 @@ def evaluate_operators(operators: list[EffectOperator], n_unary: int, n_relation
     report.update(scores, operators=len(operators), stability=stability(
         heldout, outcome, semantics), seconds=round(time.perf_counter() - t0, 2))
     return report
+
+
+def evaluate_bundle(bundle, data_dir, config: EvalConfig) -> dict:
+    """`evaluate_operators` for a loaded ModelBundle on a held-out data set directory."""
+    from drake_symplan.learning.readout import readout_scenes
+    from drake_symplan.shards import fingerprint, load_extra
+
+    heldout, scenes = readout_scenes(bundle.model, data_dir, bundle.margin)
+    report = evaluate_operators(bundle.operators, bundle.info["n_unary"],
+                                bundle.info["n_relations"], heldout, scenes,
+                                load_extra(data_dir, "outcome"), bundle.semantics, config)
+    report.update(model=str(bundle.path), data=str(data_dir), data_fingerprint=fingerprint(
+        data_dir), learner=bundle.info.get("learner"), config=asdict(config))
+    return report
+
+
+def plot_report(report: dict, path) -> None:
+    """Solved rate and mean plan reliability by k, one line per object count."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5))
+    cells = defaultdict(dict)
+    for key_, cell in report["by_k_objects"].items():
+        k, n = (int(x) for x in key_.split("/"))
+        cells[n][k] = cell
+    for n, by_k in sorted(cells.items()):
+        ks = sorted(by_k)
+        axes[0].plot(ks, [by_k[k]["solved"] for k in ks], "o-", label=f"{n} objects")
+        axes[1].plot(ks, [by_k[k]["reliability"] for k in ks], "o-", label=f"{n} objects")
+    for ax, title in zip(axes, ("solved", "mean plan reliability (solved)"), strict=True):
+        ax.set(xlabel="k (actions between start and goal)", title=title, ylim=(0, 1.05))
+        ax.grid(alpha=0.3)
+    axes[0].legend()
+    fig.suptitle(f"{report.get('learner')} operators: coverage {report['coverage']:.2f}, "
+                 f"precision {report['precision']:.2f}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
