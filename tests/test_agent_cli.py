@@ -74,8 +74,14 @@ def test_a_model_without_operators(scenes, tmp_path, capsys):
     empty.mkdir()
     code, out, err = run(["solve", "--start", start, "--goal", goal, "--model", empty], capsys)
     assert_bad_input(code, out, err, str(empty))
-    code, out, err = run(["eval", "planning", "--runs", empty, "--problems", tmp_path], capsys)
-    assert_bad_input(code, out, err, str(empty))
+    (empty / "model.pt").write_bytes(b"")  # a model, but no operators.json
+    code, out, err = run(["solve", "--start", start, "--goal", goal, "--model", empty], capsys)
+    assert_bad_input(code, out, err, str(empty), "operators.json")
+    (tmp_path / "set" / "p000").mkdir(parents=True)
+    (tmp_path / "set" / "p000" / "problem.json").write_text('{"k": 1, "n_objects": 2}')
+    code, out, err = run(["eval", "planning", "--runs", empty, "--problems", tmp_path / "set"],
+                         capsys)
+    assert_bad_input(code, out, err, str(empty), "operators.json")
 
 
 def test_problem_and_evaluation_arguments(tmp_path, capsys):

@@ -86,13 +86,13 @@ class OracleBundle:
     """A model bundle that knows the fake world: p0 = free (nothing rests on it),
     r0(a, b) = a rests on b, read from the features' positions."""
 
-    domain = DOMAIN
+    domain = domain_strips = DOMAIN
 
     def __init__(self, force_mismatches: int = 0):
         self.force_mismatches = force_mismatches
         self.goal_contacts = []
 
-    def read(self, names, features):
+    def read(self, names, features, contacts=()):
         pos = np.asarray(features)[:, :3]
         n = len(names)
         on = np.array([[i != j and _on(pos[i], pos[j]) for j in range(n)] for i in range(n)])
@@ -109,7 +109,7 @@ class OracleBundle:
                     atoms.add(("on", a, b))
         return atoms
 
-    def problem(self, start, goal, goal_contacts, name="goal"):
+    def problem(self, start, goal, goal_contacts, name="goal", costs=True):
         self.goal_contacts.append(set(goal_contacts))
         pairs = {p for a, b in goal_contacts for p in ((a, b), (b, a))}
         goal_atoms = {a for a in self._atoms(goal, pairs) if a[0] == "on"}

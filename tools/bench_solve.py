@@ -46,12 +46,15 @@ def bench_problem(agent, bundle, folder: Path, planner: str, timeout: float) -> 
         scenes[key] = agent.see(scene)
         seconds["perceive"] += time.perf_counter() - t
     t = time.perf_counter()
-    readings = {k: bundle.read(s.scene.names, s.scene.features()) for k, s in scenes.items()}
+    readings = {k: bundle.read(s.scene.names, s.scene.features(), s.scene.contacts)
+                for k, s in scenes.items()}
     seconds["symbols"] = time.perf_counter() - t
     t = time.perf_counter()
-    text = bundle.problem(readings["start"], readings["goal"], scenes["goal"].scene.contacts)
+    costs = planner == "fd"  # pyperplan reads no action costs
+    text = bundle.problem(readings["start"], readings["goal"], scenes["goal"].scene.contacts,
+                          costs=costs)
     seconds["write"] = time.perf_counter() - t
-    found = plan_pddl(bundle.domain, text, planner, timeout)
+    found = plan_pddl(bundle.domain if costs else bundle.domain_strips, text, planner, timeout)
     seconds["plan"] = found.seconds
     lost = scenes["goal"].lost + scenes["start"].lost
     return {"problem": str(folder), "status": found.status, "plan_length": len(found.plan),

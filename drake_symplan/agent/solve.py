@@ -206,16 +206,19 @@ class _Run:
         return self._end(now, "execution", "")
 
     def _read(self, scene):
-        return self.bundle.read(scene.names, scene.features())
+        return self.bundle.read(scene.names, scene.features(), scene.contacts)
 
     def _plan(self, reading) -> tuple[list[str], tuple[str, str] | None]:
         """(steps, None), or ([], (cause, message)) when the planner found no plan."""
         from drake_symplan.planning.planners import plan_pddl
 
+        costs = self.planner == "fd"  # pyperplan reads no action costs
         with self.clock("symbols"):
-            text = self.bundle.problem(reading, self.goal_reading, self.goal.scene.contacts)
+            text = self.bundle.problem(reading, self.goal_reading, self.goal.scene.contacts,
+                                       costs=costs)
         with self.clock("plan"):
-            found = plan_pddl(self.bundle.domain, text, self.planner, self.timeout)
+            domain = self.bundle.domain if costs else self.bundle.domain_strips
+            found = plan_pddl(domain, text, self.planner, self.timeout)
         if found.solved:
             return list(found.plan), None
         return [], (_PLANNER_STATUS.get(found.status, "error"),
