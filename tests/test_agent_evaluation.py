@@ -12,6 +12,7 @@ from drake_symplan.world.scenes import ObjectSpec, Scene
 def record(run, monitor, n, k, status, cause=None, plan_length=1, replans=0, plan_s=0.2):
     return {"run": run, "monitor": monitor, "problem": f"p{n}{k}{status}", "n_objects": n,
             "k": k, "status": status, "failure_cause": cause, "success_true": status == "success",
+            "symbolic_goal_reached": None if status == "success" else cause == "execution",
             "plan_length": plan_length, "executed": plan_length, "replans": replans,
             "seconds": {"plan": plan_s}, "error_cm": {}}
 
@@ -34,6 +35,7 @@ def test_summary_by_object_count_and_k():
         "3": {"problems": 2, "success": 0.0, "success_true": 0.0, "plan_length_mean": 0.5}}
     assert mon["by_k"]["1"]["success"] == 0.5 and mon["by_k"]["2"]["plan_length_mean"] == 1.5
     assert mon["failure_causes"] == {"execution": 1, "no_plan": 1}
+    assert mon["execution_failures"] == {"symbolic_goal_reached": 1, "symbolic_goal_missed": 0}
     # plan length - k over the solved problems: (1-1) + (3-2) + (1-1) over 3
     assert mon["plan_length_minus_k"] == pytest.approx(1 / 3, abs=1e-3)
     assert mon["plan_seconds"]["median"] == pytest.approx(0.2)

@@ -88,8 +88,9 @@ class OracleBundle:
 
     domain = domain_strips = DOMAIN
 
-    def __init__(self, force_mismatches: int = 0):
-        self.force_mismatches = force_mismatches
+    def __init__(self, force_mismatches: int = 0, hide_atoms: int = 0):
+        self.force_mismatches = force_mismatches  # mismatches() reports one this many times
+        self.hide_atoms = hide_atoms  # atoms() sees none this many times
         self.goal_contacts = []
 
     def read(self, names, features, contacts=()):
@@ -109,10 +110,19 @@ class OracleBundle:
                     atoms.add(("on", a, b))
         return atoms
 
+    def atoms(self, reading):
+        if self.hide_atoms > 0:
+            self.hide_atoms -= 1
+            return set(), set()
+        return self._atoms(reading), set()
+
+    def goal_atoms(self, goal, goal_contacts):
+        pairs = {p for a, b in goal_contacts for p in ((a, b), (b, a))}
+        return {a for a in self._atoms(goal, pairs) if a[0] == "on"}
+
     def problem(self, start, goal, goal_contacts, name="goal", costs=True):
         self.goal_contacts.append(set(goal_contacts))
-        pairs = {p for a, b in goal_contacts for p in ((a, b), (b, a))}
-        goal_atoms = {a for a in self._atoms(goal, pairs) if a[0] == "on"}
+        goal_atoms = self.goal_atoms(goal, goal_contacts)
         fmt = lambda atoms: " ".join("(" + " ".join(a) + ")" for a in sorted(atoms))  # noqa: E731
         return (f"(define (problem {name}) (:domain oracle) (:objects "
                 f"{' '.join(start.state.objects)} - obj) (:init {fmt(self._atoms(start))}) "
@@ -180,12 +190,20 @@ def test_the_monitor_replans_on_a_forced_mismatch():
                                "(pick_center_place_center_n1_op0 c a)"]
 
 
+def test_the_monitor_replans_when_the_goal_atoms_are_not_seen_at_the_end():
+    result, _ = solve(OracleBundle(hide_atoms=1))
+    assert result.replans == 1 and result.status == "success"
+    assert len(result.executed) == 1  # the replan, from what is seen, is empty
+    open_loop, _ = solve(OracleBundle(hide_atoms=1), monitor=False)
+    assert open_loop.replans == 0
+
+
 def test_no_plan_is_a_verdict_with_its_cause():
     # a and c both on b: once one is there, b is not free for the other.
     goal = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.075)])
     result, backend = solve(OracleBundle(), goal=goal)
     assert result.status == "no_plan" and result.failure_cause == "no_plan"
-    assert backend.executed == []
+    assert backend.executed == [] and result.symbolic_goal_reached is False
     assert result.to_json()["failure_cause"] == "no_plan"
 
 
@@ -200,6 +218,8 @@ def test_an_object_left_short_of_its_goal_is_an_execution_failure():
     result = Agent(backend).solve(START, GOAL, OracleBundle(), "fd", 20.0, False)
     assert result.status == "failure" and result.failure_cause == "execution"
     assert result.objects["c"]["error_cm"] == pytest.approx(8.0)
+    assert result.symbolic_goal_reached  # the symbols cannot tell where c stands
+    assert result.to_json()["symbolic_goal_reached"] is True
 
 
 def test_boxes_are_named_after_the_nearest_file_object():

@@ -3,7 +3,9 @@ same problem set, with execution monitoring and without it (open-loop, as the pa
 
 `evaluate_planning` runs every (run, monitoring, problem) with one station and returns per
 run and monitoring mode: the success rate overall, by object count and by k; the planning
-time; the length of the first plan against k; the failure causes with counts; and beside
+time; the length of the first plan against k; the failure causes with counts, execution
+failures split by whether the goal's atoms were seen at the end (then the symbols could not
+tell the goal positions apart) or not (the plan missed them); and beside
 the perceived check, the simulator's (`success_true`: every object's simulated final
 position within 5 cm of its position in goal.yaml; evaluation only). `records` holds one
 line per solve; with `records_path` each is appended to a JSON-lines file as it finishes,
@@ -51,7 +53,8 @@ def solve_record(agent, bundle, problem: dict, planner: str, timeout: float, mon
     return {
         "problem": str(folder), "n_objects": problem["n_objects"], "k": problem["k"],
         "monitor": monitor, "status": result.status, "failure_cause": result.failure_cause,
-        "success_true": true_success(result.objects, goal), "plan_length": len(result.plan),
+        "success_true": true_success(result.objects, goal),
+        "symbolic_goal_reached": result.symbolic_goal_reached, "plan_length": len(result.plan),
         "executed": len(result.executed), "replans": result.replans,
         "seconds": {k: round(v, 4) for k, v in result.seconds.items()},
         "error_cm": {n: o["error_cm"] for n, o in result.objects.items()},
@@ -151,6 +154,15 @@ def summarise(records: list[dict]) -> dict:
             "replans_mean": round(float(np.mean([r["replans"] for r in rs])), 3),
             "failure_causes": dict(Counter(r["failure_cause"] for r in rs
                                            if r["status"] != "success").most_common()),
+            # An execution failure whose goal atoms are all seen: the symbols do not tell
+            # the goal positions apart; one whose atoms are not: the plan missed them.
+            "execution_failures": {
+                "symbolic_goal_reached": sum(r["failure_cause"] == "execution"
+                                             and bool(r.get("symbolic_goal_reached"))
+                                             for r in rs),
+                "symbolic_goal_missed": sum(r["failure_cause"] == "execution"
+                                            and not r.get("symbolic_goal_reached")
+                                            for r in rs)},
         }
     return out
 
@@ -190,6 +202,9 @@ def plot_planning(summary: dict, path) -> None:
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
+    ns_all = sorted({int(n) for _, s in series for n in s["by_objects"]})
+    for ax, ticks in ((axes[0], ks_all), (axes[1], ns_all), (axes[2], ks_all)):
+        ax.set_xticks(ticks)
     axes[0].set_ylim(-0.02, 1.02)
     axes[1].set_ylim(-0.02, 1.02)
     axes[3].set_xticks(np.arange(len(causes)) + 0.4 - width / 2, causes, rotation=20)

@@ -13,9 +13,10 @@ for many solves (the evaluation).
    pick/place in full physics); the scene perceived after it keeps the names through
    perception's association.
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
-   step's operator predicted; on a mismatch the agent replans from the perceived state (at
-   most `max_replans` times; after that the current plan runs on). Without monitoring the
-   first plan runs open-loop, as in the paper.
+   step's operator predicted; on a mismatch the agent replans from the perceived state.
+   When the plan has run out, the goal's atoms must hold in the perceived symbols, or it
+   replans too. At most `max_replans` replans; after that the current plan runs on.
+   Without monitoring the first plan runs open-loop, as in the paper.
 5. The check: every object within GOAL_TOLERANCE (5 cm) of its perceived goal position,
    on the scene perceived after the last step. The simulator's positions are reported
    beside it (`final_true`), for evaluation only: no decision reads them.
@@ -51,6 +52,10 @@ class SolveResult:
     seconds: dict[str, float] = dc.field(default_factory=dict)
     failure_cause: str | None = None
     message: str = ""
+    # On a failure: do the goal's atoms hold in the last perceived scene? True with objects
+    # off their goal positions means the symbols did not capture the goal; False means the
+    # plan did not reach it (an operator's prediction or the execution went wrong).
+    symbolic_goal_reached: bool | None = None
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -67,6 +72,7 @@ class SolveResult:
         if not self.success:
             out["failure_cause"] = self.failure_cause
             out["message"] = self.message
+            out["symbolic_goal_reached"] = self.symbolic_goal_reached
         return out
 
 
@@ -162,6 +168,7 @@ class _Run:
         self.planner, self.timeout = planner, timeout
         self.monitor, self.max_replans = monitor, max_replans
         self.result = SolveResult("failure")
+        self.goal, self.goal_reading = None, None
 
     def go(self, start: beliefs.Named, goal: beliefs.Named) -> SolveResult:
         self.goal = goal
@@ -176,34 +183,54 @@ class _Run:
         if stop:
             return self._end(now, *stop)
         self.result.plan = list(steps)
-        replans = 0
-        while steps:
-            step = steps.pop(0)
-            with self.clock("execute"):
-                action = self.bundle.action_of(step)
-                execution = self.agent.backend.execute(action, now)
-            self.result.executed.append(step)
-            if execution.status == "infeasible":
-                return self._end(now, "infeasible", f"{step}: {execution.message}")
-            if execution.status != "ok":
-                return self._end(now, "error", f"{step}: {execution.message}")
-            seen = self._follow(now, execution.after, action)
-            if seen.lost:
-                return self._end(seen.scene, "perception",
-                                 f"after {step} perception lost {', '.join(seen.lost)}")
-            before, now = reading, seen.scene
-            if not self.monitor:
-                continue
+        while True:
+            while steps:
+                step = steps.pop(0)
+                with self.clock("execute"):
+                    action = self.bundle.action_of(step)
+                    execution = self.agent.backend.execute(action, now)
+                self.result.executed.append(step)
+                if execution.status == "infeasible":
+                    return self._end(now, "infeasible", f"{step}: {execution.message}")
+                if execution.status != "ok":
+                    return self._end(now, "error", f"{step}: {execution.message}")
+                seen = self._follow(now, execution.after, action)
+                if seen.lost:
+                    return self._end(seen.scene, "perception",
+                                     f"after {step} perception lost {', '.join(seen.lost)}")
+                before, now = reading, seen.scene
+                if not self.monitor:
+                    continue
+                with self.clock("symbols"):
+                    reading = self._read(now)
+                    wrong = self.bundle.mismatches(reading, step, before)
+                if wrong and self.result.replans < self.max_replans:
+                    steps, stop = self._replan(reading)
+                    if stop:
+                        return self._end(now, *stop)
+            # The plan has run out. The monitor checks that the goal's atoms are seen too:
+            # a step can pass its own check and still disturb another object.
+            if not self.monitor or self.result.replans >= self.max_replans:
+                break
             with self.clock("symbols"):
-                reading = self._read(now)
-                wrong = self.bundle.mismatches(reading, step, before)
-            if wrong and replans < self.max_replans:
-                replans += 1
-                self.result.replans = replans
-                steps, stop = self._plan(reading)
-                if stop:
-                    return self._end(now, *stop)
+                reached = self._goal_holds(reading)
+            if reached:
+                break
+            steps, stop = self._replan(reading)
+            if stop:
+                return self._end(now, *stop)
+            if not steps:
+                break
         return self._end(now, "execution", "")
+
+    def _replan(self, reading) -> tuple[list[str], tuple[str, str] | None]:
+        self.result.replans += 1
+        return self._plan(reading)
+
+    def _goal_holds(self, reading) -> bool:
+        """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""
+        goal = self.bundle.goal_atoms(self.goal_reading, self.goal.scene.contacts)
+        return goal <= self.bundle.atoms(reading)[0]
 
     def _read(self, scene):
         return self.bundle.read(scene.names, scene.features(), scene.contacts)
@@ -246,6 +273,8 @@ class _Run:
                 and cause != "perception":
             result.status = "success"
             return result
+        if self.goal_reading is not None and set(self.goal.scene.names) <= set(final.names):
+            result.symbolic_goal_reached = self._goal_holds(self._read(final))
         if cause == "execution":
             far = {n: o["error_cm"] for n, o in result.objects.items()
                    if o["error_cm"] is not None and o["error_cm"] > GOAL_TOLERANCE * 100}
