@@ -167,9 +167,11 @@ def read_shard_arrays(path: str | Path, keys: tuple[str, ...]) -> dict[str, np.n
         return {k: z[k] for k in keys if k in z.files}
 
 
-def load_extra(data_dir: str | Path, key: str) -> np.ndarray | None:
+def load_extra(data_dir: str | Path, key: str, pad_value=None) -> np.ndarray | None:
     """The per-transition extra array `key` (e.g. "outcome") of all shards of `data_dir`,
-    in `load_transitions` order; None if any shard lacks it."""
+    in `load_transitions` order; None if any shard lacks it. Shards whose arrays differ in
+    width (e.g. per relevant object, padded to the shard's largest count) are padded to the
+    widest with `pad_value`, as `load_transitions` pads the transitions."""
     parts = []
     for path in shard_paths(data_dir):
         z = read_shard_arrays(path, (key, "episode"))
@@ -179,4 +181,9 @@ def load_extra(data_dir: str | Path, key: str) -> np.ndarray | None:
             raise ValueError(f"shard {path}: {key} has {len(z[key])} entries for "
                              f"{len(z['episode'])} transitions")
         parts.append(z[key])
+    if pad_value is not None and parts:
+        width = np.max([p.shape[1:] for p in parts], axis=0)
+        parts = [np.pad(p, [(0, 0)] + [(0, int(w - d)) for w, d in zip(width, p.shape[1:],
+                                                                      strict=True)],
+                        constant_values=pad_value) for p in parts]
     return np.concatenate(parts)

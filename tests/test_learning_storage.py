@@ -58,6 +58,14 @@ def test_extra_arrays_load_in_transition_order_or_not_at_all(tmp_path):
         load_extra(tmp_path, "outcome")
 
 
+def test_extra_arrays_of_different_widths_pad_like_the_transitions(tmp_path):
+    write_manifest(tmp_path)
+    write_shard(tmp_path, 0, _arrays(1, 3), {"slots": np.array([[0, 1, 2]], np.int8)})
+    write_shard(tmp_path, 1, _arrays(2, 2), {"slots": np.array([[3, 1], [0, 2]], np.int8)})
+    assert load_extra(tmp_path, "slots", pad_value=-1).tolist() == [
+        [0, 1, 2], [3, 1, -1], [0, 2, -1]]
+
+
 def test_fingerprint_tracks_contents(tmp_path):
     write_manifest(tmp_path)
     write_shard(tmp_path, 0, _arrays(2, 3, seed=1))

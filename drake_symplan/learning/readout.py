@@ -137,7 +137,8 @@ def readout_scenes(
     objects alone, gives an object the symbols a planner reads in a perceived scene:
     relations come from attention over every object in view."""
     arrays = load_transitions(data_dir)
-    extra = {k: load_extra(data_dir, k) for k in SCENE_KEYS}
+    extra = {k: load_extra(data_dir, k, pad_value=-1 if k == "scene_slots" else None)
+             for k in SCENE_KEYS}
     missing = [k for k, v in extra.items() if v is None]
     if missing:
         raise ValueError(f"data set {data_dir} stores no whole scenes (lacks {missing}); "
