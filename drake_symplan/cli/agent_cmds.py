@@ -12,6 +12,8 @@ line on stderr). Drake and torch are imported inside the command functions.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
 from pathlib import Path
 
 from drake_symplan.cli.learning_cmds import eval_subparsers
@@ -111,7 +113,10 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     from drake_symplan.agent.solve import solve
     from drake_symplan.world.visualization import StartMeshcat
 
-    meshcat = StartMeshcat() if (args.meshcat or args.record) else None
+    meshcat = None
+    if args.meshcat or args.record:
+        with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
+            meshcat = StartMeshcat()
     result = solve(start, goal, bundle, args.planner, args.timeout, not args.no_monitor,
                    args.max_replans, meshcat=meshcat, record=args.record, backend=args.backend)
     out = result.to_json()
@@ -125,7 +130,8 @@ def cmd_solve(args: argparse.Namespace) -> dict:
         if result.message:
             print(f"  {result.failure_cause}: {result.message}")
     if args.meshcat:
-        input("Meshcat is serving the scene; press Enter to quit.")
+        print("Meshcat is serving the scene; press Enter to quit.", file=sys.stderr)
+        input()
     return out if result.success else NegativeAnswer(out)
 
 
