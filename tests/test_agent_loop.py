@@ -175,6 +175,27 @@ def test_goal_contacts_are_the_perceived_goal_contacts_under_file_names():
     assert bundle.goal_contacts[0] == {("a", "b")}  # c touches nothing in the goal
 
 
+def test_the_bundle_writes_goal_relations_only_between_the_contacting_pairs():
+    from pathlib import Path
+
+    from drake_symplan.symbolic.bundle import ModelBundle
+    from drake_symplan.symbolic.bundle import Reading as BundleReading
+    from drake_symplan.symbolic.effect_operators import EFFECT
+    from drake_symplan.symbolic.pddl import read_problem
+
+    bundle = ModelBundle(Path("hand-made"), None, [], EFFECT, {"n_unary": 1, "n_relations": 2},
+                         {})
+    names = ("a", "b", "c")
+    every_bit = SymbolicState(names, np.ones((3, 1), bool), np.ones((2, 3, 3), bool))
+    unsure = np.zeros((3, 1), bool), np.zeros((2, 3, 3), bool)
+    start = BundleReading(every_bit, *unsure, contacts={("a", "b"), ("b", "c")})
+    goal = BundleReading(every_bit, *unsure, contacts={("a", "b"), ("b", "c")})
+    _, _, atoms = read_problem(bundle.problem(start, goal, {("a", "b")}, costs=False))
+    assert {a for a in atoms if len(a) == 2} == {("p0", "a"), ("p0", "b"), ("p0", "c")}
+    assert {a for a in atoms if len(a) == 3} == {
+        (f"r{k}", x, y) for k in range(2) for x, y in (("a", "b"), ("b", "a"))}
+
+
 def test_the_monitor_replans_on_a_forced_mismatch():
     result, _ = solve(OracleBundle(force_mismatches=1))
     assert result.replans == 1
