@@ -84,3 +84,14 @@ def test_a_missing_or_incomplete_bundle_is_one_clear_error(tmp_path, bundle):
     (bundle.path / "operators.json").unlink()
     with pytest.raises(BundleError, match="has no operators.json"):
         ModelBundle.load(bundle.path)
+
+
+def test_plans_on_the_cost_domain_check_with_the_strips_reader(bundle):
+    from drake_symplan.symbolic.pddl import check_plan
+
+    start, goal = reading([1, 1, 0]), reading([1, 1, 0], on=[("a", "b")],
+                                              contacts=[("a", "b")])
+    text = bundle.problem(start, goal)
+    plan = bundle.plan(start, goal, "fd").plan
+    assert check_plan(bundle.domain, text, plan) is None
+    assert check_plan(bundle.domain, text, []) is not None  # the goal does not hold yet

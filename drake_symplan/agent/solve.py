@@ -116,12 +116,6 @@ class Agent:
         """Puts `scene` on the table (tilted objects at their full `rpy`), robot home, and
         lets physics settle it."""
         self.station.reset(scene)
-        for o in scene.objects:
-            if o.rpy is not None:  # Station.reset puts every object upright at its yaw
-                from pydrake.math import RigidTransform, RollPitchYaw
-
-                self.station.set_object_pose(o.name, RigidTransform(RollPitchYaw(o.rpy),
-                                                                    list(o.position)))
         self.station.settle(RESET_SETTLE)
 
     def look(self, scene, clock: _Clock | None = None) -> beliefs.Named:

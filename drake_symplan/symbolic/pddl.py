@@ -257,7 +257,7 @@ def read_domain(text: str) -> dict[str, Schema]:
         for lit in _conj(fields.get(":effect", [])):
             if lit[0] == "not":
                 delete.append(tuple(lit[1]))
-            else:
+            elif lit[0] != "increase":  # an action cost, not a fact
                 add.append(tuple(lit))
         pre = [tuple(lit) for lit in _conj(fields.get(":precondition", []))]
         if any(lit[0] in ("not", "or", "=", "forall", "exists", "imply") for lit in pre):
@@ -273,7 +273,7 @@ def read_problem(text: str) -> tuple[list[str], set[tuple[str, ...]], list[tuple
         raise ValueError("problem does not start with (define ...)")
     parts = {p[0]: p[1:] for p in expr[2:] if p and isinstance(p[0], str)}
     objects = _params(parts.get(":objects", []))
-    init = {tuple(a) for a in parts.get(":init", [])}
+    init = {tuple(a) for a in parts.get(":init", []) if a[:1] != ["="]}  # no cost fluent
     goal = [tuple(a) for a in _conj(parts[":goal"][0])] if parts.get(":goal") else []
     return objects, init, goal
 

@@ -224,8 +224,8 @@ class Station:
                     fj.Lock(ctx)
                     park += 1
         for o in scene.objects:
-            self.set_object_pose(
-                o.name, RigidTransform(RollPitchYaw(0, 0, o.yaw), np.asarray(o.position, float)))
+            self.set_object_pose(o.name, RigidTransform(RollPitchYaw(o.orientation()),
+                                                        np.asarray(o.position, float)))
         if self.arm is not None:
             q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
             plant.SetPositions(ctx, self.arm, q)
