@@ -28,6 +28,7 @@ COMMAND_MODULES = [
     "drake_symplan.cli.learning_cmds",
     "drake_symplan.cli.planning_cmds",
     "drake_symplan.cli.agent_cmds",
+    "drake_symplan.cli.inspect_cmds",
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2
@@ -42,8 +43,10 @@ PIPELINE = (
     ("train", "train an effect model (RelationalDeepSym or a baseline) on a data set"),
     ("eval effects", "test-set effect error of trained runs"),
     ("symbols", "read unary and relational symbols of a data set out of a trained run"),
+    ("explain", "what each learned symbol means, from perceived features and contacts"),
     ("operators", "learn lifted operators from the symbols and write a PDDL domain"),
     ("plan", "plan on a PDDL domain and problem (Fast Downward or pyperplan)"),
+    ("inspect", "show a scene's symbols and a plan to a goal in Meshcat"),
 )
 DESCRIPTION = "\n\n".join([
     textwrap.fill("A UR10 in Drake explores pick/place actions on blocks it perceives with "

@@ -1,0 +1,318 @@
+"""Seeing the symbols: a perceived scene's learned symbols and a plan, drawn in Meshcat.
+
+`inspect(start, bundle, goal=...)` puts the scene on the table, perceives it (boxes named
+after the scene file, agent/beliefs.py), reads its symbols with the model bundle and
+draws, under `/symplan` in Meshcat:
+
+- `/symplan/start/boxes/<name>`: each perceived box, coloured by its unary bit pattern
+  (`PALETTE[int(bits)]`; a pattern with an uncertain bit, `?`, is grey);
+- `/symplan/start/relations/r<k>/<x>_<y>`: relation r_k(x, y) as a bracket of thin rods in
+  r_k's colour from x's centre to y's, a ball at y's end; only certain bits that are set,
+  only between objects perceived in contact (what the planner reads);
+- with a goal scene: `/symplan/goal/...` the same for the perceived goal, translucent, and
+  `/symplan/plan/step<i>`: an arc from step i's source to its target.
+
+Meshcat draws no text, so the legend (bit pattern -> colour, relation -> colour), the
+objects' symbols and the plan step by step (operator, preconditions, effects) go into
+a panel added to the recording's HTML (`panel_html`, `annotate_html`) and to the JSON.
+"""
+
+from __future__ import annotations
+
+import html as _html
+from pathlib import Path
+
+import numpy as np
+
+from drake_symplan.boxes import HALF_EXTENTS
+
+PREFIX = "/symplan"
+PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#edc948", "#76b7b2",
+           "#ff9da7", "#9c755f", "#86bcb6", "#d4a6c8", "#8cd17d", "#f1ce63", "#a0cbe8",
+           "#ffbe7d", "#d37295")
+UNCERTAIN = "#9a9a9a"
+RELATION_COLOURS = ("#111111", "#d62728", "#7b2fbe", "#1a7f37", "#0b3d91", "#c2185b",
+                    "#8a5a00", "#008b8b")
+STEP_COLOURS = ("#ff7f0e", "#17becf", "#bcbd22", "#e377c2", "#2ca02c", "#9467bd")
+GRASP = {"center": "at its centre", "left": "at its left end", "right": "at its right end"}
+RELEASE = {"center": "centre", "left": "left", "right": "right"}
+
+
+def readable_step(step: str) -> str:
+    """'(pick_center_place_left_n86_op2 o3 o1)' -> 'pick o3 at its centre, release on
+    o1's left'."""
+    from drake_symplan.symbolic.pddl import plan_step_action
+
+    a = plan_step_action(step).action
+    return f"pick {a.source} {GRASP[a.grasp]}, release on {a.target}'s {RELEASE[a.release]}"
+
+
+def atom_text(atom) -> str:
+    return f"{atom[0]}({', '.join(atom[1:])})"
+
+
+def pattern(bits, uncertain) -> str:
+    """'10?' from unary bits and their uncertain flags (p0 first)."""
+    return "".join("?" if u else str(int(b)) for b, u in zip(bits, uncertain, strict=True))
+
+
+def colour(pat: str) -> str:
+    return UNCERTAIN if "?" in pat else PALETTE[int(pat[::-1] or "0", 2) % len(PALETTE)]
+
+
+def symbol_view(named_scene, reading) -> dict:
+    """The symbols of a perceived scene (beliefs.Named.scene) and its bundle reading:
+    objects with their bits and colours, the drawn relations, the legend."""
+    s = reading.state
+    index = {n: i for i, n in enumerate(s.objects)}
+    objects = []
+    for o in named_scene.objects:
+        i = index[o.name]
+        pat = pattern(s.unary[i], reading.unary_uncertain[i])
+        objects.append({
+            "name": o.name, "type": o.type, "position": [round(float(v), 4) for v in o.position],
+            "unary": {f"p{j}": None if "?" == c else int(c) for j, c in enumerate(pat)},
+            "pattern": pat, "colour": colour(pat)})
+    relations = []
+    for a, b in sorted(reading.contacts):
+        for x, y in ((a, b), (b, a)):
+            for k in range(s.relational.shape[0]):
+                i, j = index[x], index[y]
+                if s.relational[k, i, j] and not reading.relational_uncertain[k, i, j]:
+                    relations.append({"relation": f"r{k}", "x": x, "y": y,
+                                      "colour": RELATION_COLOURS[k % len(RELATION_COLOURS)]})
+    legend = {"unary": {o["pattern"]: o["colour"] for o in objects},
+              "relations": {f"r{k}": RELATION_COLOURS[k % len(RELATION_COLOURS)]
+                            for k in range(s.relational.shape[0])}}
+    return {"objects": objects, "relations": relations,
+            "contacts": [list(p) for p in sorted(reading.contacts)], "legend": legend}
+
+
+def plan_view(bundle, steps: list[str]) -> list[dict]:
+    """Each plan step: its readable form, operator, reliability and the grounded
+    preconditions and effects."""
+    from drake_symplan.symbolic.pddl import plan_step_action
+
+    out = []
+    for step in steps:
+        op = bundle.operator_of(step)
+        args = plan_step_action(step).args
+
+        def ground(atoms, args=args):
+            return [atom_text((a[0], *(args[i] for i in a[1:]))) for a in atoms]
+
+        out.append({"step": step, "readable": readable_step(step), "operator": op.name,
+                    "reliability": round(op.reliability, 3), "preconditions": ground(op.pre),
+                    "add": ground(op.add), "delete": ground(op.delete)})
+    return out
+
+
+# --- Meshcat ------------------------------------------------------------------------
+
+
+def _rgba(hex_colour: str, alpha: float = 1.0):
+    from pydrake.geometry import Rgba
+
+    h = hex_colour.lstrip("#")
+    return Rgba(*(int(h[i:i + 2], 16) / 255 for i in (0, 2, 4)), alpha)
+
+
+def _rod(meshcat, path: str, p: np.ndarray, q: np.ndarray, rgba, radius: float = 0.003):
+    from pydrake.geometry import Cylinder
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    d = np.asarray(q, float) - np.asarray(p, float)
+    length = float(np.linalg.norm(d))
+    if length < 1e-6:
+        return
+    meshcat.SetObject(path, Cylinder(radius, length), rgba)
+    meshcat.SetTransform(path, RigidTransform(RotationMatrix.MakeFromOneVector(d, 2),
+                                              (np.asarray(p) + np.asarray(q)) / 2))
+
+
+def _ball(meshcat, path: str, p: np.ndarray, rgba, radius: float = 0.009):
+    from pydrake.geometry import Sphere
+    from pydrake.math import RigidTransform
+
+    meshcat.SetObject(path, Sphere(radius), rgba)
+    meshcat.SetTransform(path, RigidTransform(np.asarray(p, float)))
+
+
+TOWARD_CAMERA = np.array([0.69, -0.72, 0.0])  # horizontal, toward the default camera
+
+
+def draw_view(meshcat, named_scene, view: dict, layer: str = "start", alpha: float = 0.8,
+              inflate: float = 0.003) -> None:
+    """Draws `view` (symbol_view) under /symplan/<layer>: boxes and relation brackets."""
+    from pydrake.geometry import Box
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    meshcat.Delete(f"{PREFIX}/{layer}")
+    centres = {}
+    for o, v in zip(named_scene.objects, view["objects"], strict=True):
+        size = 2 * np.asarray(HALF_EXTENTS[o.type]) + inflate
+        path = f"{PREFIX}/{layer}/boxes/{o.name}"
+        meshcat.SetObject(path, Box(*size), _rgba(v["colour"], alpha))
+        meshcat.SetTransform(path, RigidTransform(RotationMatrix(np.asarray(o.R)),
+                                                  np.asarray(o.position, float)))
+        centres[o.name] = np.asarray(o.position, float)
+    for r in view["relations"]:
+        p, q = centres[r["x"]], centres[r["y"]]
+        k = int(r["relation"][1:])
+        d = q - p
+        vertical = abs(d[2]) > np.linalg.norm(d[:2])
+        away = TOWARD_CAMERA if vertical else np.array([0.0, 0.0, 1.0])
+        off = away * (0.04 + 0.015 * k)
+        path = f"{PREFIX}/{layer}/relations/{r['relation']}/{r['x']}_{r['y']}"
+        rgba = _rgba(r["colour"], alpha)
+        for i, (a, b) in enumerate(((p, p + off), (p + off, q + off), (q + off, q))):
+            _rod(meshcat, f"{path}/rod{i}", a, b, rgba)
+        _ball(meshcat, f"{path}/head", q + off, rgba)
+
+
+def draw_plan(meshcat, start_view: dict, plan: list[dict]) -> None:
+    """Step i as an arc from its source to its target (start-scene positions) under
+    /symplan/plan/step<i>, with a ball at the target's end."""
+    meshcat.Delete(f"{PREFIX}/plan")
+    where = {o["name"]: np.asarray(o["position"], float) for o in start_view["objects"]}
+    top = max((p[2] for p in where.values()), default=0.0)
+    for i, step in enumerate(plan):
+        from drake_symplan.symbolic.pddl import plan_step_action
+
+        a = plan_step_action(step["step"]).action
+        p, q = where[a.source], where[a.target]
+        peak = top + 0.15 + 0.03 * i
+        s = np.linspace(0, 1, 13)
+        pts = [(1 - t) * p + t * q + np.array([0, 0, 4 * t * (1 - t) * (peak - max(p[2], q[2]))])
+               for t in s]
+        rgba = _rgba(STEP_COLOURS[i % len(STEP_COLOURS)])
+        for j in range(len(pts) - 1):
+            _rod(meshcat, f"{PREFIX}/plan/step{i}/rod{j}", pts[j], pts[j + 1], rgba, 0.004)
+        _ball(meshcat, f"{PREFIX}/plan/step{i}/head", pts[-2], rgba, 0.012)
+
+
+def draw_goal_scene(meshcat, goal_scene, alpha: float = 0.3) -> None:
+    """The goal scene file's boxes (world.scenes.Scene), translucent green, under
+    /symplan/goal/boxes: the demo's goal beside the recorded execution."""
+    from pydrake.geometry import Box
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    meshcat.Delete(f"{PREFIX}/goal")
+    for o in goal_scene.objects:
+        path = f"{PREFIX}/goal/boxes/{o.name}"
+        meshcat.SetObject(path, Box(*(2 * np.asarray(HALF_EXTENTS[o.type]) + 0.004)),
+                          _rgba("#2ca02c", alpha))
+        meshcat.SetTransform(path, RigidTransform(RollPitchYaw(o.orientation),
+                                                  np.asarray(o.position, float)))
+
+
+# --- the HTML panel -----------------------------------------------------------------
+
+PANEL_STYLE = ("position:fixed;top:0;left:0;max-width:380px;max-height:100vh;overflow:auto;"
+               "background:rgba(255,255,255,0.92);font:12px/1.35 sans-serif;padding:8px 10px;"
+               "z-index:10;border-right:1px solid #ccc")
+
+
+def _swatch(c: str) -> str:
+    return (f'<span style="display:inline-block;width:11px;height:11px;background:{c};'
+            'border:1px solid #555;vertical-align:middle;margin-right:4px"></span>')
+
+
+def _objects_html(view: dict) -> str:
+    rows = []
+    for o in view["objects"]:
+        rel = [f"{r['relation']}({r['x']}, {r['y']})" for r in view["relations"]
+               if o["name"] == r["x"]]
+        rows.append(f"<li>{_swatch(o['colour'])}<b>{o['name']}</b> {o['type']} "
+                    f"({o['position'][0]:.2f}, {o['position'][1]:.2f}, {o['position'][2]:.2f}) "
+                    f"p={o['pattern']}{'; ' + ', '.join(rel) if rel else ''}</li>")
+    return "<ul style='padding-left:16px;margin:2px 0'>" + "".join(rows) + "</ul>"
+
+
+def panel_html(title: str, sections: list[tuple[str, str]]) -> str:
+    """A fixed panel: a title and (heading, inner HTML) sections."""
+    body = "".join(f"<h4 style='margin:8px 0 2px'>{_html.escape(h)}</h4>{inner}"
+                   for h, inner in sections)
+    return (f'<div id="symplan-panel" style="{PANEL_STYLE}"><h3 style="margin:0 0 4px">'
+            f"{_html.escape(title)}</h3>{body}</div>")
+
+
+def inspection_sections(result: dict) -> list[tuple[str, str]]:
+    """The panel's sections for an inspection result (see `inspect`)."""
+    start = result["start"]
+    legend = "".join(f"<div>{_swatch(c)}p0..p{len(p) - 1} = {p}</div>"
+                     for p, c in sorted(start["legend"]["unary"].items()))
+    rels = "".join(f"<div>{_swatch(c)}{k}(x, y): rod x &rarr; y, ball at y</div>"
+                   for k, c in start["legend"]["relations"].items())
+    sections = [("Unary symbols (box colour; ? uncertain = grey)", legend),
+                ("Relations (only between objects in contact)", rels),
+                ("Start (perceived)", _objects_html(start))]
+    if result.get("goal"):
+        sections.append(("Goal (translucent)", _objects_html(result["goal"]) + "<div>atoms: "
+                         + _html.escape(", ".join(result["goal"]["atoms"])) + "</div>"))
+        steps = "".join(
+            f"<li>{_swatch(STEP_COLOURS[i % len(STEP_COLOURS)])}<b>{_html.escape(s['readable'])}"
+            f"</b><br><code>{_html.escape(s['operator'])}</code> reliability "
+            f"{s['reliability']:.0%}<br>pre: {_html.escape(', '.join(s['preconditions']))}"
+            f"<br>add: {_html.escape(', '.join(s['add']) or '-')}<br>del: "
+            f"{_html.escape(', '.join(s['delete']) or '-')}</li>"
+            for i, s in enumerate(result["plan"]))
+        sections.append((f"Plan ({result['plan_status']}, {len(result['plan'])} steps)",
+                         f"<ol style='padding-left:18px;margin:2px 0'>{steps}</ol>"))
+    return sections
+
+
+def annotate_html(page: str, panel: str) -> str:
+    """The Meshcat page with `panel` added before </body>."""
+    at = page.rfind("</body>")
+    return page[:at] + panel + page[at:] if at >= 0 else page + panel
+
+
+def write_recording(meshcat, path: str | Path, panel: str) -> Path:
+    """Meshcat's static page with the panel, written to `path`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(annotate_html(meshcat.StaticHtml(), panel))
+    return path
+
+
+# --- the command's work -------------------------------------------------------------
+
+
+def inspect(start_scene, bundle, goal_scene=None, meshcat=None, record=None,
+            planner: str = "fd", timeout: float = 10.0, backend: str = "arm",
+            title: str = "symplan inspect") -> dict:
+    """Perceives `start_scene` (and `goal_scene`), reads and draws their symbols, plans
+    from start to goal; returns the JSON result and writes the recording to `record`."""
+    from drake_symplan.agent.solve import Agent
+
+    agent = Agent(backend, meshcat=meshcat)
+    goal = agent.look(goal_scene) if goal_scene is not None else None
+    start = agent.look(start_scene)  # the table stays in the start scene
+    lost = start.lost + (goal.lost if goal is not None else [])
+    if lost:
+        raise RuntimeError(f"perception lost {', '.join(lost)}")
+
+    def read(named):
+        return bundle.read(named.scene.names, named.scene.features(), named.scene.contacts)
+
+    start_reading = read(start)
+    result = {"model": str(bundle.path), "start": symbol_view(start.scene, start_reading)}
+    result["start"]["atoms"] = sorted(atom_text(a) for a in bundle.atoms(start_reading)[0])
+    if goal is not None:
+        goal_reading = read(goal)
+        result["goal"] = symbol_view(goal.scene, goal_reading)
+        result["goal"]["atoms"] = sorted(atom_text(a) for a in bundle.goal_atoms(
+            goal_reading, goal.scene.contacts))
+        found = bundle.plan(start_reading, goal_reading, planner, timeout, goal.scene.contacts)
+        result["plan_status"] = found.status
+        result["plan"] = plan_view(bundle, list(found.plan)) if found.solved else []
+    if meshcat is not None:
+        draw_view(meshcat, start.scene, result["start"])
+        if goal is not None:
+            draw_view(meshcat, goal.scene, result["goal"], "goal", alpha=0.3)
+            draw_plan(meshcat, result["start"], result["plan"])
+        if record is not None:
+            write_recording(meshcat, record, panel_html(title, inspection_sections(result)))
+            result["recording"] = str(record)
+    return result

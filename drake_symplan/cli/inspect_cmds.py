@@ -1,0 +1,159 @@
+"""`symplan inspect` and `symplan explain`: seeing what the learned symbols are.
+
+    symplan inspect --scene scene.yaml [--model DIR] [--goal goal.yaml] [--record out.html]
+                    [--meshcat] [--planner fd|pyperplan] [--timeout 10] --json
+    symplan explain [--model DIR] --data DIR [--margin 3] [--plot out.png] --json
+
+`inspect` perceives the scene, reads its symbols with a model bundle and draws them in
+Meshcat (agent/inspection.py); with --goal also the goal's symbols and the plan step by
+step. `explain` says, for each learned predicate, which description computed from the
+perceived features and contacts agrees with it best (learning/explain.py).
+
+Exit status: 0 done, 1 inspect found no plan for the goal, 2 bad input (one line on
+stderr). Drake and torch are imported inside the command functions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+
+from drake_symplan.cli.main import CommandError, NegativeAnswer
+
+PLANNERS = ("fd", "pyperplan")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "inspect", help="show a perceived scene's symbols (and a plan to a goal) in Meshcat",
+        description="Perceives the scene, reads its symbols with a model bundle and draws "
+        "the boxes coloured by their unary bit pattern and the relations between objects in "
+        "contact as coloured rods; with --goal the goal's symbols (translucent) and the plan "
+        "as arcs. The legend, the symbols and the plan's steps (operator, preconditions, "
+        "effects) are printed and written into the recording's page.")
+    p.add_argument("--scene", required=True, type=Path, help="scene YAML")
+    p.add_argument("--goal", type=Path, default=None, help="goal scene YAML (same objects)")
+    p.add_argument("--model", type=Path, default=None,
+                   help="model bundle directory (default: the shipped models/learned/)")
+    p.add_argument("--record", type=Path, default=None,
+                   help="write a self-contained HTML page of the drawing here")
+    p.add_argument("--meshcat", action="store_true",
+                   help="keep serving the live scene on localhost until Enter is pressed")
+    p.add_argument("--planner", choices=PLANNERS, default="fd")
+    p.add_argument("--timeout", type=float, default=10.0, help="planner seconds (default 10)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_inspect)
+
+    p = subparsers.add_parser(
+        "explain", help="what each learned symbol means, from perceived features and contacts",
+        description="For each unary and relational predicate of a model, the description "
+        "computed from the perceived features and contacts of a data set's whole scenes "
+        "that agrees with it best (accuracy, or balanced accuracy for a rare bit), with the "
+        "bit's frequency. Relations are read between objects perceived in contact.")
+    p.add_argument("--model", type=Path, default=None,
+                   help="model bundle (model.pt) or run directory (best.pt); default: the "
+                   "shipped models/learned/")
+    p.add_argument("--data", required=True, type=Path,
+                   help="data set directory with whole scenes (collected by current code)")
+    p.add_argument("--margin", type=float, default=3.0,
+                   help="a bit is uncertain when |logit| < margin (default 3.0)")
+    p.add_argument("--plot", type=Path, default=None,
+                   help="write a PNG of the best descriptions and example scenes")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_explain)
+
+
+def _model_dir(path: Path | None) -> Path:
+    from drake_symplan.symbolic.bundle import default_bundle_dir
+
+    if path is None:
+        path = default_bundle_dir()
+        if not path.is_dir():
+            raise CommandError(f"no default model at {path} (not shipped yet); give --model DIR")
+    if not path.is_dir():
+        raise CommandError(f"no model directory {path}")
+    return path
+
+
+def cmd_inspect(args: argparse.Namespace) -> dict:
+    from drake_symplan.agent.beliefs import check_scene_pair
+    from drake_symplan.cli.world_cmds import load_scene_file
+
+    # Inputs first, so that bad ones are told before Drake is loaded.
+    if not args.timeout > 0:
+        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
+    start = load_scene_file(args.scene)
+    goal = load_scene_file(args.goal) if args.goal is not None else None
+    if goal is not None:
+        check_scene_pair(start, goal)
+    from drake_symplan.symbolic.bundle import ModelBundle
+
+    bundle = ModelBundle.load(_model_dir(args.model))
+
+    from drake_symplan.agent.inspection import inspect, inspection_sections
+    from drake_symplan.world.visualization import StartMeshcat
+
+    meshcat = None
+    if args.meshcat or args.record:
+        with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
+            meshcat = StartMeshcat()
+    try:
+        result = inspect(start, bundle, goal, meshcat, args.record, args.planner, args.timeout,
+                         title=f"symplan inspect {args.scene.name}")
+    except RuntimeError as e:  # perception lost an object of the scene file
+        raise CommandError(f"{args.scene}: {e}") from e
+    result["scene"] = str(args.scene)
+    if not args.json:
+        print("\n".join(summary_lines(result, inspection_sections)))
+    if args.meshcat:
+        print(f"Meshcat is serving the scene at {meshcat.web_url()}; press Enter to quit.",
+              file=sys.stderr)
+        input()
+    no_plan = goal is not None and result["plan_status"] != "solved"
+    return NegativeAnswer(result) if no_plan else result
+
+
+def summary_lines(result: dict, sections=None) -> list[str]:
+    """The inspection as text: legend, objects, relations, goal atoms, plan steps."""
+    start = result["start"]
+    lines = ["legend (unary bit pattern p0.. -> box colour): " + ", ".join(
+        f"{p} {c}" for p, c in sorted(start["legend"]["unary"].items())),
+        "relations (rod colour): " + ", ".join(
+            f"{k} {c}" for k, c in start["legend"]["relations"].items())]
+    for o in start["objects"]:
+        rel = [f"{r['relation']}({r['x']}, {r['y']})" for r in start["relations"]
+               if r["x"] == o["name"]]
+        lines.append(f"  {o['name']:4s} {o['type']:5s} p={o['pattern']} {o['colour']}  "
+                     + ", ".join(rel))
+    if "goal" in result:
+        lines.append("goal atoms: " + ", ".join(result["goal"]["atoms"]))
+        lines.append(f"plan ({result['plan_status']}, {len(result['plan'])} steps):")
+        for i, s in enumerate(result["plan"], 1):
+            lines += [f"  {i}. {s['readable']}   [{s['operator']}, reliability "
+                      f"{s['reliability']:.0%}]",
+                      f"     pre: {', '.join(s['preconditions'])}",
+                      f"     add: {', '.join(s['add']) or '-'}; del: {', '.join(s['delete']) or '-'}"]
+    if "recording" in result:
+        lines.append(f"recording written to {result['recording']}")
+    return lines
+
+
+def cmd_explain(args: argparse.Namespace) -> dict:
+    from drake_symplan.learning.explain import explain_model, explanation_line, plot_examples
+
+    model = _model_dir(args.model)
+    if not args.data.is_dir():
+        raise CommandError(f"no data set directory {args.data}")
+    if not args.margin >= 0:
+        raise CommandError(f"--margin must be 0 or more, got {args.margin:g}")
+    result, arrays = explain_model(model, args.data, args.margin)
+    result["lines"] = [explanation_line(e) for e in result["unary"] + result["relations"]]
+    if args.plot:
+        result["plot"] = str(plot_examples(result, arrays, args.plot))
+    if not args.json:
+        print(f"{result['scenes']} scenes, {result['objects']} object reads, "
+              f"{result['pairs_in_contact']} ordered pairs in contact")
+        print("\n".join(result["lines"]))
+    return result
