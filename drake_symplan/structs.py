@@ -157,6 +157,8 @@ class SymbolDataset:
     next_relational_uncertain: np.ndarray | None = None
     contacts: np.ndarray | None = None  # [T, N, N] bool: pairs perceived in contact before
     next_contacts: np.ndarray | None = None  # [T, N, N] bool: after
+    degree: np.ndarray | None = None  # [T, N] int: objects of the whole scene each touches
+    next_degree: np.ndarray | None = None  # [T, N] int: after
 
     def __post_init__(self):
         names = self.names()
@@ -170,7 +172,7 @@ class SymbolDataset:
         t, n, p = self.unary.shape
         k = self.relational.shape[1]
         shapes = {"unary": (t, n, p), "relational": (t, k, n, n), "action": (t, n, ACTION_DIM),
-                  "mask": (t, n), "contacts": (t, n, n)}
+                  "mask": (t, n), "contacts": (t, n, n), "degree": (t, n)}
         for name in names:
             value = getattr(self, name)
             expected = shapes[name.removeprefix("next_").removesuffix("_uncertain")]

@@ -191,7 +191,10 @@ def test_the_bundle_writes_goal_relations_only_between_the_contacting_pairs():
     start = BundleReading(every_bit, *unsure, contacts={("a", "b"), ("b", "c")})
     goal = BundleReading(every_bit, *unsure, contacts={("a", "b"), ("b", "c")})
     _, _, atoms = read_problem(bundle.problem(start, goal, {("a", "b")}, costs=False))
-    assert {a for a in atoms if len(a) == 2} == {("p0", "a"), ("p0", "b"), ("p0", "c")}
+    # Unary symbols, and each object's contact degree in the goal's contacts (a, b).
+    assert {a for a in atoms if len(a) == 2} == {("p0", "a"), ("p0", "b"), ("p0", "c"),
+                                                 ("touching1", "a"), ("touching1", "b"),
+                                                 ("touching0", "c")}
     assert {a for a in atoms if len(a) == 3} == {
         (f"r{k}", x, y) for k in range(2) for x, y in (("a", "b"), ("b", "a"))}
 

@@ -13,9 +13,12 @@ from drake_symplan.symbolic.bundle import BundleError, ModelBundle, Reading, wri
 from drake_symplan.symbolic.effect_operators import EFFECT, EffectOperator
 from drake_symplan.symbolic.states import SymbolicState
 
-# Stack ?o0 on ?o1 when both have p0: adds r0(?o0, ?o1) and not_r0(?o1, ?o0).
-STACK = EffectOperator(0, "center", "left", 2, (("p0", 0), ("p0", 1)),
-                       (("not_r0", 1, 0), ("r0", 0, 1)), (), 40, applicable=50, succeeded=40)
+# Stack ?o0 on ?o1 when both have p0 and touch nothing: adds r0(?o0, ?o1), not_r0(?o1, ?o0),
+# and each now touches one object.
+STACK = EffectOperator(
+    0, "center", "left", 2, (("p0", 0), ("p0", 1), ("touching0", 0), ("touching0", 1)),
+    (("not_r0", 1, 0), ("r0", 0, 1), ("touching1", 0), ("touching1", 1)),
+    (("touching0", 0), ("touching0", 1)), 40, applicable=50, succeeded=40)
 
 
 @pytest.fixture
@@ -73,7 +76,9 @@ def test_the_monitor_reports_what_did_not_come_true(bundle):
     done = reading([1, 1, 0], on=[("a", "b")], contacts=[("a", "b")])
     assert bundle.mismatches(done, step, before) == []
     fell = reading([1, 1, 0])  # a did not end on b: no contact, no relation atoms
-    assert set(bundle.mismatches(fell, step, before)) == {("not_r0", "b", "a"), ("r0", "a", "b")}
+    assert set(bundle.mismatches(fell, step, before)) == {
+        ("not_r0", "b", "a"), ("r0", "a", "b"), ("touching1", "a"), ("touching1", "b"),
+        ("touching0", "a"), ("touching0", "b")}
     unsure = reading([1, 1, 0], contacts=[("a", "b")], uncertain=[("a", "b"), ("b", "a")])
     assert bundle.mismatches(unsure, step, before) == []  # uncertain bits are no evidence
 

@@ -29,6 +29,8 @@ def dataset(rows) -> SymbolDataset:
         out["unary_uncertain"].append(unc)
     action = np.stack([encode_action(Action("a", "center", "b", "center"), ["a", "b"])] * t)
     arrays = {k: np.array(v) for k, v in out.items()}
+    arrays["degree"] = arrays["contacts"].sum(-1)
+    arrays["next_degree"] = arrays["next_contacts"].sum(-1)
     return SymbolDataset(action=action, mask=np.ones((t, 2), bool), **arrays)
 
 
@@ -50,10 +52,11 @@ def test_an_effect_group_gets_intersected_preconditions_and_its_reliability():
     op = ops.operators[0]
     assert op.n_params == 2 and (op.grasp, op.release) == ("center", "center")
     assert sorted(" ".join(a) for a in op.preconditions()) == [
-        "different ?o0 ?o1", "p0 ?o0", "p0 ?o1"]
+        "different ?o0 ?o1", "p0 ?o0", "p0 ?o1", "touching0 ?o0", "touching0 ?o1"]
     add, delete = op.effects()
-    assert sorted(" ".join(a) for a in add) == ["not_r0 ?o1 ?o0", "r0 ?o0 ?o1"]
-    assert delete == []
+    assert sorted(" ".join(a) for a in add) == [
+        "not_r0 ?o1 ?o0", "r0 ?o0 ?o1", "touching1 ?o0", "touching1 ?o1"]
+    assert sorted(" ".join(a) for a in delete) == ["touching0 ?o0", "touching0 ?o1"]
     # Applies where b has p0 (25 transitions), and 20 of them stacked.
     assert (op.applicable, op.succeeded) == (25, 20) and op.reliability == 0.8
     assert op.cost == 1 + round(10 * -np.log(0.8))
@@ -64,12 +67,16 @@ def test_uncertain_bits_make_no_atoms_and_support_tolerates_them():
     rows = [stack(1, True)] * 19 + [stack(1, True, unc)]
     ops = learn_effect_operators(dataset(rows), EffectLearnConfig(min_count=3, support=0.95))
     pre = sorted(" ".join(a) for a in ops.operators[0].preconditions())
-    assert pre == ["different ?o0 ?o1", "p0 ?o0", "p0 ?o1"]  # 19 of 20 >= 95 %
+    assert pre == ["different ?o0 ?o1", "p0 ?o0", "p0 ?o1", "touching0 ?o0",
+                   "touching0 ?o1"]  # p0 ?o1 in 19 of 20 >= 95 %
     strict = learn_effect_operators(dataset(rows), EffectLearnConfig(min_count=3, support=1.0))
     assert "p0 ?o1" not in [" ".join(a) for a in strict.operators[0].preconditions()]
     atoms = state_atoms(np.array([[1], [1]]), unc, np.zeros((1, 2, 2)), None, APART,
                         np.array([True, True]))
     assert atoms == {("p0", 0)}
+    assert state_atoms(np.array([[1], [1]]), unc, np.zeros((1, 2, 2)), None, APART,
+                       np.array([True, True]), degree=np.array([0, 5])) == {
+        ("p0", 0), ("touching0", 0), ("touching3", 1)}  # degrees above 3 read as 3
 
 
 def test_relations_only_between_objects_in_contact_and_prediction_of_the_goal():
@@ -81,6 +88,6 @@ def test_relations_only_between_objects_in_contact_and_prediction_of_the_goal():
     op = learn_effect_operators(dataset([stack(1, True)] * 3),
                                 EffectLearnConfig(min_count=1)).operators[0]
     assert predicts(op, lifted[0]) is True
-    assert predicts(op, lifted[1]) is True  # nothing changed: the goal atoms hold anyway
+    assert predicts(op, lifted[1]) is False  # the goal: both still touch nothing
     assert predicts(op, lifted[2]) is False  # the goal has b on a, the operator a on b
 

@@ -180,8 +180,10 @@ def _gather(scenes: SceneSymbols, slots: np.ndarray, mask: np.ndarray,
             out[f"{prefix}relational{suffix}"] = (r * pair[:, None] if suffix == ""
                                                  else r & pair[:, None])
     for prefix in ("", "next_"):
-        c = getattr(scenes, f"{prefix}contacts")[t[:, :, None], s[:, :, None], s[:, None, :]]
+        whole = getattr(scenes, f"{prefix}contacts")
+        c = whole[t[:, :, None], s[:, :, None], s[:, None, :]]
         out[f"{prefix}contacts"] = c & pair
+        out[f"{prefix}degree"] = (whole.sum(-1)[t, s] * mask).astype(np.int8)
     return SymbolDataset(action=action.astype(np.float32, copy=False), mask=mask, **out)
 
 

@@ -62,11 +62,12 @@ def scene_atoms(scenes: SceneSymbols, row: int, after: bool, semantics: Semantic
     p = "next_" if after else ""
     unc = (lambda a: a[row]) if semantics.certain_only else (lambda a: None)
     use_contacts = semantics.contacts_only if contacts_only is None else contacts_only
-    contacts = getattr(scenes, f"{p}contacts")[row] if use_contacts else None
+    whole = getattr(scenes, f"{p}contacts")[row]
     atoms, _ = _atoms_and_unknown(
         getattr(scenes, f"{p}unary")[row], unc(getattr(scenes, f"{p}unary_uncertain")),
         getattr(scenes, f"{p}relational")[row],
-        unc(getattr(scenes, f"{p}relational_uncertain")), contacts, scenes.mask[row])
+        unc(getattr(scenes, f"{p}relational_uncertain")), whole if use_contacts else None,
+        scenes.mask[row], whole.sum(-1) if semantics.degree else None)
     return sorted((a[0], *(names[s] for s in a[1:])) for a in atoms)
 
 

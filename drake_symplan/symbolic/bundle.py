@@ -14,6 +14,7 @@ Layout of a bundle directory (`models/learned/` is the shipped default):
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass, field
 from importlib import resources
@@ -67,8 +68,7 @@ class Reading:
 
 
 def operators_to_json(operators: list[EffectOperator], semantics: Semantics, info: dict) -> dict:
-    return {"semantics": {"certain_only": semantics.certain_only,
-                          "contacts_only": semantics.contacts_only},
+    return {"semantics": dataclasses.asdict(semantics),
             **info, "operators": [
                 {**op.to_dict(), "pre_slots": [list(a) for a in op.pre],
                  "add_slots": [list(a) for a in op.add],
@@ -86,7 +86,7 @@ def operators_from_json(data: dict) -> tuple[list[EffectOperator], Semantics]:
             d["index"], d["grasp"], d["release"], d["n_params"], atoms("pre_slots"),
             atoms("add_slots"), atoms("delete_slots"), d["count"], d["applicable"],
             d["succeeded"], data.get("cost_scale", 10.0)))
-    return ops, Semantics(**data["semantics"])
+    return ops, Semantics(**{"degree": False, **data["semantics"]})
 
 
 class ModelBundle:
@@ -143,11 +143,12 @@ class ModelBundle:
         overrides the reading's contact pairs."""
         s, sem = reading.state, self.semantics
         use_contacts = sem.contacts_only if contacts_only is None else contacts_only
-        c = reading.contact_matrix(contacts) if use_contacts else None
+        c = reading.contact_matrix(contacts)
         unc = sem.certain_only
         atoms, unknown = _atoms_and_unknown(
             s.unary, reading.unary_uncertain if unc else None, s.relational,
-            reading.relational_uncertain if unc else None, c, np.ones(len(s.objects), bool))
+            reading.relational_uncertain if unc else None, c if use_contacts else None,
+            np.ones(len(s.objects), bool), c.sum(-1) if sem.degree else None)
         names = s.objects
         return ({(a[0], *(names[i] for i in a[1:])) for a in atoms},
                 {(k[0], *(names[i] for i in k[1:])) for k in unknown})

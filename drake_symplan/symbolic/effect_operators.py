@@ -34,6 +34,8 @@ from drake_symplan.structs import OFFSETS, SymbolDataset
 from drake_symplan.symbolic.operators import _roles, operator_name
 from drake_symplan.symbolic.states import Atom
 
+MAX_DEGREE = 3  # contact degrees above this read as this
+
 # A slot atom: (predicate, object slot[, object slot]); lifted, the slots are parameter
 # indices (?o0 = 0). Kept as small int tuples until written out.
 SlotAtom = tuple
@@ -142,21 +144,29 @@ def _lift(a: SlotAtom) -> Atom:
 # ---------------------------------------------------------------- states as atom sets
 
 
-def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real) -> frozenset:
+def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real, degree=None) -> frozenset:
     """The atoms of one state over object slots (see the module docstring).
 
     unary [N, P], rel [K, N, N] bits; *_unc their uncertainty flags (None: all certain);
-    contacts [N, N] bool (None: every pair); real [N] bool."""
-    return _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real)[0]
+    contacts [N, N] bool (None: every pair); real [N] bool; degree [N]: how many objects
+    of the whole scene each one touches (None: no contact-degree atoms)."""
+    return _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree)[0]
 
 
-def _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real):
+def degree_atom(n: int) -> str:
+    """`touching0` .. `touching3` (3 or more): how many objects an object touches."""
+    return f"touching{min(int(n), MAX_DEGREE)}"
+
+
+def _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree=None):
     """(atoms, unknown): the certain atoms, and the keys (symbol, slots) of the bits that
     would make atoms but are uncertain."""
     slots = np.flatnonzero(real)
     if contacts is None:
         contacts = np.ones((len(real), len(real)), bool)
     out, unknown = [], []
+    if degree is not None:
+        out += [(degree_atom(degree[i]), int(i)) for i in slots]
     for i in slots:
         for j in range(unary.shape[1]):
             if unary_unc is None or not unary_unc[i, j]:
@@ -215,14 +225,18 @@ class Lifted:
 @dataclass(frozen=True)
 class Semantics:
     """Which bits make atoms. The learner here: certain bits, relations between objects in
-    contact. The paper's operators as implemented (`PAPER`): every bit, every pair."""
+    contact, and each object's contact degree (`touchingN`: it touches N objects of the
+    scene, 3 meaning 3 or more), the perceived fact that positive STRIPS otherwise cannot
+    state: "and nothing else touches ?o0". The paper's operators as implemented (`PAPER`):
+    every bit, every pair."""
 
     certain_only: bool = True
     contacts_only: bool = True
+    degree: bool = True
 
 
 EFFECT = Semantics()
-PAPER = Semantics(certain_only=False, contacts_only=False)
+PAPER = Semantics(certain_only=False, contacts_only=False, degree=False)
 
 
 def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list[Lifted]:
@@ -230,6 +244,9 @@ def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list
     if semantics.contacts_only and (data.contacts is None or data.next_contacts is None):
         raise ValueError("operators over contacts need the perceived contacts of each "
                          "transition (a data set collected with whole scenes)")
+    if semantics.degree and (data.degree is None or data.next_degree is None):
+        raise ValueError("contact-degree atoms need each object's contact count in its whole "
+                         "scene (a data set collected with whole scenes)")
     mask = data.mask.astype(bool)
     src, tgt, grasp, release = _roles(data.action, mask)
     out = []
@@ -239,10 +256,11 @@ def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list
             data.next_unary_uncertain, data.next_relational_uncertain)]
         c0, c1 = ((data.contacts[t], data.next_contacts[t]) if semantics.contacts_only
                   else (None, None))
+        d0, d1 = ((data.degree[t], data.next_degree[t]) if semantics.degree else (None, None))
         before, unknown_before = _atoms_and_unknown(
-            data.unary[t], unc[0], data.relational[t], unc[1], c0, mask[t])
+            data.unary[t], unc[0], data.relational[t], unc[1], c0, mask[t], d0)
         after, unknown_after = _atoms_and_unknown(
-            data.next_unary[t], unc[2], data.next_relational[t], unc[3], c1, mask[t])
+            data.next_unary[t], unc[2], data.next_relational[t], unc[3], c1, mask[t], d1)
         s, g = int(src[t]), int(tgt[t])
         others = [int(i) for i in np.flatnonzero(mask[t]) if i not in (s, g)]
         bindings = {}

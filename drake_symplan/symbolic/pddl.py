@@ -64,9 +64,17 @@ def domain_pddl(
 
     With `costs` (operators that have a `cost`), each action increases `(total-cost)` by
     its cost (`:action-costs`, for Fast Downward; pyperplan reads the domain without)."""
+    operators = list(operators)
     unary, binary = predicate_names(n_unary, n_relations)
+    # Perceived predicates the operators use besides the learned symbols (e.g. touchingN).
+    declared = set(unary) | set(binary) | {"different"}
+    extra = sorted({a[0]: len(a) - 1 for op in operators
+                    for a in [*op.preconditions(), *op.effects()[0], *op.effects()[1]]
+                    if a[0] not in declared}.items())
     preds = [f"({p} ?x - {TYPE})" for p in unary]
     preds += [f"({p} ?x ?y - {TYPE})" for p in binary + ["different"]]
+    preds += [f"({p} " + " ".join(f"?x{i}" for i in range(n)) + f" - {TYPE})"
+              for p, n in extra]
     lines = [
         f"; Learned by drake_symplan: {n_unary} unary and {n_relations} relational symbols.",
         f"(define (domain {name})",
