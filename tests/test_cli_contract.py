@@ -138,7 +138,8 @@ def test_help_says_what_the_tool_does_and_lists_the_pipeline_in_order(capsys):
     assert "COMMAND_MODULES" not in out and "dispatches" not in out
     lines = out.split("The pipeline, in order:\n")[1].split("\n\n")[0].splitlines()
     names = [line[:16].strip() for line in lines]
-    assert names == ["scene sample", "act", "perceive", "collect", "data stats", "train",
-                     "eval effects", "symbols", "operators", "plan"]
+    core = ["scene sample", "act", "perceive", "collect", "data stats", "train",
+            "eval effects", "symbols", "operators", "bundle", "plan", "solve"]
+    assert [n for n in names if n in core] == core  # the pipeline's order
     for name in names:  # every one is a command
         assert run([*name.split(), "--help"], capsys)[0] == 0

@@ -45,8 +45,13 @@ PIPELINE = (
     ("symbols", "read unary and relational symbols of a data set out of a trained run"),
     ("explain", "what each learned symbol means, from perceived features and contacts"),
     ("operators", "learn lifted operators from the symbols and write a PDDL domain"),
+    ("bundle", "a trained run and its learned operators in one model directory"),
+    ("eval operators", "a model's domain on held-out episodes, at the symbolic level"),
     ("plan", "plan on a PDDL domain and problem (Fast Downward or pyperplan)"),
     ("inspect", "show a scene's symbols and a plan to a goal in Meshcat"),
+    ("solve", "perceive start and goal, plan, execute with the arm, check within 5 cm"),
+    ("problems make", "planning problems: random starts, goals k arm actions away"),
+    ("eval planning", "models on a problem set in full physics"),
 )
 DESCRIPTION = "\n\n".join([
     textwrap.fill("A UR10 in Drake explores pick/place actions on blocks it perceives with "

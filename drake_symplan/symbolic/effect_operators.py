@@ -31,7 +31,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.structs import OFFSETS, SymbolDataset
-from drake_symplan.symbolic.operators import _roles, operator_name
+from drake_symplan.symbolic.operators import (
+    _roles,
+    distinct_parameters,
+    operator_name,
+    parameter_names,
+)
 from drake_symplan.symbolic.states import Atom
 
 MAX_DEGREE = 3  # contact degrees above this read as this
@@ -82,18 +87,12 @@ class EffectOperator:
     def cost(self) -> int:
         return 1 + round(self.cost_scale * -math.log(max(self.reliability, 1e-3)))
 
-    @property
-    def name(self) -> str:
-        return operator_name(self.grasp, self.release, self.count, self.index)
-
-    @property
-    def params(self) -> tuple[str, ...]:
-        return tuple(f"?o{i}" for i in range(self.n_params))
+    name = property(lambda self: operator_name(self.grasp, self.release, self.count,
+                                               self.index))
+    params = property(lambda self: parameter_names(self.n_params))
 
     def preconditions(self) -> list[Atom]:
-        n = self.n_params
-        different = [("different", f"?o{i}", f"?o{j}") for i in range(n) for j in range(i + 1, n)]
-        return different + [_lift(a) for a in self.pre]
+        return distinct_parameters(self.n_params) + [_lift(a) for a in self.pre]
 
     def effects(self) -> tuple[list[Atom], list[Atom]]:
         return [_lift(a) for a in self.add], [_lift(a) for a in self.delete]

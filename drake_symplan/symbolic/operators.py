@@ -75,13 +75,9 @@ class Operator:
     def n_params(self) -> int:
         return self.pre_unary.shape[0]
 
-    @property
-    def name(self) -> str:
-        return operator_name(self.grasp, self.release, self.count, self.index)
-
-    @property
-    def params(self) -> tuple[str, ...]:
-        return tuple(f"?o{i}" for i in range(self.n_params))
+    name = property(lambda self: operator_name(self.grasp, self.release, self.count,
+                                               self.index))
+    params = property(lambda self: parameter_names(self.n_params))
 
     def _state(self, unary, relational) -> SymbolicState:
         return SymbolicState(tuple(p[1:] for p in self.params), unary, relational)
@@ -91,10 +87,8 @@ class Operator:
 
     def preconditions(self) -> list[Atom]:
         """`(different ?oi ?oj)` for i < j, then every symbol literal over the params."""
-        n = self.n_params
-        different = [("different", f"?o{i}", f"?o{j}") for i in range(n) for j in range(i + 1, n)]
         facts = self._state(self.pre_unary, self.pre_relational).facts(self.self_relations)
-        return different + self._lift(facts)
+        return distinct_parameters(self.n_params) + self._lift(facts)
 
     def effects(self) -> tuple[list[Atom], list[Atom]]:
         """(add list, delete list) in positive-STRIPS form: a bit that turns on adds
@@ -124,6 +118,16 @@ class Operator:
             "example": self.example,
             "example_slots": list(self.example_slots),
         }
+
+
+def parameter_names(n: int) -> tuple[str, ...]:
+    """?o0 (the source), ?o1 (the target), ?o2, ..."""
+    return tuple(f"?o{i}" for i in range(n))
+
+
+def distinct_parameters(n: int) -> list[Atom]:
+    """`(different ?oi ?oj)` for i < j: positive STRIPS keeps the parameters distinct."""
+    return [("different", f"?o{i}", f"?o{j}") for i in range(n) for j in range(i + 1, n)]
 
 
 def operator_name(grasp: str, release: str, count: int, index: int) -> str:
