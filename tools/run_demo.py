@@ -1,83 +1,220 @@
-"""End-to-end demo: a scripted pick/place episode on the UR10 station, recorded to HTML.
+"""The demo: the robot solves a random goal with the symbols it learned, in full physics.
 
-    python tools/run_demo.py [--out out/demo.html] [--meshcat]
+    python tools/run_demo.py [--model DIR] [--seed 0] [--objects 3] [--k 2|3]
+                             [--start start.yaml --goal goal.yaml] [--out out/demo.html]
+                             [--meshcat] [--json]
 
-It builds the station with its depth cameras, perceives the scene, executes three
-pick/place actions in full physics on what it perceives (stack a cube on a cube, lay a long
-block on a cube, a long block grasped off-centre that tips), follows every object's identity
-through perception, prints each outcome and writes one self-contained Meshcat recording.
+1. A start scene and a non-trivial goal: a random scene with `--objects` boxes, then k = 2
+   or 3 random pick/place actions executed by the UR10; the scene they leave is the goal
+   (agent/problems.py, as the planning evaluation makes them). Or `--start/--goal` files.
+   Both scenes are written beside the recording (`*_start.yaml`, `*_goal.yaml`).
+2. The model bundle (default: the shipped models/learned/) reads both perceived scenes into
+   symbols and the planner finds a plan, printed step by step ("pick o3 at its centre,
+   release on o1's left").
+3. The UR10 executes it in full physics, perceiving after each step and replanning when
+   the symbols differ from the operator's prediction (agent/solve.py).
+4. Each object's distance to its perceived goal position and the verdict against 5 cm.
+
+One HTML recording (`--out`, default out/demo.html) holds the start scene, the goal (the
+translucent green boxes) and the execution, with the plan and the verdict in a panel.
+`--json` prints the result object of `symplan solve --json` (plus "demo": the problem and
+the readable plan) and nothing else on stdout.
+
+Exit status: 0 success, 1 a verdict that is not success (or no non-trivial goal could be
+made), 2 bad input (one line on stderr).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
-from drake_symplan.perception.association import associate
-from drake_symplan.perception.perceive import Perceiver
-from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
-from drake_symplan.structs import Action
-from drake_symplan.world.cameras import default_cameras
-from drake_symplan.world.scenes import load_scene
-from drake_symplan.world.station import Station, StationConfig
-from drake_symplan.world.visualization import StartMeshcat, recording
-
 REPO = Path(__file__).resolve().parents[1]
-DEMO_SCENE = REPO / "tools" / "demo_scene.yaml"
-SCRIPT = [
-    Action("o1", "center", "o0", "center"),  # cube onto cube
-    Action("o2", "center", "o3", "center"),  # long block onto the far cube
-    Action("o4", "left", "o1", "center"),  # long block grasped off-centre: tips
-]
+MAX_ATTEMPTS = 12  # random problems tried before giving up on a non-trivial goal
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", default=str(REPO / "out" / "demo.html"))
-    parser.add_argument("--meshcat", action="store_true",
-                        help="keep serving the live Meshcat page until Enter is pressed")
-    args = parser.parse_args()
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+class BadInput(Exception):
+    """Told in one line on stderr, exit status 2."""
 
-    meshcat = StartMeshcat()
-    station = Station(StationConfig(cameras=default_cameras()), meshcat=meshcat)
-    planner, perceiver = PickPlacePlanner(), Perceiver()
-    scene = load_scene(DEMO_SCENE)
-    station.reset(scene)
-    station.settle(0.3)
-    perceived = perceiver.perceive(station)
-    # The user's names (from the scene file) -> perceived objects, by the stated positions.
-    names = {}
-    for spec in scene.objects:
-        d = [np.linalg.norm(o.position - spec.position) for o in perceived.objects]
-        names[spec.name] = perceived.objects[int(np.argmin(d))].name
-    print(f"perceived {len(perceived.objects)} objects: "
-          + ", ".join(f"{n}={names[n]}" for n in names))
-    with recording(station, out):
-        for scripted in SCRIPT:
-            action = Action(names[scripted.source], scripted.grasp, names[scripted.target],
-                            scripted.release)
-            outcome = pick_place(station, planner, action, perceived.object_states())
-            print(f"{scripted}: {outcome.status} ({outcome.seconds:.2f} s wall)")
-            if outcome.status != "ok":
-                return 1
-            after = perceiver.perceive(station, prior=perceived)
-            track = associate(perceived, after, action)
-            names = {user: track[p] for user, p in names.items() if p in track}
-            for user, p in names.items():
-                o = after.object(p)
-                print(f"    {user:3s} {o.type:5s} at ({o.position[0]:.3f}, {o.position[1]:.3f}, "
-                      f"{o.position[2]:.3f}) tilt={np.degrees(o.tilt):5.1f} deg")
-            perceived = after
-    print(f"recording written to {out}")
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--model", type=Path, default=None,
+                   help="model bundle directory (default: the shipped models/learned/)")
+    p.add_argument("--seed", type=int, default=0, help="scene, goal and k (default 0)")
+    p.add_argument("--objects", type=int, default=3, help="objects in the scene (default 3)")
+    p.add_argument("--k", type=int, choices=(1, 2, 3), default=None,
+                   help="random actions from start to goal (default: 2 or 3, by the seed)")
+    p.add_argument("--start", type=Path, default=None, help="start scene YAML (with --goal)")
+    p.add_argument("--goal", type=Path, default=None, help="goal scene YAML (with --start)")
+    p.add_argument("--out", type=Path, default=REPO / "out" / "demo.html",
+                   help="the HTML recording (default out/demo.html)")
+    p.add_argument("--planner", choices=("fd", "pyperplan"), default="fd")
+    p.add_argument("--meshcat", action="store_true",
+                   help="watch live on localhost; keeps serving until Enter is pressed")
+    p.add_argument("--json", action="store_true", help="print the result as JSON only")
+    return p.parse_args(argv)
+
+
+def check_inputs(args):
+    """(bundle, start, goal) or BadInput; nothing heavier than the bundle is loaded."""
+    from drake_symplan.symbolic.bundle import BundleError, ModelBundle, default_bundle_dir
+    from drake_symplan.world.scenes import MAX_OBJECTS
+
+    if (args.start is None) != (args.goal is None):
+        raise BadInput("give --start and --goal together")
+    if args.start is None and not 2 <= args.objects <= MAX_OBJECTS:
+        raise BadInput(f"--objects must be in [2, {MAX_OBJECTS}], got {args.objects}")
+    start = goal = None
+    if args.start is not None:
+        from drake_symplan.agent.beliefs import check_scene_pair
+        from drake_symplan.cli.world_cmds import load_scene_file
+
+        start, goal = load_scene_file(args.start), load_scene_file(args.goal)
+        check_scene_pair(start, goal)
+    path = args.model or default_bundle_dir()
+    if not path.is_dir():
+        raise BadInput(f"no model at {path}" + (" (the default model is not shipped yet; "
+                                                "give --model DIR)" if args.model is None else ""))
+    try:
+        return ModelBundle.load(path), start, goal
+    except BundleError as e:
+        raise BadInput(str(e)) from e
+
+
+def make_goal(agent, args, say):
+    """(start, goal, info) of the first non-trivial random problem, or None."""
+    from drake_symplan.agent.problems import make_problem, problem_seed
+
+    k = args.k or int(np.random.default_rng(args.seed).integers(2, 4))
+    for attempt in range(MAX_ATTEMPTS):
+        seed = problem_seed(args.seed, attempt)
+        made = make_problem(agent, seed, args.objects, k)
+        if not isinstance(made, str):
+            start, goal, info = made
+            return start, goal, {"seed": args.seed, "problem_seed": seed, "k": k, **info}
+        say(f"  attempt {attempt}: dropped ({made})")
+    return None
+
+
+def preview_plan(agent, bundle, start_scene, goal_scene, planner):
+    """The plan the agent will start with: both scenes perceived and read, then planned."""
+    goal = agent.look(goal_scene)
+    start = agent.look(start_scene)
+    if goal.lost or start.lost:
+        return []
+
+    def read(named):
+        return bundle.read(named.scene.names, named.scene.features(), named.scene.contacts)
+
+    found = bundle.plan(read(start), read(goal), planner, 10.0, goal.scene.contacts)
+    return list(found.plan) if found.solved else []
+
+
+def panel(result: dict, demo: dict) -> str:
+    """The recording's panel: problem, plan, executed steps, distances, verdict."""
+    from drake_symplan.agent.inspection import panel_html
+
+    def items(lines):
+        return "<ol style='padding-left:18px;margin:2px 0'>" + "".join(
+            f"<li>{line}</li>" for line in lines) + "</ol>"
+
+    from drake_symplan.agent.inspection import readable_step
+
+    errors = "".join(f"<div>{n}: {o['error_cm']} cm</div>" for n, o in result["objects"].items())
+    sections = [("Goal", "<div>translucent green boxes; k = "
+                 f"{demo.get('k', '-')} random actions from the start</div>"),
+                ("Plan", items(demo["plan_readable"]) or "<div>none</div>"),
+                (f"Executed ({result['replans']} replan(s))",
+                 items(readable_step(s) for s in result["executed"])),
+                (f"Verdict: {result['status']}", errors)]
+    return panel_html(f"symplan demo (seed {demo.get('seed', '-')})", sections)
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    out_stream = sys.stderr if args.json else sys.stdout
+
+    def say(text=""):
+        print(text, file=out_stream, flush=True)
+
+    try:
+        bundle, start, goal = check_inputs(args)
+    except (BadInput, ValueError, OSError) as e:
+        print(f"run_demo.py: error: {e}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    from drake_symplan.agent.inspection import (
+        annotate_html,
+        draw_goal_scene,
+        look_at,
+        readable_step,
+    )
+    from drake_symplan.agent.solve import GOAL_TOLERANCE, Agent
+    from drake_symplan.world.scenes import save_scene
+    from drake_symplan.world.visualization import StartMeshcat
+
+    with contextlib.redirect_stdout(sys.stderr):  # Meshcat's URL: not on stdout
+        meshcat = StartMeshcat()
+    agent = Agent("arm", meshcat=meshcat)
+    say(f"model {bundle.path}: {bundle.info['n_unary']} unary symbols, "
+        f"{bundle.info['n_relations']} relations, {len(bundle.operators)} operators")
+    demo = {"seed": args.seed}
+    if start is None:
+        say(f"making a goal: {args.objects} objects, random actions by the UR10 ...")
+        made = make_goal(agent, args, say)
+        if made is None:
+            say(f"no non-trivial goal in {MAX_ATTEMPTS} attempts; try another --seed")
+            return 1
+        start, goal, info = made
+        demo.update(info)
+        say(f"goal: {info['k']} random actions away ({'; '.join(info['actions'])}), "
+            f"farthest object moved {info['moved_cm']} cm")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    stem = args.out.with_suffix("")
+    files = {"start": f"{stem}_start.yaml", "goal": f"{stem}_goal.yaml"}
+    save_scene(start, files["start"])
+    save_scene(goal, files["goal"])
+    demo["scenes"] = files
+    steps = preview_plan(agent, bundle, start, goal, args.planner)
+    demo["plan_readable"] = [readable_step(s) for s in steps]
+    say(f"plan ({len(steps)} step(s), reliability {bundle.reliability(steps):.0%}):"
+        if steps else "no plan found")
+    for i, s in enumerate(steps, 1):
+        say(f"  {i}. {readable_step(s)}    {s}")
+    draw_goal_scene(meshcat, goal)
+    look_at(meshcat, [o.position for o in start.objects + goal.objects])
+    say("executing with the UR10 in full physics, perceiving after each step ...")
+    result = agent.solve(start, goal, bundle, args.planner, record=args.out)
+    out = result.to_json()
+    if result.executed != steps:
+        say("executed (after replanning): " + "; ".join(readable_step(s)
+                                                         for s in result.executed))
+    for name, o in out["objects"].items():
+        say(f"  {name}: {o['error_cm']} cm from its goal")
+    say(f"verdict: {result.status} (every object within {GOAL_TOLERANCE * 100:g} cm: "
+        f"{'yes' if result.success else 'no'}), {len(result.executed)} step(s), "
+        f"{result.replans} replan(s)" + (f"; {result.failure_cause}: {result.message}"
+                                       if result.message else ""))
+    demo["seconds"] = round(time.perf_counter() - t0, 1)
+    if args.out.is_file():
+        args.out.write_text(annotate_html(args.out.read_text(), panel(out, demo)))
+        out["recording"] = str(args.out)
+        say(f"recording written to {args.out} ({demo['seconds']} s)")
+    out["demo"] = demo
+    if args.json:
+        print(json.dumps(out, indent=2))
     if args.meshcat:
-        input(f"Meshcat at {meshcat.web_url()}; press Enter to quit")
-    return 0
+        print(f"Meshcat at {meshcat.web_url()}; press Enter to quit", file=sys.stderr)
+        input()
+    return 0 if result.success else 1
 
 
 if __name__ == "__main__":

@@ -56,6 +56,11 @@ def pattern(bits, uncertain) -> str:
     return "".join("?" if u else str(int(b)) for b, u in zip(bits, uncertain, strict=True))
 
 
+def bits_text(pat: str) -> str:
+    """'p0=1 p1=0 p2=?' for the pattern '10?'."""
+    return " ".join(f"p{j}={c}" for j, c in enumerate(pat))
+
+
 def colour(pat: str) -> str:
     return UNCERTAIN if "?" in pat else PALETTE[int(pat[::-1] or "0", 2) % len(PALETTE)]
 
@@ -117,7 +122,7 @@ def _rgba(hex_colour: str, alpha: float = 1.0):
     return Rgba(*(int(h[i:i + 2], 16) / 255 for i in (0, 2, 4)), alpha)
 
 
-def _rod(meshcat, path: str, p: np.ndarray, q: np.ndarray, rgba, radius: float = 0.003):
+def _rod(meshcat, path: str, p: np.ndarray, q: np.ndarray, rgba, radius: float = 0.004):
     from pydrake.geometry import Cylinder
     from pydrake.math import RigidTransform, RotationMatrix
 
@@ -138,7 +143,16 @@ def _ball(meshcat, path: str, p: np.ndarray, rgba, radius: float = 0.009):
     meshcat.SetTransform(path, RigidTransform(np.asarray(p, float)))
 
 
-TOWARD_CAMERA = np.array([0.69, -0.72, 0.0])  # horizontal, toward the default camera
+SCREEN_RIGHT = np.array([0.72, 0.69, 0.0])  # horizontal, across the default camera's view
+
+
+def look_at(meshcat, points, distance: float = 0.95, shift: float = 0.12) -> None:
+    """Camera toward the centroid of `points` from the default view's direction, nearer;
+    the target moves `shift` m to the screen's left so that the scene clears the panel."""
+    target = np.mean(np.asarray(points, float), axis=0)
+    back = np.array([1.25, -1.3, 1.0]) / np.linalg.norm([1.25, -1.3, 1.0])
+    target = target - shift * SCREEN_RIGHT
+    meshcat.SetCameraPose(camera_in_world=target + distance * back, target_in_world=target)
 
 
 def draw_view(meshcat, named_scene, view: dict, layer: str = "start", alpha: float = 0.8,
@@ -161,7 +175,7 @@ def draw_view(meshcat, named_scene, view: dict, layer: str = "start", alpha: flo
         k = int(r["relation"][1:])
         d = q - p
         vertical = abs(d[2]) > np.linalg.norm(d[:2])
-        away = TOWARD_CAMERA if vertical else np.array([0.0, 0.0, 1.0])
+        away = SCREEN_RIGHT if vertical else np.array([0.0, 0.0, 1.0])
         off = away * (0.04 + 0.015 * k)
         path = f"{PREFIX}/{layer}/relations/{r['relation']}/{r['x']}_{r['y']}"
         rgba = _rgba(r["colour"], alpha)
@@ -240,7 +254,7 @@ def panel_html(title: str, sections: list[tuple[str, str]]) -> str:
 def inspection_sections(result: dict) -> list[tuple[str, str]]:
     """The panel's sections for an inspection result (see `inspect`)."""
     start = result["start"]
-    legend = "".join(f"<div>{_swatch(c)}p0..p{len(p) - 1} = {p}</div>"
+    legend = "".join(f"<div>{_swatch(c)}{bits_text(p)}</div>"
                      for p, c in sorted(start["legend"]["unary"].items()))
     rels = "".join(f"<div>{_swatch(c)}{k}(x, y): rod x &rarr; y, ball at y</div>"
                    for k, c in start["legend"]["relations"].items())
@@ -266,6 +280,17 @@ def annotate_html(page: str, panel: str) -> str:
     """The Meshcat page with `panel` added before </body>."""
     at = page.rfind("</body>")
     return page[:at] + panel + page[at:] if at >= 0 else page + panel
+
+
+def recorded_paths(page: str, prefix: str = PREFIX) -> set[str]:
+    """The Meshcat paths under `prefix` that a static page (StaticHtml) sets: its scene
+    commands are base64 msgpack blobs, whose path strings are read back here."""
+    import base64
+    import re
+
+    data = b"".join(base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]+)", page))
+    return {m.decode() for m in re.findall(re.escape(prefix.encode()) + rb"/[A-Za-z0-9_/]+",
+                                           data)}
 
 
 def write_recording(meshcat, path: str | Path, panel: str) -> Path:
@@ -309,6 +334,7 @@ def inspect(start_scene, bundle, goal_scene=None, meshcat=None, record=None,
         result["plan"] = plan_view(bundle, list(found.plan)) if found.solved else []
     if meshcat is not None:
         draw_view(meshcat, start.scene, result["start"])
+        look_at(meshcat, [o["position"] for o in result["start"]["objects"]])
         if goal is not None:
             draw_view(meshcat, goal.scene, result["goal"], "goal", alpha=0.3)
             draw_plan(meshcat, result["start"], result["plan"])

@@ -1,0 +1,103 @@
+"""tools/run_demo.py: bad input in one line (exit 2) before any station is built, and,
+slow, the whole demo on a small scene: a goal made by the arm, a plan, its execution, the
+result JSON of `symplan solve --json` and one HTML recording with the goal drawn in it."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+DEMO = REPO / "tools" / "run_demo.py"
+DEV_BUNDLE = REPO / "runs" / "dev_ops" / "relational_inv_s0" / "bundle_effect"
+
+
+def load_demo():
+    spec = importlib.util.spec_from_file_location("run_demo", DEMO)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def run_main(argv, capsys):
+    code = load_demo().main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_bad_input(code, out, err, text):
+    assert code == 2 and out == "", (code, out, err)
+    assert err.count("\n") == 1 and err.startswith("run_demo.py: error: "), err
+    assert text in err, err
+
+
+def test_a_missing_default_model_is_told_in_one_line(tmp_path, monkeypatch, capsys):
+    import drake_symplan.symbolic.bundle as bundle
+
+    monkeypatch.setattr(bundle, "default_bundle_dir", lambda: tmp_path / "learned")
+    code, out, err = run_main([], capsys)
+    assert_bad_input(code, out, err, f"no model at {tmp_path / 'learned'} (the default model "
+                     "is not shipped yet; give --model DIR)")
+
+
+def test_other_bad_input(tmp_path, capsys):
+    code, out, err = run_main(["--model", tmp_path / "none"], capsys)
+    assert_bad_input(code, out, err, "no model at")
+    code, out, err = run_main(["--start", tmp_path / "s.yaml"], capsys)
+    assert_bad_input(code, out, err, "give --start and --goal together")
+    code, out, err = run_main(["--objects", "1"], capsys)
+    assert_bad_input(code, out, err, "--objects must be in [2, ")
+    code, out, err = run_main(["--start", tmp_path / "s.yaml", "--goal", tmp_path / "g.yaml"],
+                              capsys)
+    assert_bad_input(code, out, err, "s.yaml")
+    (tmp_path / "m").mkdir()
+    code, out, err = run_main(["--model", tmp_path / "m"], capsys)
+    assert_bad_input(code, out, err, "has no model.pt")
+
+
+def bundle_for_tests() -> Path:
+    path = os.environ.get("SYMPLAN_TEST_BUNDLE")
+    if path:
+        return Path(path)
+    from drake_symplan.symbolic.bundle import default_bundle_dir
+
+    for candidate in (default_bundle_dir(), DEV_BUNDLE):
+        if candidate.is_dir():
+            return candidate
+    pytest.skip("no model bundle (set SYMPLAN_TEST_BUNDLE to one)")
+
+
+@pytest.mark.slow
+def test_the_demo_solves_a_small_random_goal_and_records_it(tmp_path):
+    from drake_symplan.agent.inspection import recorded_paths
+
+    out = tmp_path / "demo.html"
+    proc = subprocess.run([sys.executable, str(DEMO), "--model", str(bundle_for_tests()),
+                           "--objects", "2", "--seed", "1", "--json", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode in (0, 1), proc.stderr
+    result = json.loads(proc.stdout)
+    for key in ("status", "plan", "executed", "replans", "objects", "seconds", "recording",
+                "demo"):
+        assert key in result, result
+    assert (proc.returncode == 0) == (result["status"] == "success"), result
+    assert sorted(result["objects"]) == ["o0", "o1"]
+    for o in result["objects"].values():
+        assert {"goal", "final", "final_true", "error_cm"} <= set(o)
+    demo = result["demo"]
+    assert demo["k"] in (2, 3) and len(demo["actions"]) == demo["k"] and demo["moved_cm"] > 5
+    assert len(demo["plan_readable"]) == len(result["plan"])
+    assert all(s.startswith("pick o") for s in demo["plan_readable"])
+    assert Path(demo["scenes"]["start"]).is_file() and Path(demo["scenes"]["goal"]).is_file()
+    # The readable plan and the verdict went to stderr; stdout held only the JSON.
+    assert "plan (" in proc.stderr and "verdict: " in proc.stderr
+    assert result["recording"] == str(out)
+    page = out.read_text()
+    assert {"/symplan/goal/boxes/o0", "/symplan/goal/boxes/o1"} <= recorded_paths(page)
+    assert 'id="symplan-panel"' in page and f"Verdict: {result['status']}" in page

@@ -1,0 +1,169 @@
+"""`symplan inspect` (agent/inspection.py, cli/inspect_cmds.py): the symbol view, plan
+steps and the page's panel on hand-made readings; bad input; and, slow, a real inspection
+with a model bundle whose recording holds the drawn objects."""
+
+from __future__ import annotations
+
+import json
+import os
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drake_symplan.agent.inspection import (
+    PALETTE,
+    UNCERTAIN,
+    annotate_html,
+    colour,
+    inspection_sections,
+    panel_html,
+    pattern,
+    plan_view,
+    readable_step,
+    recorded_paths,
+    symbol_view,
+)
+from drake_symplan.cli import main as cli_main
+from drake_symplan.symbolic.bundle import Reading
+from drake_symplan.symbolic.effect_operators import EffectOperator
+from drake_symplan.symbolic.states import SymbolicState
+from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
+
+REPO = Path(__file__).resolve().parents[1]
+DEV_BUNDLE = REPO / "runs" / "dev_ops" / "relational_inv_s0" / "bundle_effect"
+
+
+def scene_and_reading():
+    """a on b (in contact), c apart; p0 = (1, 0, uncertain), p1 = (0, 0, 1); r0(a, b) set
+    and certain, r1(a, b) set but uncertain, r0(a, c) set but not in contact."""
+    objects = [types.SimpleNamespace(name=n, type=t, position=np.array(p))
+               for n, t, p in (("a", "cube", [0.7, 0, 0.075]), ("b", "cube", [0.7, 0, 0.025]),
+                               ("c", "long", [0.6, 0.2, 0.025]))]
+    unary = np.array([[1, 0], [0, 0], [0, 1]], bool)
+    unary_unc = np.array([[0, 0], [0, 0], [1, 0]], bool)
+    rel = np.zeros((2, 3, 3), bool)
+    rel[0, 0, 1] = rel[1, 0, 1] = rel[0, 0, 2] = True
+    rel_unc = np.zeros((2, 3, 3), bool)
+    rel_unc[1, 0, 1] = True
+    reading = Reading(SymbolicState(("a", "b", "c"), unary, rel), unary_unc, rel_unc,
+                      {("a", "b")})
+    return types.SimpleNamespace(objects=objects), reading
+
+
+def test_readable_steps():
+    assert readable_step("(pick_center_place_left_n86_op2 o3 o1)") == \
+        "pick o3 at its centre, release on o1's left"
+    assert readable_step("(PICK_LEFT_PLACE_CENTER_N5_OP0 o0 o2 o1)") == \
+        "pick o0 at its left end, release on o2's centre"
+
+
+def test_patterns_and_colours():
+    assert pattern([1, 0, 1], [0, 0, 0]) == "101" and pattern([1, 0], [0, 1]) == "1?"
+    assert colour("0") == PALETTE[0] and colour("1") == PALETTE[1]
+    assert colour("01") == PALETTE[2]  # p1 set: bit 1 of the index
+    assert colour("1?") == UNCERTAIN
+
+
+def test_symbol_view_draws_certain_set_relations_between_contacts_only():
+    scene, reading = scene_and_reading()
+    view = symbol_view(scene, reading)
+    by_name = {o["name"]: o for o in view["objects"]}
+    assert by_name["a"]["pattern"] == "10" and by_name["a"]["unary"] == {"p0": 1, "p1": 0}
+    assert by_name["c"]["pattern"] == "?1" and by_name["c"]["colour"] == UNCERTAIN
+    assert by_name["c"]["unary"]["p0"] is None
+    assert [(r["relation"], r["x"], r["y"]) for r in view["relations"]] == [("r0", "a", "b")]
+    assert view["legend"]["unary"] == {"10": PALETTE[1], "00": PALETTE[0], "?1": UNCERTAIN}
+    assert list(view["legend"]["relations"]) == ["r0", "r1"]
+    assert view["contacts"] == [["a", "b"]]
+
+
+def test_plan_steps_are_grounded_and_the_panel_holds_them():
+    op = EffectOperator(3, "center", "left", 2, (("p0", 1),), (("r0", 0, 1),),
+                        (("touching0", 0),), 40, applicable=50, succeeded=40)
+    bundle = types.SimpleNamespace(operator_of=lambda step: op)
+    steps = plan_view(bundle, [f"({op.name} a b)"])
+    assert steps == [{"step": f"({op.name} a b)",
+                      "readable": "pick a at its centre, release on b's left",
+                      "operator": op.name, "reliability": 0.8, "preconditions": ["p0(b)"],
+                      "add": ["r0(a, b)"], "delete": ["touching0(a)"]}]
+    scene, reading = scene_and_reading()
+    view = symbol_view(scene, reading)
+    result = {"start": view, "goal": {**view, "atoms": ["r0(a, b)"]}, "plan": steps,
+              "plan_status": "solved"}
+    page = annotate_html("<html><body><div id='x'></div></body></html>",
+                         panel_html("title <1>", inspection_sections(result)))
+    assert page.index('id="symplan-panel"') < page.index("</body>")
+    assert "title &lt;1&gt;" in page and "p0=1 p1=0" in page
+    assert "pick a at its centre, release on b&#x27;s left" in page
+    assert "pre: p0(b)" in page and "add: r0(a, b)" in page and "del: touching0(a)" in page
+
+
+def run(argv, capsys):
+    code = cli_main.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
+    start = tmp_path / "start.yaml"
+    save_scene(Scene([ObjectSpec("a", "cube", [0.6, 0.0, 0.025]),
+                      ObjectSpec("b", "cube", [0.8, 0.1, 0.025])]), start)
+    goal = tmp_path / "goal.yaml"
+    save_scene(Scene([ObjectSpec("a", "cube", [0.6, 0.0, 0.025])]), goal)
+    for argv, text in (
+            (["inspect", "--scene", tmp_path / "none.yaml"], "none.yaml"),
+            (["inspect", "--scene", start, "--goal", goal], "the goal lacks start objects"),
+            (["inspect", "--scene", start, "--model", tmp_path / "nope"], "no model directory"),
+            (["explain", "--model", tmp_path, "--data", tmp_path / "nodata"], "nodata"),
+    ):
+        code, out, err = run(argv, capsys)
+        assert code == 2 and out == "" and err.count("\n") == 1, (argv, code, out, err)
+        assert text in err, err
+
+
+def bundle_for_tests():
+    path = os.environ.get("SYMPLAN_TEST_BUNDLE")
+    if path:
+        return Path(path)
+    from drake_symplan.symbolic.bundle import default_bundle_dir
+
+    for candidate in (default_bundle_dir(), DEV_BUNDLE):
+        if candidate.is_dir():
+            return candidate
+    pytest.skip("no model bundle (set SYMPLAN_TEST_BUNDLE to one)")
+
+
+@pytest.mark.slow
+def test_inspection_recording_holds_the_drawn_objects(tmp_path, capsys):
+    model = bundle_for_tests()
+    start, goal = tmp_path / "start.yaml", tmp_path / "goal.yaml"
+    save_scene(Scene([ObjectSpec("o0", "cube", [0.70, -0.15, 0.025]),
+                      ObjectSpec("o1", "cube", [0.70, -0.15, 0.075]),
+                      ObjectSpec("o2", "cube", [0.85, 0.10, 0.025])]), start)
+    save_scene(Scene([ObjectSpec("o0", "cube", [0.70, -0.15, 0.025]),
+                      ObjectSpec("o1", "cube", [0.85, 0.10, 0.075]),
+                      ObjectSpec("o2", "cube", [0.85, 0.10, 0.025])]), goal)
+    record = tmp_path / "inspect.html"
+    code, out, err = run(["inspect", "--scene", start, "--goal", goal, "--model", model,
+                          "--record", record, "--json"], capsys)
+    assert code in (0, 1), err
+    result = json.loads(out)
+    assert sorted(o["name"] for o in result["start"]["objects"]) == ["o0", "o1", "o2"]
+    assert result["start"]["contacts"] == [["o0", "o1"]]
+    assert result["goal"]["contacts"] == [["o1", "o2"]]
+    assert result["recording"] == str(record)
+    page = record.read_text()
+    paths = recorded_paths(page)
+    for layer in ("start", "goal"):
+        for name in ("o0", "o1", "o2"):
+            assert f"/symplan/{layer}/boxes/{name}" in paths, sorted(paths)
+    for r in result["start"]["relations"]:
+        assert f"/symplan/start/relations/{r['relation']}/{r['x']}_{r['y']}/head" in paths
+    for i, _ in enumerate(result["plan"]):
+        assert f"/symplan/plan/step{i}/head" in paths
+    assert 'id="symplan-panel"' in page and "Start (perceived)" in page
+    if result["plan_status"] == "solved":
+        assert code == 0 and result["plan"]
+        assert result["plan"][0]["readable"] in page.replace("&#x27;", "'")
