@@ -167,3 +167,15 @@ def test_inspection_recording_holds_the_drawn_objects(tmp_path, capsys):
     if result["plan_status"] == "solved":
         assert code == 0 and result["plan"]
         assert result["plan"][0]["readable"] in page.replace("&#x27;", "'")
+
+
+def test_the_docs_screenshot_is_a_1200_by_800_png_of_scenes_in_docs():
+    import struct
+
+    head = (REPO / "docs" / "inspect.png").read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n" and struct.unpack(">II", head[16:24]) == (1200, 800)
+    from drake_symplan.agent.beliefs import check_scene_pair
+    from drake_symplan.world.scenes import load_scene
+
+    scenes = REPO / "docs" / "inspect_scenes"
+    check_scene_pair(load_scene(scenes / "start.yaml"), load_scene(scenes / "goal.yaml"))
