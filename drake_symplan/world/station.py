@@ -224,7 +224,7 @@ class Station:
                     fj.Lock(ctx)
                     park += 1
         for o in scene.objects:
-            self.set_object_pose(o.name, RigidTransform(RollPitchYaw(o.orientation()),
+            self.set_object_pose(o.name, RigidTransform(RollPitchYaw(o.orientation),
                                                         np.asarray(o.position, float)))
         if self.arm is not None:
             q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
