@@ -101,3 +101,10 @@ def test_the_demo_solves_a_small_random_goal_and_records_it(tmp_path):
     page = out.read_text()
     assert {"/symplan/goal/boxes/o0", "/symplan/goal/boxes/o1"} <= recorded_paths(page)
     assert 'id="symplan-panel"' in page and f"Verdict: {result['status']}" in page
+
+
+def test_from_scratch_bad_input(tmp_path, capsys):
+    code, out, err = run_main(["--from-scratch", "--model", tmp_path], capsys)
+    assert_bad_input(code, out, err, "give --model or --from-scratch, not both")
+    code, out, err = run_main(["--from-scratch", "--budget-minutes", "1"], capsys)
+    assert_bad_input(code, out, err, "--budget-minutes must be at least 2")

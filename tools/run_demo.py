@@ -15,6 +15,12 @@
    the symbols differ from the operator's prediction (agent/solve.py).
 4. Each object's distance to its perceived goal position and the verdict against 5 cm.
 
+`--from-scratch --budget-minutes M` first learns its own model within about M minutes
+(hand collection with whole scenes, an invariant RelationalDeepSym trained until the
+budget's share runs out, effect-first operators: `symplan collect`, `train`, `bundle`,
+each a child process, in `--work`/seed<S>, default out/from_scratch/), then solves with
+it; a re-run with the same `--work` and `--seed` reuses that model.
+
 One HTML recording (`--out`, default out/demo.html) holds the start scene, the goal (the
 translucent green boxes) and the execution, with the plan and the verdict in a panel.
 `--json` prints the result object of `symplan solve --json` (plus "demo": the problem and
@@ -37,6 +43,9 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 MAX_ATTEMPTS = 12  # random problems tried before giving up on a non-trivial goal
+# --from-scratch: shares of the budget by which collection and training must end.
+COLLECT_SHARE, TRAIN_SHARE = 0.4, 0.85
+FIRST_ROUND = 100  # transitions collected first, to measure the rate
 
 
 class BadInput(Exception):
@@ -60,6 +69,12 @@ def parse_args(argv):
     p.add_argument("--meshcat", action="store_true",
                    help="watch live on localhost; keeps serving until Enter is pressed")
     p.add_argument("--json", action="store_true", help="print the result as JSON only")
+    p.add_argument("--from-scratch", action="store_true",
+                   help="collect, train and make operators first, then solve with that model")
+    p.add_argument("--budget-minutes", type=float, default=15.0,
+                   help="--from-scratch: minutes for collection and training (default 15)")
+    p.add_argument("--work", type=Path, default=REPO / "out" / "from_scratch",
+                   help="--from-scratch: directory for the data set, run and bundle")
     return p.parse_args(argv)
 
 
@@ -79,6 +94,12 @@ def check_inputs(args):
 
         start, goal = load_scene_file(args.start), load_scene_file(args.goal)
         check_scene_pair(start, goal)
+    if args.from_scratch:
+        if args.model is not None:
+            raise BadInput("give --model or --from-scratch, not both")
+        if not args.budget_minutes >= 2:
+            raise BadInput(f"--budget-minutes must be at least 2, got {args.budget_minutes:g}")
+        return None, start, goal
     path = args.model or default_bundle_dir()
     if not path.is_dir():
         raise BadInput(f"no model at {path}" + (" (the default model is not shipped yet; "
@@ -87,6 +108,69 @@ def check_inputs(args):
         return ModelBundle.load(path), start, goal
     except BundleError as e:
         raise BadInput(str(e)) from e
+
+
+def symplan(argv, say, timeout=None) -> None:
+    """Runs `symplan ARGV` as a child process; on timeout it is stopped (SIGTERM)."""
+    import subprocess
+
+    cmd = [sys.executable, "-m", "drake_symplan.cli.main", *map(str, argv)]
+    say("  $ symplan " + " ".join(map(str, argv)))
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        _, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.terminate()
+        proc.communicate()
+        say("    stopped at the budget")
+        return
+    if proc.returncode != 0:
+        raise RuntimeError(f"symplan {argv[0]} failed ({proc.returncode}): {err.strip()[-300:]}")
+
+
+def from_scratch(args, say):
+    """Collects, trains and bundles within the budget; returns the loaded bundle."""
+    import os
+
+    from drake_symplan.symbolic.bundle import ModelBundle
+
+    budget, t0 = args.budget_minutes * 60, time.perf_counter()
+    work = args.work / f"seed{args.seed}"
+    data, run, out = work / "data", work / "run", work / "bundle"
+    try:
+        bundle = ModelBundle.load(out)
+        say(f"from scratch: reusing the model learned before in {out}")
+        return bundle
+    except (ValueError, OSError):
+        pass
+    workers = max(1, min(2, os.cpu_count() or 1))
+    say(f"from scratch in {work}, {args.budget_minutes:g} min: collect, train, operators")
+
+    def collect(n):
+        symplan(["collect", "--backend", "hand", "--transitions", n, "--workers", workers,
+                 "--out", data, "--seed", args.seed, "--objects", "2-4", "--no-progress"], say)
+
+    manifest = data / "manifest.json"
+    if manifest.is_file():  # a re-run: the data set collected before, as it is
+        total = int(json.loads(manifest.read_text())["config"]["transitions"])
+    else:
+        collect(FIRST_ROUND)
+        rate = FIRST_ROUND / (time.perf_counter() - t0)
+        total = max(FIRST_ROUND, int(rate * COLLECT_SHARE * budget))
+        if total > FIRST_ROUND:
+            collect(total)
+    say(f"  data set: {total} transitions ({time.perf_counter() - t0:.0f} s)")
+    left = TRAIN_SHARE * budget - (time.perf_counter() - t0)
+    symplan(["train", "--model", "relational", "--data", data, "--out", run, "--seed",
+             args.seed, "--model-option", "invariant=true", "--threads", workers,
+             "--epochs", 300, "--no-progress"] + (["--resume"] if (run / "last.pt").is_file()
+                                                  else []), say, timeout=max(left, 30))
+    # Operators need support: with a small data set, fewer transitions per operator.
+    min_count = max(3, min(10, total // 500))
+    symplan(["bundle", "--run", run, "--data", data, "--out", out, "--min-count", min_count],
+            say)
+    say(f"  model ready in {time.perf_counter() - t0:.0f} s")
+    return ModelBundle.load(out)
 
 
 def make_goal(agent, args, say):
@@ -151,6 +235,12 @@ def main(argv=None) -> int:
         print(f"run_demo.py: error: {e}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
+    if args.from_scratch:
+        try:
+            bundle = from_scratch(args, say)
+        except (RuntimeError, ValueError, OSError) as e:
+            say(f"from scratch: {e}")
+            return 1
     from drake_symplan.agent.inspection import (
         annotate_html,
         draw_goal_scene,
