@@ -6,16 +6,15 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from test_inspect import bundle_for_tests  # tests/ is on sys.path under pytest
 
 REPO = Path(__file__).resolve().parents[1]
 DEMO = REPO / "tools" / "run_demo.py"
-DEV_BUNDLE = REPO / "runs" / "dev_ops" / "relational_inv_s0" / "bundle_effect"
 
 
 def load_demo():
@@ -59,18 +58,6 @@ def test_other_bad_input(tmp_path, capsys):
     (tmp_path / "m").mkdir()
     code, out, err = run_main(["--model", tmp_path / "m"], capsys)
     assert_bad_input(code, out, err, "has no model.pt")
-
-
-def bundle_for_tests() -> Path:
-    path = os.environ.get("SYMPLAN_TEST_BUNDLE")
-    if path:
-        return Path(path)
-    from drake_symplan.symbolic.bundle import default_bundle_dir
-
-    for candidate in (default_bundle_dir(), DEV_BUNDLE):
-        if candidate.is_dir():
-            return candidate
-    pytest.skip("no model bundle (set SYMPLAN_TEST_BUNDLE to one)")
 
 
 @pytest.mark.slow

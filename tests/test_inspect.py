@@ -123,7 +123,9 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
         assert text in err, err
 
 
-def bundle_for_tests():
+def bundle_for_tests() -> Path:
+    """$SYMPLAN_TEST_BUNDLE, else the shipped default, else the development bundle under
+    runs/ (not in a clone); skips without one. test_demo.py uses it too."""
     path = os.environ.get("SYMPLAN_TEST_BUNDLE")
     if path:
         return Path(path)
