@@ -55,6 +55,7 @@ class EffectLearnConfig:
     min_count: int = 10
     support: float = 0.95
     cost_scale: float = 10.0
+    absorb: bool = True  # rare effects that are a frequent one seen through uncertain bits
 
     def __post_init__(self):
         if self.min_count < 1:
@@ -275,18 +276,31 @@ def _sorted(atoms) -> tuple:
     return tuple(sorted(atoms, key=lambda a: (a[0], a[1:])))
 
 
-def _canonical(tr: Lifted) -> tuple[tuple, tuple, tuple]:
-    """(add, delete, pre) lifted with all objects as parameters, in the order of the other
-    objects that gives the smallest (effect, preconditions)."""
+def _canonical(tr: Lifted) -> tuple[tuple, tuple, tuple, frozenset]:
+    """(add, delete, pre, unknown keys before or after) lifted with all objects as
+    parameters, in the order of the other objects that gives the smallest (effect,
+    preconditions)."""
     best = None
     full = [sel for sel in tr.bindings if len(sel) == tr.n - 2]
     for sel in full:
-        add, delete = changes(*(_rename(x, tr.bindings[sel]) for x in (
+        m = tr.bindings[sel]
+        add, delete = changes(*(_rename(x, m) for x in (
             tr.before, tr.after, tr.unknown_before, tr.unknown_after)))
-        candidate = (_sorted(add), _sorted(delete), _sorted(_rename(tr.before, tr.bindings[sel])))
-        if best is None or candidate < best:
+        candidate = (_sorted(add), _sorted(delete), _sorted(_rename(tr.before, m)),
+                     _rename(tr.unknown_before | tr.unknown_after, m))
+        if best is None or candidate[:3] < best[:3]:
             best = candidate
     return best
+
+
+def _compatible(add, delete, unknown, group_add, group_delete) -> bool:
+    """Whether a transition's effect is the group's, but for bits it could not read: every
+    change it saw is the group's, and every change of the group it lacks is on a bit that
+    was uncertain before or after."""
+    if not (set(add) <= set(group_add) and set(delete) <= set(group_delete)):
+        return False
+    missing = (set(group_add) - set(add)) | (set(group_delete) - set(delete))
+    return all(key(a) in unknown for a in missing)
 
 
 # ---------------------------------------------------------------- learning
@@ -303,21 +317,37 @@ def learn_effect_operators(data: SymbolDataset, config: EffectLearnConfig | None
     t1 = time.perf_counter()
     groups: dict[tuple, list[tuple]] = defaultdict(list)
     for tr in lifted:
-        add, delete, pre = _canonical(tr)
-        groups[(tr.grasp, tr.release, tr.n, add, delete)].append(pre)
+        add, delete, pre, unknown = _canonical(tr)
+        groups[(tr.grasp, tr.release, tr.n, add, delete)].append((pre, unknown))
     t2 = time.perf_counter()
     kept = sorted(((k, v) for k, v in groups.items() if len(v) >= config.min_count),
                   key=lambda kv: (-len(kv[1]), kv[0]))
+    if config.absorb:
+        # A transition of a rare effect that is a frequent effect seen through uncertain
+        # bits counts for the frequent one (the largest such group).
+        by_head = defaultdict(list)
+        for k, members in kept:
+            by_head[k[:3]].append((k, members))
+        for k, members in groups.items():
+            if len(members) >= config.min_count:
+                continue
+            for (_, _, _, g_add, g_del), target in by_head.get(k[:3], ()):
+                extra = [m for m in members if _compatible(k[3], k[4], m[1], g_add, g_del)]
+                if extra:
+                    target.extend(extra)
+                    break
+        kept.sort(key=lambda kv: (-len(kv[1]), kv[0]))
     candidates = []
-    for (g, r, n, add, delete), pres in kept:
+    for (g, r, n, add, delete), members in kept:
         counts: dict = defaultdict(int)
-        for pre in pres:
+        for pre, _ in members:
             for a in pre:
                 counts[a] += 1
-        need = config.support * len(pres)
-        pre = _sorted(a for a, c in counts.items() if c >= need)
+        # An atom's support counts the members that could read its bit.
+        pre = _sorted(a for a, c in counts.items() if c >= config.support * sum(
+            key(a) not in unknown for _, unknown in members))
         candidates.append(EffectOperator(0, OFFSETS[g], OFFSETS[r], n, pre, add, delete,
-                                         len(pres), cost_scale=config.cost_scale))
+                                         len(members), cost_scale=config.cost_scale))
     measure_reliability(candidates, lifted)
     t3 = time.perf_counter()
     operators = [op for op in candidates if op.add or op.delete]
