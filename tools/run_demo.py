@@ -48,6 +48,12 @@ COLLECT_SHARE, TRAIN_SHARE = 0.4, 0.85
 FIRST_ROUND = 100  # transitions collected first, to measure the rate
 
 
+WHY = {True: "the goal's symbols hold in the final scene: the learned symbols do not tell "
+             "the goal positions apart (they say what is on what, not where on the table)",
+       False: "the goal's symbols do not hold in the final scene: an operator's prediction "
+              "or the execution went wrong"}
+
+
 class BadInput(Exception):
     """Told in one line on stderr, exit status 2."""
 
@@ -189,17 +195,18 @@ def make_goal(agent, args, say):
 
 
 def preview_plan(agent, bundle, start_scene, goal_scene, planner):
-    """The plan the agent will start with: both scenes perceived and read, then planned."""
+    """(planner status, the plan the agent will start with): both scenes perceived and
+    read, then planned."""
     goal = agent.look(goal_scene)
     start = agent.look(start_scene)
     if goal.lost or start.lost:
-        return []
+        return "perception lost an object", []
 
     def read(named):
         return bundle.read(named.scene.names, named.scene.features(), named.scene.contacts)
 
     found = bundle.plan(read(start), read(goal), planner, 10.0, goal.scene.contacts)
-    return list(found.plan) if found.solved else []
+    return found.status, list(found.plan)
 
 
 def panel(result: dict, demo: dict) -> str:
@@ -213,6 +220,8 @@ def panel(result: dict, demo: dict) -> str:
     from drake_symplan.agent.inspection import readable_step
 
     errors = "".join(f"<div>{n}: {o['error_cm']} cm</div>" for n, o in result["objects"].items())
+    if result.get("symbolic_goal_reached") is not None:
+        errors += f"<div><i>{WHY[result['symbolic_goal_reached']]}</i></div>"
     sections = [("Goal", "<div>translucent green boxes; k = "
                  f"{demo.get('k', '-')} random actions from the start</div>"),
                 ("Plan", items(demo["plan_readable"]) or "<div>none</div>"),
@@ -273,10 +282,14 @@ def main(argv=None) -> int:
     save_scene(start, files["start"])
     save_scene(goal, files["goal"])
     demo["scenes"] = files
-    steps = preview_plan(agent, bundle, start, goal, args.planner)
+    status, steps = preview_plan(agent, bundle, start, goal, args.planner)
     demo["plan_readable"] = [readable_step(s) for s in steps]
-    say(f"plan ({len(steps)} step(s), reliability {bundle.reliability(steps):.0%}):"
-        if steps else "no plan found")
+    if steps:
+        say(f"plan ({len(steps)} step(s), reliability {bundle.reliability(steps):.0%}):")
+    elif status == "solved":
+        say("plan: empty, the goal's symbols already hold in the start scene")
+    else:
+        say(f"no plan ({status})")
     for i, s in enumerate(steps, 1):
         say(f"  {i}. {readable_step(s)}    {s}")
     draw_goal_scene(meshcat, goal)
@@ -293,6 +306,8 @@ def main(argv=None) -> int:
         f"{'yes' if result.success else 'no'}), {len(result.executed)} step(s), "
         f"{result.replans} replan(s)" + (f"; {result.failure_cause}: {result.message}"
                                        if result.message else ""))
+    if result.symbolic_goal_reached is not None:
+        say(WHY[result.symbolic_goal_reached])
     demo["seconds"] = round(time.perf_counter() - t0, 1)
     if args.out.is_file():
         args.out.write_text(annotate_html(args.out.read_text(), panel(out, demo)))
