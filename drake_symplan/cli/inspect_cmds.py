@@ -99,10 +99,12 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     if args.meshcat or args.record:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
             meshcat = StartMeshcat()
+    from drake_symplan.data.backends import PerceptionFailure
+
     try:
         result = inspect(start, bundle, goal, meshcat, args.record, args.planner, args.timeout,
                          title=f"symplan inspect {args.scene.name}")
-    except RuntimeError as e:  # perception lost an object of the scene file
+    except (RuntimeError, PerceptionFailure) as e:  # the scene file cannot be perceived
         raise CommandError(f"{args.scene}: {e}") from e
     result["scene"] = str(args.scene)
     if not args.json:
