@@ -146,3 +146,12 @@ def test_plot_of_examples(tmp_path):
     result = explain_scenes(**a)
     path = plot_examples(result, a, tmp_path / "x.png", examples=2)
     assert path.stat().st_size > 10_000
+
+
+def test_large_read_sets_are_scored_on_a_sample(monkeypatch):
+    import drake_symplan.learning.explain as explain_module
+
+    monkeypatch.setattr(explain_module, "MAX_READS", 50)
+    v = np.arange(200) % 3 == 0
+    e = best_description(v, [("every third", "not every third", v)])
+    assert e["reads"] == 200 and e["meaning"] == "every third" and e["agreement"] == 1.0

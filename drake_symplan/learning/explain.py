@@ -32,6 +32,7 @@ ABOVE = 0.03  # m: x above y when z_x > z_y + ABOVE
 LEVEL = 0.01  # m: side by side when |z_x - z_y| < LEVEL
 RARE = 0.10  # a bit set in fewer (or more than 1 - RARE) of its reads is rare
 SIMPLER_BY = 0.01  # a conjunction must beat a single literal by this much
+MAX_READS = 100_000  # reads scored per predicate at most (a seeded sample beyond)
 
 
 def _parts(F: np.ndarray) -> dict[str, np.ndarray]:
@@ -133,6 +134,10 @@ def best_description(bits: np.ndarray, base) -> dict:
     n = len(b)
     freq = float(b.mean()) if n else 0.0
     out = {"reads": int(n), "frequency": round(freq, 4)}
+    if n > MAX_READS:  # scored on a seeded sample: memory stays bounded on large data
+        keep = np.sort(np.random.default_rng(0).choice(n, MAX_READS, replace=False))
+        b, n = b[keep], MAX_READS
+        base = [(pos, neg, np.asarray(v, bool).ravel()[keep]) for pos, neg, v in base]
     if n == 0 or freq in (0.0, 1.0):
         return {**out, "meaning": "never read" if n == 0 else f"constant ({int(freq)})",
                 "agreement": None, "metric": None, "accuracy": None,
