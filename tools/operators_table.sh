@@ -6,6 +6,8 @@
 #   bash tools/operators_table.sh TRAIN_DATA HELDOUT_DATA [RUNS (runs/ops_<train name>)]
 # Re-running skips finished steps. Variants: relational (the paper's q.k attention),
 # relational_inv (RelationalDeepSym invariant=true), attentive (unary symbols only).
+# Environment: SEEDS ("0 1 2"), VARIANTS, MIN_COUNT (effect learner, 10; the paper's
+# learner keeps its 50), MAX_PROBLEMS (per k and object count, 30).
 set -u
 cd "$(dirname "$0")/.."
 data=$1
@@ -26,7 +28,7 @@ one() {  # variant seed
     [ "$learner" = paper ] && [ "$v" = attentive ] && continue
     local b="$out/bundle_$learner"
     [ -f "$b/operators.json" ] || symplan bundle --run "$out" --data "$data" --out "$b" \
-      --learner "$learner" --min-count "$([ $learner = paper ] && echo 50 || echo 10)" \
+      --learner "$learner" --min-count "$([ $learner = paper ] && echo 50 || echo "${MIN_COUNT:-10}")" \
       > "$b.log" 2>&1 || return 1
     [ -f "$b/eval.json" ] || symplan eval operators --model "$b" --data "$heldout" \
       --max-problems "${MAX_PROBLEMS:-30}" --out "$b/eval.json" > /dev/null 2>> "$b.log"
