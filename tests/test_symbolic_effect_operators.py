@@ -109,3 +109,16 @@ def test_a_rare_effect_seen_through_an_uncertain_bit_counts_for_the_frequent_one
     assert [op.count for op in absorbed.operators] == [15]
     alone = learn_effect_operators(data, EffectLearnConfig(min_count=10, absorb=False))
     assert [op.count for op in alone.operators] == [12]
+
+
+def test_an_uncertain_bit_is_read_by_its_sign_for_applicability_only():
+    op = learn_effect_operators(dataset([stack(1, True)] * 3),
+                                EffectLearnConfig(min_count=1)).operators[0]
+    unsure_b = np.array([[False], [True]])  # b's p0 reads 1, but too close to call
+    lifted = lift_transitions(dataset([stack(1, True, unsure_b)]))
+    assert ("p0", 1) not in lifted[0].before and ("p0", 1) in lifted[0].read_before
+    assert predicts(op, lifted[0]) is True
+    from drake_symplan.symbolic.effect_operators import EFFECT, Semantics
+
+    strict = Semantics(**{**EFFECT.__dict__, "guess_uncertain": False})
+    assert predicts(op, lift_transitions(dataset([stack(1, True, unsure_b)]), strict)[0]) is None

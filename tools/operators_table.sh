@@ -7,7 +7,8 @@
 # Re-running skips finished steps. Variants: relational (the paper's q.k attention),
 # relational_inv (RelationalDeepSym invariant=true), attentive (unary symbols only).
 # Environment: SEEDS ("0 1 2"), VARIANTS, MIN_COUNT (effect learner, 10; the paper's
-# learner keeps its 50), MAX_PROBLEMS (per k and object count, 30).
+# learner keeps its 50), MAX_PROBLEMS (per k and object count, 30), TRAIN_ONLY (skip the
+# bundles and evaluations).
 set -u
 cd "$(dirname "$0")/.."
 data=$1
@@ -24,6 +25,7 @@ one() {  # variant seed
     symplan train --config configs/table1.yaml --model "$model" --data "$data" --out "$out" \
       --seed "$s" $opt --no-progress --json $resume > "$out.log" 2>&1 || return 1
   fi
+  [ -n "${TRAIN_ONLY:-}" ] && return 0
   for learner in effect paper; do
     [ "$learner" = paper ] && [ "$v" = attentive ] && continue
     local b="$out/bundle_$learner"
@@ -35,7 +37,7 @@ one() {  # variant seed
   done
 }
 export -f one
-export data heldout runs
+export data heldout runs TRAIN_ONLY MIN_COUNT MAX_PROBLEMS
 mkdir -p "$runs"
 for s in $seeds; do for v in $variants; do echo "$v $s"; done; done \
   | xargs -P 2 -L 1 bash -c 'one "$0" "$1"'

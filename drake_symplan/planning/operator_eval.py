@@ -57,10 +57,13 @@ class Problem:
 
 
 def scene_atoms(scenes: SceneSymbols, row: int, after: bool, semantics: Semantics,
-                names: dict[int, str], contacts_only: bool | None = None) -> list:
-    """Named atoms of a whole scene (before or after the action of `row`)."""
+                names: dict[int, str], contacts_only: bool | None = None,
+                guess: bool = False) -> list:
+    """Named atoms of a whole scene (before or after the action of `row`); with `guess`,
+    uncertain bits read by their sign (a problem's initial state)."""
     p = "next_" if after else ""
-    unc = (lambda a: a[row]) if semantics.certain_only else (lambda a: None)
+    certain = semantics.certain_only and not (guess and semantics.guess_uncertain)
+    unc = (lambda a: a[row]) if certain else (lambda a: None)
     use_contacts = semantics.contacts_only if contacts_only is None else contacts_only
     whole = getattr(scenes, f"{p}contacts")[row]
     atoms, _ = _atoms_and_unknown(
@@ -87,7 +90,7 @@ def make_problems(scenes: SceneSymbols, semantics: Semantics, config: EvalConfig
             j = rows[-1]
             slots = np.flatnonzero(scenes.mask[i])
             names = {int(x): f"o{x}" for x in slots}
-            init = scene_atoms(scenes, i, False, semantics, names)
+            init = scene_atoms(scenes, i, False, semantics, names, guess=True)
             # Goal: unary atoms, relations only between objects in contact (paper IV-C).
             goal = scene_atoms(scenes, j, True, semantics, names, contacts_only=True)
             if set(goal) <= set(init):

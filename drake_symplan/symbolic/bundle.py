@@ -86,7 +86,7 @@ def operators_from_json(data: dict) -> tuple[list[EffectOperator], Semantics]:
             d["index"], d["grasp"], d["release"], d["n_params"], atoms("pre_slots"),
             atoms("add_slots"), atoms("delete_slots"), d["count"], d["applicable"],
             d["succeeded"], data.get("cost_scale", 10.0)))
-    return ops, Semantics(**{"degree": False, **data["semantics"]})
+    return ops, Semantics(**{"degree": False, "guess_uncertain": False, **data["semantics"]})
 
 
 class ModelBundle:
@@ -137,14 +137,15 @@ class ModelBundle:
         return Reading(SymbolicState(tuple(names), unary, rel), unary_unc.astype(bool),
                        rel_unc.astype(bool), {tuple(p) for p in contacts})
 
-    def atoms(self, reading: Reading, contacts=None, contacts_only: bool | None = None
-              ) -> tuple[set[Atom], set[tuple]]:
+    def atoms(self, reading: Reading, contacts=None, contacts_only: bool | None = None,
+              guess: bool = False) -> tuple[set[Atom], set[tuple]]:
         """(atoms, unknown keys) of a reading under the bundle's semantics; `contacts`
-        overrides the reading's contact pairs."""
+        overrides the reading's contact pairs; with `guess` (a problem's initial state)
+        uncertain bits are read by their sign where the semantics says so."""
         s, sem = reading.state, self.semantics
         use_contacts = sem.contacts_only if contacts_only is None else contacts_only
         c = reading.contact_matrix(contacts)
-        unc = sem.certain_only
+        unc = sem.certain_only and not (guess and sem.guess_uncertain)
         atoms, unknown = _atoms_and_unknown(
             s.unary, reading.unary_uncertain if unc else None, s.relational,
             reading.relational_uncertain if unc else None, c if use_contacts else None,
@@ -162,7 +163,7 @@ class ModelBundle:
         if set(start.objects) != set(goal.objects):
             raise ValueError(f"start and goal name different objects: {sorted(start.objects)} "
                              f"vs {sorted(goal.objects)}")
-        return problem_from_atoms(start.objects, sorted(self.atoms(start)[0]),
+        return problem_from_atoms(start.objects, sorted(self.atoms(start, guess=True)[0]),
                                   sorted(self.goal_atoms(goal, goal_contacts)), name,
                                   costs=costs)
 

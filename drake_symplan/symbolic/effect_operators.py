@@ -220,6 +220,7 @@ class Lifted:
     unknown_before: frozenset  # keys of uncertain bits
     unknown_after: frozenset
     bindings: dict  # tuple of other slots (in parameter order) -> slot -> parameter map
+    read_before: frozenset = frozenset()  # `before`, uncertain bits read by their sign
 
 
 @dataclass(frozen=True)
@@ -233,10 +234,13 @@ class Semantics:
     certain_only: bool = True
     contacts_only: bool = True
     degree: bool = True
+    # Whether an operator applies (and a problem's initial state) reads an uncertain bit
+    # by its sign, its most likely value; preconditions, effects and goals stay certain.
+    guess_uncertain: bool = True
 
 
 EFFECT = Semantics()
-PAPER = Semantics(certain_only=False, contacts_only=False, degree=False)
+PAPER = Semantics(certain_only=False, contacts_only=False, degree=False, guess_uncertain=False)
 
 
 def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list[Lifted]:
@@ -267,8 +271,12 @@ def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list
         for r in range(len(others) + 1):
             for sel in itertools.permutations(others, r):
                 bindings[sel] = {s: 0, g: 1, **{o: 2 + i for i, o in enumerate(sel)}}
+        read_before = before
+        if semantics.guess_uncertain:
+            read_before = _atoms_and_unknown(data.unary[t], None, data.relational[t], None, c0,
+                                             mask[t], d0)[0]
         out.append(Lifted(int(grasp[t]), int(release[t]), int(mask[t].sum()), before, after,
-                          unknown_before, unknown_after, bindings))
+                          unknown_before, unknown_after, bindings, read_before))
     return out
 
 
@@ -382,7 +390,7 @@ def _grounded(op: EffectOperator, tr: Lifted):
     for sel, m in tr.bindings.items():
         if len(sel) != op.n_params - 2:
             continue
-        if pre <= _rename(tr.before, m):
+        if pre <= _rename(tr.read_before, m):
             yield _rename(tr.after, m), _rename(tr.unknown_after, m)
 
 
@@ -411,14 +419,12 @@ def predicts(op: EffectOperator, tr: Lifted) -> bool | None:
     for sel, m in tr.bindings.items():
         if len(sel) != op.n_params - 2:
             continue
-        before = _rename(tr.before, m)
-        if not frozenset(op.pre) <= before:
+        if not frozenset(op.pre) <= _rename(tr.read_before, m):
             continue
         applied = True
         # Atoms of objects that are not parameters must carry over unchanged.
-        after = _rename(tr.after, {**m, **{s: 100 + s for s in _slots(tr) if s not in m}})
-        before_all = _rename(tr.before, {**m, **{s: 100 + s for s in _slots(tr) if s not in m}})
-        if (after - add) <= (before_all - delete):
+        everyone = {**m, **{s: 100 + s for s in _slots(tr) if s not in m}}
+        if (_rename(tr.after, everyone) - add) <= (_rename(tr.read_before, everyone) - delete):
             return True
     return False if applied else None
 
@@ -436,4 +442,4 @@ def from_paper(op, cost_scale: float = 10.0) -> EffectOperator:
 
 
 def _slots(tr: Lifted) -> set[int]:
-    return {s for a in tr.before | tr.after for s in a[1:]}
+    return {s for a in tr.read_before | tr.before | tr.after for s in a[1:]}
