@@ -155,3 +155,10 @@ def test_large_read_sets_are_scored_on_a_sample(monkeypatch):
     v = np.arange(200) % 3 == 0
     e = best_description(v, [("every third", "not every third", v)])
     assert e["reads"] == 200 and e["meaning"] == "every third" and e["agreement"] == 1.0
+
+
+def test_a_disjunction_is_a_candidate_too():
+    a = np.array([1, 1, 0, 0, 0, 0, 0, 0], bool)
+    b = np.array([0, 0, 1, 1, 0, 0, 0, 0], bool)
+    e = best_description(a | b, [("A", "not A", a), ("B", "not B", b)])
+    assert e["meaning"] == "A, or B" and e["agreement"] == 1.0

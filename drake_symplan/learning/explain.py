@@ -6,14 +6,16 @@ object on top") or per ordered pair of objects in contact (relations: "x is abov
 "x's centre is over y's footprint"), computed from the feature vector (layout in
 perception/features.py: [x, y, z, cos(tilt), long_axis_up, cos(k yaw), sin(k yaw),
 is_cube, is_long]) and the perceived contact graph. The literals are the base
-candidates and their negations; conjunctions of two literals are candidates too.
+candidates and their negations; conjunctions and disjunctions of two literals are
+candidates too.
 
 For each predicate, over the reads where the bit is certain (unary: every real object;
 relations: ordered pairs perceived in contact, the only pairs the planner reads), the
 candidate with the best agreement wins: accuracy, or balanced accuracy when the bit is
-rare (set in under 10 % or over 90 % of reads). A single literal beats a conjunction
-unless the conjunction is better by more than a point. The bit's frequency is reported
-beside the rate, so that "97 %" on a bit that is almost always 0 reads for what it is.
+rare (set in under 10 % or over 90 % of reads). A single literal beats a combination
+of two unless the combination is better by more than a point. The bit's frequency is
+reported beside the rate, so that "97 %" on a bit that is almost always 0 reads for what
+it is.
 
 No Drake here: `explain_model` reads symbols with learning.readout.readout_scenes.
 """
@@ -31,7 +33,7 @@ HALF_SIDE, HALF_LONG = 0.025, 0.125  # m, boxes.py's half extents
 ABOVE = 0.03  # m: x above y when z_x > z_y + ABOVE
 LEVEL = 0.01  # m: side by side when |z_x - z_y| < LEVEL
 RARE = 0.10  # a bit set in fewer (or more than 1 - RARE) of its reads is rare
-SIMPLER_BY = 0.01  # a conjunction must beat a single literal by this much
+SIMPLER_BY = 0.01  # a combination must beat a single literal by this much
 MAX_READS = 100_000  # reads scored per predicate at most (a seeded sample beyond)
 
 
@@ -113,8 +115,10 @@ def relation_candidates(fx: np.ndarray, fy: np.ndarray) -> list[tuple[str, str, 
         ("y is tilted", "y rests on a face", ~py["upright"]),
         ("x is farther from the robot than y", "x is nearer the robot than y",
          fx[:, X] > fy[:, X]),
-        ("x is left of y (larger world y)", "x is right of y (smaller world y)",
+        ("x is on y's +y side (larger world y)", "x is on y's -y side (smaller world y)",
          fx[:, Y] > fy[:, Y]),
+        ("x is centred on y (within 2 cm in x and y)", "x is off y's centre (2 cm or more)",
+         np.linalg.norm(fx[:, [X, Y]] - fy[:, [X, Y]], axis=1) < 0.02),
     ]
 
 
@@ -129,7 +133,7 @@ def _literals(base):
 
 def best_description(bits: np.ndarray, base) -> dict:
     """The best-agreeing candidate for `bits` [n] (0/1) among `base`'s literals and their
-    pairwise conjunctions (see the module docstring)."""
+    pairwise conjunctions and disjunctions (see the module docstring)."""
     b = np.asarray(bits, bool).ravel()
     n = len(b)
     freq = float(b.mean()) if n else 0.0
@@ -148,15 +152,15 @@ def best_description(bits: np.ndarray, base) -> dict:
     singles = len(vecs)
     for (i, a), (j, c) in itertools.combinations(enumerate(literals), 2):
         if i // 2 != j // 2:  # not a literal with its own negation
-            names.append(f"{a[0]} and {c[0]}")
-            vecs.append(a[1] & c[1])
+            names += [f"{a[0]} and {c[0]}", f"{a[0]}, or {c[0]}"]
+            vecs += [a[1] & c[1], a[1] | c[1]]
     C = np.stack(vecs)
     tp, tn = (C & b).sum(1), (~C & ~b).sum(1)
     acc = (tp + tn) / n
     bal = 0.5 * (tp / b.sum() + tn / (~b).sum())
     rare = min(freq, 1 - freq) < RARE
     score = bal if rare else acc
-    # Simplicity: a conjunction pays SIMPLER_BY.
+    # Simplicity: a combination of two literals pays SIMPLER_BY.
     ranked = score - np.where(np.arange(len(score)) >= singles, SIMPLER_BY, 0.0)
     order = np.argsort(-ranked, kind="stable")
     seen, top = set(), []
