@@ -176,7 +176,9 @@ def from_scratch(args, say):
     symplan(["bundle", "--run", run, "--data", data, "--out", out, "--min-count", min_count],
             say)
     say(f"  model ready in {time.perf_counter() - t0:.0f} s")
-    return ModelBundle.load(out)
+    bundle = ModelBundle.load(out)  # BundleError (a ValueError) when it holds no operators
+    say(f"  {len(bundle.operators)} operators from {total} transitions")
+    return bundle
 
 
 def make_goal(agent, args, say):
@@ -248,7 +250,8 @@ def main(argv=None) -> int:
         try:
             bundle = from_scratch(args, say)
         except (RuntimeError, ValueError, OSError) as e:
-            say(f"from scratch: {e}")
+            say(f"from scratch: {e}" + ("; the data set is too small: give more "
+                                        "--budget-minutes" if "no operators" in str(e) else ""))
             return 1
     from drake_symplan.agent.inspection import (
         annotate_html,
