@@ -47,6 +47,21 @@ def bench_learning(data: dict, runs: int, min_count: int) -> tuple[dict, object]
     }, ops
 
 
+def bench_effect_learning(data, runs: int, min_count: int) -> dict:
+    """The effect-first learner (symbolic/effect_operators.py) on the same data."""
+    from drake_symplan.symbolic.effect_operators import EffectLearnConfig, learn_effect_operators
+
+    seconds, result = [], None
+    for _ in range(runs):
+        t = time.perf_counter()
+        result = learn_effect_operators(data, EffectLearnConfig(min_count=min_count))
+        seconds.append(time.perf_counter() - t)
+    summary = result.summary()
+    return {"runs": runs, "median_s": statistics.median(seconds), "all_s": seconds,
+            "operators": summary["operators"], "groups": summary["groups"],
+            "mean_reliability": summary["mean_reliability"], "timings": summary["timings"]}
+
+
 def bench_planning(ops, problems: int, objects: int, seed: int, timeout: float) -> dict:
     rng = np.random.default_rng(seed)
     out = {}
@@ -123,6 +138,8 @@ def main() -> int:
     parser.add_argument("--problems", type=int, default=10)
     parser.add_argument("--objects", type=int, default=4)
     parser.add_argument("--min-count", type=int, default=50)
+    parser.add_argument("--effect-min-count", type=int, default=10,
+                        help="the effect-first learner's minimum count (default 10)")
     parser.add_argument("--timeout", type=float, default=10.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -141,6 +158,8 @@ def main() -> int:
         data = synthetic.random_transitions(args.transitions, seed=args.seed)
     generate_s = time.perf_counter() - t
     learning, ops = bench_learning(data, args.runs, args.min_count)
+    effect = (bench_effect_learning(data, args.runs, args.effect_min_count)
+              if data.contacts is not None else None)
     if args.symbols:
         planning = bench_planning_real(ops, data, args.problems, args.objects, args.timeout)
     else:
@@ -152,11 +171,13 @@ def main() -> int:
         "transitions": args.transitions,
         "generate_s": generate_s,
         "learning": learning,
+        "effect_learning": effect,
         "planning": planning,
         "targets": {
             "learning_median_s_max": 30.0,
             "fd_median_s_max": 0.5,
             "learning_ok": learning["median_s"] <= 30.0,
+            "effect_learning_ok": effect is None or effect["median_s"] <= 30.0,
             "fd_ok": planning["fd"]["median_s"] <= 0.5,
         },
         "machine": {"python": platform.python_version(), "processor": platform.processor(),

@@ -221,6 +221,16 @@ class Lifted:
     unknown_after: frozenset
     bindings: dict  # tuple of other slots (in parameter order) -> slot -> parameter map
     read_before: frozenset = frozenset()  # `before`, uncertain bits read by their sign
+    _views: dict = field(default_factory=dict, repr=False)
+
+    def view(self, sel: tuple) -> tuple[frozenset, frozenset, frozenset]:
+        """(read_before, after, unknown_after) lifted by the binding `sel`, computed once:
+        reliability checks every operator of an action against every transition."""
+        if sel not in self._views:
+            m = self.bindings[sel]
+            self._views[sel] = (_rename(self.read_before, m), _rename(self.after, m),
+                                _rename(self.unknown_after, m))
+        return self._views[sel]
 
 
 @dataclass(frozen=True)
@@ -387,11 +397,12 @@ def _grounded(op: EffectOperator, tr: Lifted):
     """For each binding of the operator's parameters to the transition's objects under
     which its preconditions hold: the lifted (after, unknown after) sets."""
     pre = frozenset(op.pre)
-    for sel, m in tr.bindings.items():
+    for sel in tr.bindings:
         if len(sel) != op.n_params - 2:
             continue
-        if pre <= _rename(tr.read_before, m):
-            yield _rename(tr.after, m), _rename(tr.unknown_after, m)
+        before, after, unknown = tr.view(sel)
+        if pre <= before:
+            yield after, unknown
 
 
 def follows(op: EffectOperator, tr: Lifted) -> bool | None:

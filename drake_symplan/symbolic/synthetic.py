@@ -155,6 +155,9 @@ def random_transitions(
     rng = np.random.default_rng(seed)
     n_max = max_objects
     out = _empty_dataset(n_transitions, n_max, N_UNARY, N_RELATIONS)
+    for prefix in ("", "next_"):  # perceived contacts: what the effect-first learner reads
+        out[f"{prefix}contacts"] = np.zeros((n_transitions, n_max, n_max), bool)
+        out[f"{prefix}degree"] = np.zeros((n_transitions, n_max), np.int8)
     world = None
     for i in range(n_transitions):
         if i % episode_length == 0:
@@ -174,6 +177,13 @@ def random_transitions(
         out["next_relational"][i, :, :m, :m] = nr[:, idx][:, :, idx]
         out["action"][i, :m] = encode_action(action, [f"o{j}" for j in objs])
         out["mask"][i, :m] = True
+        for prefix, w in (("", world), ("next_", after)):
+            c = np.zeros((w.n, w.n), bool)
+            for a in range(w.n):
+                c[a, w.contacts(a)] = True
+            c |= c.T
+            out[f"{prefix}contacts"][i, :m, :m] = c[idx][:, idx]
+            out[f"{prefix}degree"][i, :m] = c.sum(1)[idx]
         world = after
     for key in ("unary", "relational", "next_unary", "next_relational"):
         out[f"{key}_uncertain"] = np.zeros(out[key].shape, bool)
