@@ -180,6 +180,7 @@ class Station:
         self.assigned: dict[str, object] = {}  # scene name -> body
         self.types: dict[str, str] = {}
         self._name_of: dict = {}  # body index -> scene name
+        self._following = None  # (the trajectory `follow` commands, its shift)
         # Each pool body's model instance holds exactly its floating joint.
         self._floating_joints = {
             b.index(): plant.get_joint(plant.GetJointIndices(b.model_instance())[0])
@@ -205,6 +206,7 @@ class Station:
                     f"scene has {counts[t]} objects of type {t!r}; the station's pool has "
                     f"{len(self.pool[t])} (StationConfig.pool_{t}s)")
         self.context.SetTime(0.0)
+        self._following = None
         plant, ctx = self.plant, self.plant_context
         self.assigned, self.types = {}, {}
         used = {t: 0 for t in OBJECT_TYPES}
@@ -253,6 +255,7 @@ class Station:
     def hold(self, q: np.ndarray, finger: float = FINGER_OPEN) -> None:
         """Commands the robot to hold positions `q` (arm: 6 joints, hand: its 6) from now on."""
         self.command_source.UpdateTrajectory(self.hold_trajectory(q, finger))
+        self._following = None
 
     def follow(self, trajectory: PiecewisePolynomial, t_from: float, t_to: float) -> None:
         """Tracks `trajectory` (in its own time) from t_from, which is now, to t_to.
@@ -260,9 +263,12 @@ class Station:
         The one way every skill moves the robot: consecutive calls with the same
         trajectory continue it (follow(tr, 0, t1); perceive; follow(tr, t1, t2))."""
         t0 = self.context.get_time() - t_from
-        shifted = trajectory.Clone()
-        shifted.shiftRight(t0)
-        self.command_source.UpdateTrajectory(shifted)
+        last = self._following
+        if last is None or last[0] is not trajectory or last[1] != t0:  # not commanded yet
+            shifted = trajectory.Clone()
+            shifted.shiftRight(t0)
+            self.command_source.UpdateTrajectory(shifted)
+            self._following = (trajectory, t0)
         self.advance_to(t0 + t_to)
 
     def settle(self, seconds: float = 0.5) -> None:
