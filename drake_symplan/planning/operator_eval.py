@@ -29,7 +29,7 @@ from drake_symplan.symbolic.effect_operators import (
     EFFECT,
     EffectOperator,
     Semantics,
-    _atoms_and_unknown,
+    atoms_and_unknown,
     changes,
     lift_transitions,
     predicts,
@@ -66,7 +66,7 @@ def scene_atoms(scenes: SceneSymbols, row: int, after: bool, semantics: Semantic
     unc = (lambda a: a[row]) if certain else (lambda a: None)
     use_contacts = semantics.contacts_only if contacts_only is None else contacts_only
     whole = getattr(scenes, f"{p}contacts")[row]
-    atoms, _ = _atoms_and_unknown(
+    atoms, _ = atoms_and_unknown(
         getattr(scenes, f"{p}unary")[row], unc(getattr(scenes, f"{p}unary_uncertain")),
         getattr(scenes, f"{p}relational")[row],
         unc(getattr(scenes, f"{p}relational_uncertain")), whole if use_contacts else None,

@@ -26,7 +26,7 @@ from drake_symplan.structs import Action
 from drake_symplan.symbolic.effect_operators import (
     EffectOperator,
     Semantics,
-    _atoms_and_unknown,
+    atoms_and_unknown,
     key,
 )
 from drake_symplan.symbolic.pddl import domain_pddl, plan_step_action, problem_from_atoms
@@ -146,7 +146,7 @@ class ModelBundle:
         use_contacts = sem.contacts_only if contacts_only is None else contacts_only
         c = reading.contact_matrix(contacts)
         unc = sem.certain_only and not (guess and sem.guess_uncertain)
-        atoms, unknown = _atoms_and_unknown(
+        atoms, unknown = atoms_and_unknown(
             s.unary, reading.unary_uncertain if unc else None, s.relational,
             reading.relational_uncertain if unc else None, c if use_contacts else None,
             np.ones(len(s.objects), bool), c.sum(-1) if sem.degree else None)

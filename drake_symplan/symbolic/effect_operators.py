@@ -32,7 +32,7 @@ import numpy as np
 
 from drake_symplan.structs import OFFSETS, SymbolDataset
 from drake_symplan.symbolic.operators import (
-    _roles,
+    action_roles,
     distinct_parameters,
     operator_name,
     parameter_names,
@@ -150,7 +150,7 @@ def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real, degree=None) -> 
     unary [N, P], rel [K, N, N] bits; *_unc their uncertainty flags (None: all certain);
     contacts [N, N] bool (None: every pair); real [N] bool; degree [N]: how many objects
     of the whole scene each one touches (None: no contact-degree atoms)."""
-    return _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree)[0]
+    return atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree)[0]
 
 
 def degree_atom(n: int) -> str:
@@ -158,7 +158,7 @@ def degree_atom(n: int) -> str:
     return f"touching{min(int(n), MAX_DEGREE)}"
 
 
-def _atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree=None):
+def atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree=None):
     """(atoms, unknown): the certain atoms, and the keys (symbol, slots) of the bits that
     would make atoms but are uncertain."""
     slots = np.flatnonzero(real)
@@ -262,7 +262,7 @@ def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list
         raise ValueError("contact-degree atoms need each object's contact count in its whole "
                          "scene (a data set collected with whole scenes)")
     mask = data.mask.astype(bool)
-    src, tgt, grasp, release = _roles(data.action, mask)
+    src, tgt, grasp, release = action_roles(data.action, mask)
     out = []
     for t in range(len(data)):
         unc = [None if a is None or not semantics.certain_only else a[t] for a in (
@@ -271,9 +271,9 @@ def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list
         c0, c1 = ((data.contacts[t], data.next_contacts[t]) if semantics.contacts_only
                   else (None, None))
         d0, d1 = ((data.degree[t], data.next_degree[t]) if semantics.degree else (None, None))
-        before, unknown_before = _atoms_and_unknown(
+        before, unknown_before = atoms_and_unknown(
             data.unary[t], unc[0], data.relational[t], unc[1], c0, mask[t], d0)
-        after, unknown_after = _atoms_and_unknown(
+        after, unknown_after = atoms_and_unknown(
             data.next_unary[t], unc[2], data.next_relational[t], unc[3], c1, mask[t], d1)
         s, g = int(src[t]), int(tgt[t])
         others = [int(i) for i in np.flatnonzero(mask[t]) if i not in (s, g)]
@@ -283,7 +283,7 @@ def lift_transitions(data: SymbolDataset, semantics: Semantics = EFFECT) -> list
                 bindings[sel] = {s: 0, g: 1, **{o: 2 + i for i, o in enumerate(sel)}}
         read_before = before
         if semantics.guess_uncertain:
-            read_before = _atoms_and_unknown(data.unary[t], None, data.relational[t], None, c0,
+            read_before = atoms_and_unknown(data.unary[t], None, data.relational[t], None, c0,
                                              mask[t], d0)[0]
         out.append(Lifted(int(grasp[t]), int(release[t]), int(mask[t].sum()), before, after,
                           unknown_before, unknown_after, bindings, read_before))

@@ -197,7 +197,7 @@ class OperatorSet:
 # ---------------------------------------------------------------- input checks
 
 
-def _roles(action: np.ndarray, mask: np.ndarray):
+def action_roles(action: np.ndarray, mask: np.ndarray):
     """Source, target, grasp and release index per transition; ValueError on rows
     without exactly one source and one target among the real objects."""
     a = action > 0.5
@@ -277,7 +277,7 @@ def learn_operators(data: SymbolDataset, config: LearnConfig | None = None) -> O
     t, n = mask.shape
     if t == 0:
         raise ValueError("no transitions to learn operators from")
-    src, tgt, grasp, release = _roles(d["action"], mask)
+    src, tgt, grasp, release = action_roles(d["action"], mask)
     t1 = time.perf_counter()
 
     order, n_permuted = canonical_orders(
