@@ -47,3 +47,17 @@ def remove_stale_tmp(directory: str | Path) -> list[Path]:
     for p in stale:
         p.unlink(missing_ok=True)
     return stale
+
+
+def save_figure(fig, path: str | Path, dpi: int = 120) -> Path:
+    """Writes a matplotlib figure (format from the file's extension) atomically and
+    closes it; returns the path."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fmt = path.suffix.lstrip(".") or "png"
+    try:
+        return write_atomic(path, lambda f: fig.savefig(f, format=fmt, dpi=dpi))
+    finally:
+        plt.close(fig)

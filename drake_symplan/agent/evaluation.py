@@ -23,6 +23,7 @@ import numpy as np
 
 from drake_symplan.agent.problems import load_problems
 from drake_symplan.agent.solve import GOAL_TOLERANCE
+from drake_symplan.atomic import save_figure
 
 MODES = {True: "monitor", False: "open_loop"}
 
@@ -212,5 +213,4 @@ def plot_planning(summary: dict, path) -> None:
     axes[0].legend(fontsize=7)
     fig.suptitle("Planning evaluation: solved within 5 cm (perceived check)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from drake_symplan.atomic import save_figure
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.dataset import TensorSet, split_by_episode
 from drake_symplan.learning.models import MODELS
@@ -233,8 +234,4 @@ def plot_errors(models: dict, out: str | Path) -> Path:
     axes[0][0].set_ylabel("effect error (cm, MAE per object)")
     axes[0][0].legend()
     fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out)

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.atomic import save_figure
+
 X, Y, Z, COS_TILT, LONG_UP, COS_KYAW, SIN_KYAW, IS_CUBE, IS_LONG = range(9)
 UPRIGHT_COS = float(np.cos(np.radians(10)))  # cos(tilt) above this: resting on a face
 HALF_SIDE, HALF_LONG = 0.025, 0.125  # m, boxes.py's half extents
@@ -339,8 +341,4 @@ def plot_examples(result: dict, arrays: dict, path: str | Path, examples: int = 
             label = ("set" if c < examples else "not set") + f" (scene {t})"
             _draw_scene(ax, feats[t], mask[t], colours, f"{e['symbol']} {label}")
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from drake_symplan.atomic import save_figure
 from drake_symplan.planning.planners import plan_pddl
 from drake_symplan.structs import OFFSETS, SceneSymbols, SymbolDataset
 from drake_symplan.symbolic.effect_operators import (
@@ -256,5 +257,4 @@ def plot_report(report: dict, path) -> None:
     fig.suptitle(f"{report.get('learner')} operators: coverage {report['coverage']:.2f}, "
                  f"precision {report['precision']:.2f}")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
