@@ -18,6 +18,7 @@ from drake_symplan.data.backends import Execution
 from drake_symplan.perception.features import object_features
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
 from drake_symplan.structs import Action, ObjectState
+from drake_symplan.symbolic.effect_operators import EffectOperator
 from drake_symplan.symbolic.states import SymbolicState
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
@@ -87,6 +88,9 @@ class OracleBundle:
     r0(a, b) = a rests on b, read from the features' positions."""
 
     domain = domain_strips = DOMAIN
+    # The domain's one operator, for choosing offsets (agent/refine.py): nothing to choose.
+    operators = [EffectOperator(0, "center", "center", 2, (("free", 0), ("free", 1)),
+                                (("on", 0, 1),), (("free", 1),), 1)]
 
     def __init__(self, force_mismatches: int = 0, hide_atoms: int = 0):
         self.force_mismatches = force_mismatches  # mismatches() reports one this many times
@@ -110,7 +114,10 @@ class OracleBundle:
                     atoms.add(("on", a, b))
         return atoms
 
-    def atoms(self, reading):
+    def operator_of(self, step):
+        return self.operators[0]
+
+    def atoms(self, reading, guess=False):
         if self.hide_atoms > 0:
             self.hide_atoms -= 1
             return set(), set()
@@ -151,7 +158,8 @@ GOAL = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.6, 0.
 def solve(bundle, monitor=True, max_replans=2, start=START, goal=GOAL) -> tuple[SolveResult,
                                                                               FakeBackend]:
     backend = FakeBackend()
-    result = Agent(backend).solve(start, goal, bundle, "fd", 20.0, monitor, max_replans)
+    result = Agent(backend).solve(start, goal, bundle, "fd", 20.0, monitor, max_replans,
+                                  refine=False)
     return result, backend
 
 
@@ -239,7 +247,7 @@ def test_an_object_left_short_of_its_goal_is_an_execution_failure():
             return Execution("ok", None, self.perceive(before))
 
     backend = Nudging()
-    result = Agent(backend).solve(START, GOAL, OracleBundle(), "fd", 20.0, False)
+    result = Agent(backend).solve(START, GOAL, OracleBundle(), "fd", 20.0, False, refine=False)
     assert result.status == "failure" and result.failure_cause == "execution"
     assert result.objects["c"]["error_cm"] == pytest.approx(8.0)
     assert result.symbolic_goal_reached  # the symbols cannot tell where c stands

@@ -11,7 +11,8 @@ for many solves (the evaluation).
    the goal scene. The planner (Fast Downward or pyperplan) plans.
 3. Each step is executed by the back-end on the perceived objects (the arm: IK-planned
    pick/place in full physics); the scene perceived after it keeps the names through
-   perception's association.
+   perception's association. Before it runs, its offsets may be swapped for an
+   interchangeable operator's that land the source nearer its goal (agent/refine.py).
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
    step's operator predicted; on a mismatch the agent replans from the perceived state.
    When the plan has run out, the goal's atoms must hold in the perceived symbols, or it
@@ -29,6 +30,7 @@ import time
 from contextlib import contextmanager
 
 from drake_symplan.agent import beliefs
+from drake_symplan.agent.refine import advance, refine_step
 
 GOAL_TOLERANCE = 0.05  # m
 STATUSES = ("success", "failure", "no_plan", "timeout", "infeasible", "error")
@@ -132,15 +134,17 @@ class Agent:
         return beliefs.name_by_file(self.backend.perceive(), scene)
 
     def solve(self, start_scene, goal_scene, bundle, planner: str = "fd", timeout: float = 10.0,
-              monitor: bool = True, max_replans: int = 2, record=None) -> SolveResult:
-        """Solves `goal_scene` from `start_scene` (world.scenes.Scene) with `bundle`."""
+              monitor: bool = True, max_replans: int = 2, record=None,
+              refine: bool = True) -> SolveResult:
+        """Solves `goal_scene` from `start_scene` (world.scenes.Scene) with `bundle`; with
+        `refine`, each step's offsets are chosen among its equivalents (agent/refine.py)."""
         from drake_symplan.data.backends import PerceptionFailure
         from drake_symplan.world.visualization import recording
 
         beliefs.check_scene_pair(start_scene, goal_scene)
         clock = _Clock(self.backend)
         t0 = time.perf_counter()
-        run = _Run(self, bundle, clock, planner, timeout, monitor, max_replans)
+        run = _Run(self, bundle, clock, planner, timeout, monitor, max_replans, refine)
         try:
             goal = self.look(goal_scene, clock)
             with recording(self.station, record):  # from the start scene on
@@ -157,12 +161,12 @@ class _Run:
     """The loop of one solve; `go` returns the SolveResult without its seconds."""
 
     def __init__(self, agent: Agent, bundle, clock: _Clock, planner: str, timeout: float,
-                 monitor: bool, max_replans: int):
+                 monitor: bool, max_replans: int, refine: bool = True):
         self.agent, self.bundle, self.clock = agent, bundle, clock
         self.planner, self.timeout = planner, timeout
-        self.monitor, self.max_replans = monitor, max_replans
+        self.monitor, self.max_replans, self.refine = monitor, max_replans, refine
         self.result = SolveResult("failure")
-        self.goal, self.goal_reading = None, None
+        self.goal, self.goal_reading, self.goal_atoms = None, None, set()
 
     def go(self, start: beliefs.Named, goal: beliefs.Named) -> SolveResult:
         self.goal = goal
@@ -173,6 +177,9 @@ class _Run:
         with self.clock("symbols"):
             self.goal_reading = self._read(goal.scene)
             reading = self._read(now)
+            believed = self._believe(reading)
+            self.goal_atoms = self.bundle.goal_atoms(self.goal_reading,
+                                                     self.goal.scene.contacts)
         steps, stop = self._plan(reading)
         if stop:
             return self._end(now, *stop)
@@ -180,6 +187,13 @@ class _Run:
         while True:
             while steps:
                 step = steps.pop(0)
+                if self.refine:
+                    with self.clock("symbols"):
+                        step = refine_step(self.bundle, step, steps, believed,
+                                           self.goal_atoms,
+                                           beliefs.positions(now),
+                                           beliefs.positions(self.goal.scene),
+                                           self.goal.scene.contacts)
                 with self.clock("execute"):
                     action = self.bundle.action_of(step)
                     execution = self.agent.backend.execute(action, now)
@@ -193,10 +207,13 @@ class _Run:
                     return self._end(seen.scene, "perception",
                                      f"after {step} perception lost {', '.join(seen.lost)}")
                 before, now = reading, seen.scene
-                if not self.monitor:
+                if not self.monitor:  # open loop: the state is what the operator predicted
+                    if self.refine:
+                        believed = advance(self.bundle, step, believed)
                     continue
                 with self.clock("symbols"):
                     reading = self._read(now)
+                    believed = self._believe(reading)
                     wrong = self.bundle.mismatches(reading, step, before)
                 if wrong and self.result.replans < self.max_replans:
                     steps, stop = self._replan(reading)
@@ -223,8 +240,12 @@ class _Run:
 
     def _goal_holds(self, reading) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""
-        goal = self.bundle.goal_atoms(self.goal_reading, self.goal.scene.contacts)
-        return goal <= self.bundle.atoms(reading)[0]
+        return self.goal_atoms <= self.bundle.atoms(reading)[0]
+
+    def _believe(self, reading) -> set:
+        """The state the planner starts from (uncertain bits read as the problem reads
+        them), for choosing offsets; not needed without `refine`."""
+        return self.bundle.atoms(reading, guess=True)[0] if self.refine else set()
 
     def _read(self, scene):
         return self.bundle.read(scene.names, scene.features(), scene.contacts)
@@ -282,7 +303,7 @@ class _Run:
 
 def solve(start_scene, goal_scene, bundle, planner: str = "fd", timeout: float = 10.0,
           monitor: bool = True, max_replans: int = 2, meshcat=None, record=None,
-          backend: str = "arm") -> SolveResult:
+          backend: str = "arm", refine: bool = True) -> SolveResult:
     """Solves one goal on a new station; `record`: write a Meshcat HTML recording there
     (a `meshcat` is started for it if none is given). seconds["setup"] is the station build."""
     t0 = time.perf_counter()
@@ -293,6 +314,6 @@ def solve(start_scene, goal_scene, bundle, planner: str = "fd", timeout: float =
     agent = Agent(backend, meshcat=meshcat)
     setup = time.perf_counter() - t0
     result = agent.solve(start_scene, goal_scene, bundle, planner, timeout, monitor,
-                         max_replans, record)
+                         max_replans, record, refine)
     result.seconds["setup"] = setup
     return result

@@ -1,0 +1,74 @@
+"""Choosing a step's offsets among interchangeable operators (agent/refine.py): the source
+lands nearer its perceived goal, and only operators after which the plan still reaches the
+goal's atoms are candidates."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from drake_symplan.agent.refine import equivalents, reaches, refine_step
+from drake_symplan.symbolic.bundle import ModelBundle
+from drake_symplan.symbolic.effect_operators import EFFECT, EffectOperator
+
+FREE = (("p0", 0), ("p0", 1))  # both boxes have nothing on them
+
+
+def op(index, release, add, pre=FREE, delete=(("p0", 1),), grasp="center"):
+    return EffectOperator(index, grasp, release, 2, pre, add, delete, 10, 10, 10)
+
+
+ON = (("r0", 0, 1),)  # ?o0 rests on ?o1
+OPERATORS = [op(0, "center", ON), op(1, "right", ON), op(2, "left", ON),
+             op(3, "right", (("r1", 0, 1),)),  # lands right, but predicts another relation
+             op(4, "right", ON, pre=(("p0", 0),)), op(5, "left", ON, grasp="right")]
+
+
+def bundle():
+    return ModelBundle(Path("oracle"), None, OPERATORS, EFFECT,
+                       {"n_unary": 1, "n_relations": 2}, {})
+
+
+STATE = {("p0", "a"), ("p0", "b")}
+GOAL_ATOMS = {("r0", "a", "b")}
+STEP = "(pick_center_place_center_n10_op0 a b)"
+
+
+def positions(dy):
+    """b at the origin, a resting on b shifted by dy along y."""
+    return {"a": np.array([0.0, dy, 0.075]), "b": np.zeros(3)}
+
+
+def test_interchangeable_operators_apply_and_keep_the_goal_in_reach():
+    names = [s.split()[0][1:] for s in equivalents(bundle(), STEP, [], STATE, GOAL_ATOMS)]
+    # op3 misses the goal's relation; op4 applies too (its one precondition holds).
+    assert names == ["pick_center_place_center_n10_op0", "pick_center_place_right_n10_op1",
+                     "pick_center_place_left_n10_op2", "pick_center_place_right_n10_op4",
+                     "pick_right_place_left_n10_op5"]
+    # A later step that needs b free rules out every one of them but the planned step.
+    later = ["(pick_center_place_center_n10_op0 b a)"]
+    assert equivalents(bundle(), STEP, later, STATE, set()) == [STEP]
+    assert not reaches(bundle(), later, {("p0", "a")}, set())
+
+
+def test_the_release_offset_follows_the_goal_position_on_the_target():
+    b = bundle()
+    now = {"a": np.array([0.3, 0.2, 0.025]), "b": np.zeros(3)}
+    contact = {("a", "b")}
+    right = refine_step(b, STEP, [], STATE, GOAL_ATOMS, now, positions(0.075), contact)
+    assert right == "(pick_center_place_right_n10_op1 a b)"
+    # grasped 7.5 cm right of its centre and released at b's left: 15 cm to the left.
+    left = refine_step(b, STEP, [], STATE, GOAL_ATOMS, now, positions(-0.15), contact)
+    assert left == "(pick_right_place_left_n10_op5 a b)"
+    # Already where the planned step puts it (within MIN_GAIN): keep the plan's step.
+    assert refine_step(b, STEP, [], STATE, GOAL_ATOMS, now, positions(0.005), contact) == STEP
+
+
+def test_without_goal_contact_the_absolute_goal_position_counts():
+    b = bundle()
+    now = {"a": np.array([0.3, 0.2, 0.025]), "b": np.array([0.0, -0.075, 0.025])}
+    goal = {"a": np.array([0.0, 0.0, 0.3]), "b": np.array([0.5, 0.5, 0.025])}
+    # b stands 7.5 cm left of a's goal now: release at b's right.
+    assert refine_step(b, STEP, [], STATE, GOAL_ATOMS, now, goal, set()) == \
+        "(pick_center_place_right_n10_op1 a b)"
