@@ -39,6 +39,9 @@ def register(subparsers) -> None:
     p.add_argument("--no-monitor", action="store_true",
                    help="run the first plan open-loop (no replanning on a mismatch)")
     p.add_argument("--max-replans", type=int, default=2)
+    p.add_argument("--no-refine", action="store_true",
+                   help="execute each step with the offsets the planner chose (default: "
+                   "an interchangeable operator's that land the box nearer its goal)")
     p.add_argument("--backend", choices=BACKENDS, default="arm",
                    help="arm: the UR10 in full physics (default); hand: the fast hand")
     p.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
@@ -118,7 +121,8 @@ def cmd_solve(args: argparse.Namespace) -> dict:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
             meshcat = StartMeshcat()
     result = solve(start, goal, bundle, args.planner, args.timeout, not args.no_monitor,
-                   args.max_replans, meshcat=meshcat, record=args.record, backend=args.backend)
+                   args.max_replans, meshcat=meshcat, record=args.record, backend=args.backend,
+                   refine=not args.no_refine)
     out = result.to_json()
     if args.record:
         out["recording"] = str(args.record)

@@ -29,6 +29,7 @@ COMMAND_MODULES = [
     "drake_symplan.cli.planning_cmds",
     "drake_symplan.cli.agent_cmds",
     "drake_symplan.cli.inspect_cmds",
+    "drake_symplan.cli.reproduce_cmds",
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2
@@ -52,6 +53,7 @@ PIPELINE = (
     ("solve", "perceive start and goal, plan, execute with the arm, check within 5 cm"),
     ("problems make", "planning problems: random starts, goals k arm actions away"),
     ("eval planning", "models on a problem set in full physics"),
+    ("reproduce", "all of the above at a scale, every results table into one directory"),
 )
 DESCRIPTION = "\n\n".join([
     textwrap.fill("A UR10 in Drake explores pick/place actions on blocks it perceives with "

@@ -1,0 +1,278 @@
+"""`symplan reproduce`: every table and figure of the results from nothing, in one resumable run.
+
+Each stage is a `symplan` child process whose command line is recorded: collect a training
+and a held-out data set (hand back-end, two seeds), train Table I's three models x 3 seeds,
+learn operators for every RelationalDeepSym and Attentive run (effect-first; the paper's
+learner beside it on RelationalDeepSym, the baseline row), evaluate the effects (Table I)
+and the operators on the held-out episodes, make arm problems and solve them with the
+bundles, with and without monitoring. A stage whose output is there is skipped, so the same
+command resumes an interrupted run. OUT/results.md holds the tables, the JSON and PNG files
+lie beside it, OUT/provenance.json records commands, seeds, data fingerprints, package
+versions and the host.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from drake_symplan.atomic import write_atomic
+
+
+@dc.dataclass(frozen=True)
+class Scale:
+    """How big each stage is."""
+
+    train: int  # transitions in the training data set
+    heldout: int  # transitions in the held-out data set (another seed)
+    objects: str  # objects per scene in both data sets
+    epochs: int
+    patience: int
+    min_count: int  # effect-first operators: transitions an effect needs
+    paper_min_count: int  # the paper's learner
+    operator_problems: int  # `eval operators --max-problems` (per k and object count)
+    planning_objects: tuple[int, ...]
+    planning_k: tuple[int, ...]
+    planning_problems: int  # per object count
+    planning_seeds: tuple[int, ...]  # training seeds whose bundles solve the arm problems
+    seeds: tuple[int, ...] = (0, 1, 2)
+    train_seed: int = 12
+    heldout_seed: int = 97
+    problem_seed: int = 1000
+
+
+SCALES = {
+    # About 10 minutes on 2 cores: the whole pipeline on a toy data set; a systems test.
+    "small": Scale(train=1500, heldout=300, objects="2-3", epochs=40, patience=10,
+                   min_count=5, paper_min_count=5, operator_problems=8,
+                   planning_objects=(2,), planning_k=(1,), planning_problems=3,
+                   planning_seeds=(0,)),
+    # The README's headline run (hours on one machine; `--ray` fans collection and the
+    # arm problems out over a cluster).
+    "paper": Scale(train=50000, heldout=2000, objects="2-4", epochs=300, patience=30,
+                   min_count=10, paper_min_count=50, operator_problems=30,
+                   planning_objects=(2, 3, 4, 8), planning_k=(1, 2, 3, 4, 5),
+                   planning_problems=100, planning_seeds=(0, 1, 2)),
+}
+MODELS = {  # Table I's three models; RelationalDeepSym in its permutation-invariant form
+    "relational": ["--model", "relational", "--model-option", "invariant=true"],
+    "attentive": ["--model", "attentive"],
+    "deepsym": ["--model", "deepsym"],
+}
+LEARNERS = {"relational": ("effect", "paper"), "attentive": ("effect",)}
+
+
+class StageFailed(RuntimeError):
+    """A stage's command exited non-zero; the message names it and ends with its stderr."""
+
+
+@dc.dataclass
+class Stage:
+    """One command; `done` exists once it has finished. With `stdout`, what it prints is
+    written there (atomically, on success). `resume`: arguments added when `partial`
+    exists (a stage interrupted before)."""
+
+    name: str
+    argv: list
+    done: Path
+    stdout: Path | None = None
+    partial: Path | None = None
+    resume: tuple = ()
+
+
+class Reproduction:
+    """The stages of one scale in `out`; `run()` runs what is not done yet."""
+
+    def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
+                 say=print):
+        if scale not in SCALES:
+            raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
+        self.name, self.scale, self.out = scale, SCALES[scale], Path(out)
+        self.jobs, self.ray, self.say = jobs, ray, say
+        self.train_data, self.heldout_data = self.out / "data/train", self.out / "data/heldout"
+        self.results = self.out / "results"
+        self.log: list[dict] = []
+
+    # --- the stages -------------------------------------------------------------
+
+    def _ray(self) -> list[str]:
+        return [] if self.ray is None else ["--ray", self.ray] if self.ray else ["--ray"]
+
+    def collect_stages(self) -> list[Stage]:
+        s = self.scale
+
+        def collect(name, data, n, seed):
+            argv = ["collect", "--backend", "hand", "--transitions", n, "--out", data,
+                    "--seed", seed, "--objects", s.objects, "--no-progress", "--json",
+                    *(self._ray() or ["--workers", self.jobs])]
+            return Stage(name, argv, data / "collected.json", stdout=data / "collected.json")
+
+        return [collect("collect train", self.train_data, s.train, s.train_seed),
+                collect("collect held-out", self.heldout_data, s.heldout, s.heldout_seed)]
+
+    def run_dir(self, model: str, seed: int) -> Path:
+        return self.out / "runs" / f"{model}_s{seed}"
+
+    def train_stages(self) -> list[Stage]:
+        s = self.scale
+        stages = []
+        for model, options in MODELS.items():
+            for seed in s.seeds:
+                run = self.run_dir(model, seed)
+                argv = ["train", *options, "--data", self.train_data, "--out", run,
+                        "--seed", seed, "--epochs", s.epochs, "--patience", s.patience,
+                        "--threads", 1, "--no-progress"]
+                stages.append(Stage(f"train {run.name}", argv, run / "metrics.json",
+                                    partial=run / "last.pt", resume=("--resume",)))
+        return stages
+
+    def bundles(self) -> dict[tuple[str, int, str], Path]:
+        return {(m, seed, learner): self.run_dir(m, seed) / f"bundle_{learner}"
+                for m, learners in LEARNERS.items() for seed in self.scale.seeds
+                for learner in learners}
+
+    def operator_stages(self) -> list[Stage]:
+        s = self.scale
+        stages = []
+        for (_, _, learner), bundle in self.bundles().items():
+            count = s.paper_min_count if learner == "paper" else s.min_count
+            make = Stage(f"bundle {bundle.parent.name}/{bundle.name}",
+                         ["bundle", "--run", bundle.parent, "--data", self.train_data,
+                          "--out", bundle, "--learner", learner, "--min-count", count],
+                         bundle / "operators.json")
+            evaluate = Stage(f"eval operators {bundle.parent.name}/{bundle.name}",
+                             ["eval", "operators", "--model", bundle, "--data",
+                              self.heldout_data, "--max-problems", s.operator_problems,
+                              "--out", bundle / "eval.json"], bundle / "eval.json")
+            stages.append((make, evaluate))
+        return stages
+
+    def effects_stage(self) -> Stage:
+        runs = [self.run_dir(m, seed) for m in MODELS for seed in self.scale.seeds]
+        return Stage("eval effects", ["eval", "effects", *runs, "--json", "--plot",
+                                      self.results / "effects.png"],
+                     self.results / "effects.json", stdout=self.results / "effects.json")
+
+    def problem_stages(self) -> list[Stage]:
+        s = self.scale
+        stages = []
+        for n in s.planning_objects:
+            folder = self.out / "problems" / f"o{n}"
+            stages.append(Stage(f"problems {n} objects",
+                                ["problems", "make", "--out", folder, "--objects", n,
+                                 "--k", *s.planning_k, "--count", s.planning_problems,
+                                 "--seed", s.problem_seed + n, "--backend", "arm", "--json"],
+                                folder / "done.json", stdout=folder / "done.json"))
+        return stages
+
+    def planning_stage(self) -> Stage:
+        runs = [self.bundles()[(m, seed, "effect")] for m in ("relational", "attentive")
+                for seed in self.scale.planning_seeds]
+        return Stage("eval planning",
+                     ["eval", "planning", "--runs", *runs, "--problems", self.out / "problems",
+                      "--records", self.results / "planning.jsonl", "--plot",
+                      self.results / "planning.png", "--json", *self._ray()],
+                     self.results / "planning.json", stdout=self.results / "planning.json")
+
+    # --- running ----------------------------------------------------------------
+
+    def run(self) -> Path:
+        """Runs every stage not done yet; writes results.md and provenance.json."""
+        from drake_symplan.results_tables import write_results
+
+        t0 = time.perf_counter()
+        self.results.mkdir(parents=True, exist_ok=True)
+        self.say(f"reproduce --scale {self.name} in {self.out}")
+        for stage in self.collect_stages():
+            self._run(stage)
+        self._parallel(self.train_stages())
+        self._run(self.effects_stage())
+        self._parallel(self.operator_stages())
+        for stage in self.problem_stages():
+            self._run(stage)
+        self._run(self.planning_stage())
+        path = write_results(self)
+        self._write_provenance(time.perf_counter() - t0)
+        self.say(f"done in {time.perf_counter() - t0:.0f} s: {path}")
+        return path
+
+    def _parallel(self, stages: list) -> None:
+        """Runs `stages` (each a Stage or a tuple run in order) `jobs` at a time."""
+        def go(item):
+            for stage in item if isinstance(item, tuple) else (item,):
+                self._run(stage)
+
+        with ThreadPoolExecutor(max_workers=self.jobs) as pool:
+            for future in [pool.submit(go, item) for item in stages]:
+                future.result()
+
+    def _run(self, stage: Stage) -> None:
+        argv = [str(a) for a in stage.argv]
+        if stage.partial is not None and stage.partial.exists() and not stage.done.exists():
+            argv += list(stage.resume)
+        entry = {"stage": stage.name, "command": "symplan " + " ".join(argv)}
+        if stage.done.exists():
+            self.log.append({**entry, "skipped": True})
+            return
+        self.say(f"  {stage.name}: {entry['command']}")
+        logs = self.out / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        err_path = logs / (stage.name.replace(" ", "_").replace("/", "_") + ".err")
+        with open(err_path, "w") as err:
+            proc = subprocess.run([sys.executable, "-m", "drake_symplan.cli.main", *argv],
+                                  stdout=subprocess.PIPE, stderr=err, text=True)
+        if proc.returncode != 0:
+            tail = err_path.read_text().strip().splitlines()[-1:] or ["(no message)"]
+            raise StageFailed(f"{stage.name} failed (exit {proc.returncode}; log "
+                              f"{err_path}): {tail[0]}")
+        if stage.stdout is not None:
+            write_atomic(stage.stdout, proc.stdout)
+        self.log.append({**entry, "seconds": round(time.perf_counter() - t0, 1)})
+
+    def _write_provenance(self, seconds: float) -> None:
+        from drake_symplan.shards import fingerprint
+
+        path = self.out / "provenance.json"
+        earlier = json.loads(path.read_text()) if path.exists() else {}
+        sittings = earlier.get("sittings", []) + [{
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "seconds": round(seconds, 1),
+            "stages": self.log}]
+        record = {
+            "command": f"symplan reproduce --scale {self.name} --out {self.out}"
+                       + (f" --ray {self.ray}" if self.ray is not None else ""),
+            "scale": dc.asdict(self.scale),
+            "data": {name: {"dir": str(d), "fingerprint": fingerprint(d)}
+                     for name, d in (("train", self.train_data), ("heldout", self.heldout_data))},
+            "versions": _versions(),
+            "host": {"machine": platform.machine(), "system": platform.platform(),
+                     "python": platform.python_version(), "cpus": os.cpu_count()},
+            "sittings": sittings,
+        }
+        write_atomic(path, json.dumps(record, indent=1, default=str))
+
+
+def _versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for name in ("drake_symplan", "drake", "torch", "numpy", "up-fast-downward", "pyperplan",
+                 "ray"):
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            continue
+    try:
+        out["git_commit"] = subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
+            cwd=Path(__file__).parent).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        pass
+    return out

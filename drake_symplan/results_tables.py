@@ -1,0 +1,163 @@
+"""The results' tables in markdown, from the JSON the evaluations write: Table I (effect
+error), the operators table (symbolic-level planning) and the arm planning table, each as
+mean +- std over training seeds; `write_results` puts them in a reproduction's results.md."""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+
+def stat(values) -> dict:
+    return {"mean": float(np.mean(values)), "std": float(np.std(values)), "n": len(values)}
+
+
+def pm(s: dict, scale: float = 100.0, digits: int = 0) -> str:
+    return f"{s['mean'] * scale:.{digits}f} ± {s['std'] * scale:.{digits}f}"
+
+
+def _table(head: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows])
+
+
+# --- Table I ---------------------------------------------------------------------------
+
+
+def effects_markdown(models: dict) -> str:
+    """`eval effects --json`'s "models": error in cm by model and object count."""
+    counts = sorted({c for m in models.values() for c in m.get("by_count", {})}, key=int)
+    rows = [[name, f"{m['error_cm']['mean']:.2f} ± {m['error_cm']['std']:.2f}",
+             str(m["error_cm"].get("runs", len(m["runs"])))]
+            + [f"{m['by_count'][c]['mean']:.2f}" if c in m.get("by_count", {}) else "–"
+               for c in counts] for name, m in models.items()]
+    return _table(["model", "effect error (cm)", "runs"] + [f"{c} objects" for c in counts],
+                  rows)
+
+
+# --- operators (`eval operators` reports of bundles in RUN_s<seed>/bundle_<learner>) -------
+
+
+def collect_operator_reports(runs: Path) -> dict:
+    """{(variant, learner): [report, ...]} over RUNS/*_s*/bundle_*/eval.json."""
+    rows = defaultdict(list)
+    for path in sorted(Path(runs).glob("*_s*/bundle_*/eval.json")):
+        variant = path.parents[1].name.rsplit("_s", 1)[0]
+        learner = path.parent.name.removeprefix("bundle_")
+        rows[(variant, learner)].append(json.loads(path.read_text()))
+    return rows
+
+
+def summarise_operators(rows: dict) -> dict:
+    """Per variant and learner, mean +- std over seeds of solved and reliability by k,
+    solved by k and object count, coverage, precision and the stability report."""
+    out = {}
+    for (variant, learner), reports in sorted(rows.items()):
+        ks = sorted(reports[0]["by_k"], key=int)
+        entry = {"seeds": len(reports), "operators": stat([r["operators"] for r in reports]),
+                 "coverage": stat([r["coverage"] for r in reports]),
+                 "precision": stat([r["precision"] for r in reports])}
+        for k in ks:
+            entry[f"solved_k{k}"] = stat([r["by_k"][k]["solved"] for r in reports])
+            entry[f"reliability_k{k}"] = stat([r["by_k"][k]["reliability"] for r in reports])
+        by_n = defaultdict(list)
+        for r in reports:
+            for key, cell in r["by_k_objects"].items():
+                by_n[key].append(cell["solved"])
+        entry["solved_by_k_objects"] = {k: stat(v) for k, v in sorted(by_n.items())}
+        entry["stability"] = {k: stat([r["stability"][k] for r in reports])
+                              for k in reports[0]["stability"]}
+        out[f"{variant}/{learner}"] = entry
+    return out
+
+
+def operators_markdown(table: dict) -> str:
+    ks = sorted({c.split("_k")[1] for e in table.values() for c in e if c.startswith("solved_k")},
+                key=int)
+    head = ["model / operators", "seeds", "operators", "coverage", "precision"]
+    head += [f"solved k={k} (reliability)" for k in ks]
+    rows = [[name, str(e["seeds"]), pm(e["operators"], 1), pm(e["coverage"]),
+             pm(e["precision"])]
+            + [f"{pm(e[f'solved_k{k}'])} ({e[f'reliability_k{k}']['mean'] * 100:.0f})"
+               for k in ks] for name, e in table.items()]
+    return _table(head, rows)
+
+
+# --- planning in the arm (`eval planning --json`) --------------------------------------
+
+
+def summarise_planning(result: dict) -> dict:
+    """{model: {mode: {"success", "by_objects", "by_k": stat over seeds}}}; a run's model
+    is its directory name without the seed (relational_s0/bundle_effect -> relational)."""
+    groups = defaultdict(lambda: defaultdict(list))
+    for label, modes in result["runs"].items():
+        model = label.split("/")[0].rsplit("_s", 1)[0]
+        for mode, summary in modes.items():
+            groups[model][mode].append(summary)
+    out = {}
+    for model, modes in groups.items():
+        for mode, summaries in modes.items():
+            entry = {"seeds": len(summaries),
+                     "problems": summaries[0]["problems"],
+                     "success": stat([s["success"] for s in summaries])}
+            for key in ("by_objects", "by_k"):
+                labels = sorted({g for s in summaries for g in s[key]}, key=int)
+                entry[key] = {g: stat([s[key][g]["success"] for s in summaries if g in s[key]])
+                              for g in labels}
+            causes = defaultdict(int)
+            for s in summaries:
+                for cause, n in s["failure_causes"].items():
+                    causes[cause] += n
+            entry["failure_causes"] = dict(causes)
+            out.setdefault(model, {})[mode] = entry
+    return out
+
+
+def planning_markdown(table: dict) -> str:
+    ns = sorted({n for m in table.values() for e in m.values() for n in e["by_objects"]}, key=int)
+    ks = sorted({k for m in table.values() for e in m.values() for k in e["by_k"]}, key=int)
+    head = ["model", "execution", "seeds", "problems", "success"]
+    head += [f"{n} objects" for n in ns] + [f"k={k}" for k in ks] + ["failures (all seeds)"]
+    rows = []
+    for model, modes in table.items():
+        for mode, e in modes.items():
+            rows.append([model, mode.replace("_", " "), str(e["seeds"]), str(e["problems"]),
+                         pm(e["success"])]
+                        + [pm(e["by_objects"][n]) if n in e["by_objects"] else "–" for n in ns]
+                        + [pm(e["by_k"][k]) if k in e["by_k"] else "–" for k in ks]
+                        + [", ".join(f"{c} {n}" for c, n in e["failure_causes"].items()) or "–"])
+    return _table(head, rows)
+
+
+# --- a reproduction's results.md --------------------------------------------------------
+
+
+def write_results(rep) -> Path:
+    """results.md (and operators.json, planning_table.json) of a reproduce.Reproduction."""
+    from drake_symplan.atomic import write_atomic
+
+    res = rep.results
+    effects = json.loads((res / "effects.json").read_text())
+    operators = summarise_operators(collect_operator_reports(rep.out / "runs"))
+    planning = summarise_planning(json.loads((res / "planning.json").read_text()))
+    write_atomic(res / "operators.json", json.dumps(operators, indent=1))
+    write_atomic(res / "planning_table.json", json.dumps(planning, indent=1))
+    s = rep.scale
+    text = "\n".join([
+        f"# Results: `symplan reproduce --scale {rep.name}`", "",
+        f"Training data: {s.train} hand transitions (seed {s.train_seed}, {s.objects} objects); "
+        f"held-out: {s.heldout} (seed {s.heldout_seed}). Seeds {list(s.seeds)}; "
+        "mean ± std over seeds. Provenance: provenance.json.", "",
+        "## Effect prediction (Table I), test split", "", effects_markdown(effects["models"]),
+        "", "![effects](effects.png)", "",
+        "## Planning at the symbolic level, held-out episodes (% solved by Fast Downward)", "",
+        operators_markdown(operators), "",
+        f"## Planning in the arm, {s.planning_problems} problems per object count "
+        f"(% within 5 cm)", "", planning_markdown(planning), "", "![planning](planning.png)",
+        ""])
+    path = res / "results.md"
+    write_atomic(path, text)
+    return path

@@ -1,0 +1,98 @@
+"""`symplan reproduce`: the stages a scale runs, resuming, a failing stage's one line; and the
+small scale end to end (slow): collect, train 3 models x 3 seeds, operators, the three
+evaluations, then the closed loop with the model it learned: a cube put onto another in
+the arm, checked within 5 cm."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from drake_symplan.cli.main import main
+from drake_symplan.reproduce import SCALES, Reproduction, Stage, StageFailed
+from drake_symplan.world.scenes import ObjectSpec, Scene
+
+
+def test_the_stages_of_a_scale(tmp_path):
+    rep = Reproduction("small", tmp_path)
+    s = SCALES["small"]
+    assert [st.name for st in rep.collect_stages()] == ["collect train", "collect held-out"]
+    trains = rep.train_stages()
+    assert len(trains) == 3 * len(s.seeds)  # Table I's three models
+    assert {st.argv[2] for st in trains} == {"relational", "attentive", "deepsym"}
+    bundles = rep.bundles()  # effect-first for both; the paper's learner on relational only
+    assert sorted({(m, learner) for m, _, learner in bundles}) == [
+        ("attentive", "effect"), ("relational", "effect"), ("relational", "paper")]
+    planning = rep.planning_stage().argv
+    runs = planning[planning.index("--runs") + 1:planning.index("--problems")]
+    assert [r.parent.name for r in runs] == ["relational_s0", "attentive_s0"]
+    assert "--ray" not in planning
+    on_ray = Reproduction("small", tmp_path, ray="10.0.0.1:6379")
+    assert on_ray.collect_stages()[0].argv[-2:] == ["--ray", "10.0.0.1:6379"]
+
+
+def test_finished_stages_are_skipped_and_partial_ones_resume(tmp_path):
+    rep = Reproduction("small", tmp_path, say=lambda text: None)
+    done = tmp_path / "done.txt"
+    done.write_text("x")
+    rep._run(Stage("finished", ["no-such-command"], done))
+    assert rep.log == [{"stage": "finished", "command": "symplan no-such-command",
+                        "skipped": True}]
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "last.pt").write_text("")
+    train = next(st for st in rep.train_stages() if st.name == "train relational_s0")
+    train.done = tmp_path / "never"
+    with pytest.raises(StageFailed, match="train relational_s0 failed \\(exit 2"):
+        rep._run(train)  # the training data set is missing
+    partial = Stage("partial", ["train", "--out", run], tmp_path / "never2", partial=run / "last.pt",
+                    resume=("--resume",))
+    with pytest.raises(StageFailed):
+        rep._run(partial)
+    assert rep.log[-1] == {"stage": "finished", "command": "symplan no-such-command",
+                           "skipped": True}  # failed stages are not logged as done
+
+
+def test_a_failing_stage_is_one_line_and_exit_1(tmp_path, capsys):
+    (tmp_path / "data" / "train").mkdir(parents=True)
+    (tmp_path / "data" / "train" / "manifest.json").write_text("{not json")
+    assert main(["reproduce", "--scale", "small", "--out", str(tmp_path)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("symplan reproduce: collect train failed (exit 2; log ")
+    assert main(["reproduce", "--scale", "huge", "--out", str(tmp_path)]) == 2
+
+
+@pytest.mark.slow
+def test_small_scale_end_to_end_then_a_goal_in_the_arm(tmp_path):
+    from drake_symplan.agent.solve import solve
+    from drake_symplan.symbolic.bundle import ModelBundle
+
+    out = tmp_path / "small"
+    assert main(["reproduce", "--scale", "small", "--out", str(out)]) == 0
+    text = (out / "results" / "results.md").read_text()
+    for heading in ("Effect prediction (Table I)", "Planning at the symbolic level",
+                    "Planning in the arm"):
+        assert heading in text
+    for name in ("relational", "attentive", "deepsym"):
+        assert f"| {name} |" in text
+    assert "| relational/paper |" in text and "| attentive/effect |" in text
+    for figure in ("effects.png", "planning.png"):
+        assert (out / "results" / figure).stat().st_size > 10_000
+    provenance = json.loads((out / "provenance.json").read_text())
+    assert len(provenance["data"]["train"]["fingerprint"]) >= 8
+    stages = provenance["sittings"][0]["stages"]
+    assert sum(st["command"].startswith("symplan train") for st in stages) == 9
+    # Re-running the same command resumes: nothing left to do.
+    assert main(["reproduce", "--scale", "small", "--out", str(out)]) == 0
+    again = json.loads((out / "provenance.json").read_text())["sittings"][1]["stages"]
+    assert all(st.get("skipped") for st in again)
+
+    bundle = ModelBundle.load(out / "runs" / "relational_s0" / "bundle_effect")
+    start = Scene([ObjectSpec("o0", "cube", [0.60, -0.15, 0.025]),
+                   ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
+    goal = Scene([ObjectSpec("o0", "cube", [0.80, 0.10, 0.075]),
+                  ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
+    result = solve(start, goal, bundle, planner="fd", timeout=30.0)
+    assert result.status == "success", result.to_json()
+    assert all(o["error_cm"] <= 5.0 for o in result.objects.values())
