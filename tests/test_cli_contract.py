@@ -143,3 +143,9 @@ def test_help_says_what_the_tool_does_and_lists_the_pipeline_in_order(capsys):
     assert [n for n in names if n in core] == core  # the pipeline's order
     for name in names:  # every one is a command
         assert run([*name.split(), "--help"], capsys)[0] == 0
+
+
+def test_symbols_explain_is_the_explain_command(tmp_path, capsys):
+    assert cli_main.main(["symbols", "explain", "--data", str(tmp_path / "none")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("symplan explain: error:")

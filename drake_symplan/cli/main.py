@@ -118,7 +118,16 @@ def one_line(error: BaseException) -> str:
     return re.sub(r"\s*\n\s*", " ", str(error)).strip()
 
 
+# Other spellings of a command: `symplan symbols explain` is `symplan explain` (the
+# `symbols` command's first argument is a run directory, so it cannot take a sub-command).
+ALIASES = {("symbols", "explain"): ["explain"]}
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    for spelling, command in ALIASES.items():
+        if tuple(argv[:len(spelling)]) == spelling:
+            argv = command + argv[len(spelling):]
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as e:  # --help (0) or a usage error (2), already printed
