@@ -1,7 +1,8 @@
 """The planning evaluation (paper IV-C and its planning figure): model bundles solve the
 same problem set, with execution monitoring and without it (open-loop, as the paper).
 
-`evaluate_planning` runs every (run, monitoring, problem) with one station and returns per
+`evaluate_planning` runs every (run, monitoring, problem) with one station (or, with
+`ray_address`, on Ray worker actors with a station each) and returns per
 run and monitoring mode: the success rate overall, by object count and by k; the planning
 time; the length of the first plan against k; the failure causes with counts, execution
 failures split by whether the goal's atoms were seen at the end (then the symbols could not
@@ -49,7 +50,8 @@ def solve_record(agent, bundle, problem: dict, planner: str, timeout: float, mon
     from drake_symplan.world.scenes import load_scene
 
     folder = Path(problem["dir"])
-    start, goal = load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml")
+    start, goal = problem.get("scenes") or (load_scene(folder / "start.yaml"),
+                                            load_scene(folder / "goal.yaml"))
     result = agent.solve(start, goal, bundle, planner, timeout, monitor, max_replans)
     return {
         "problem": str(folder), "n_objects": problem["n_objects"], "k": problem["k"],
@@ -65,10 +67,12 @@ def solve_record(agent, bundle, problem: dict, planner: str, timeout: float, mon
 def evaluate_planning(runs: list, problems_dir, planner: str = "fd", backend: str = "arm",
                       monitor=(True, False), timeout: float = 10.0, max_replans: int = 2,
                       limit: int | None = None, records_path=None, agent=None,
-                      load_bundle=None, progress=None) -> dict:
+                      load_bundle=None, progress=None, ray_address: str | None = None) -> dict:
     """Solves every problem under `problems_dir` with each run's bundle (`runs`: bundle
     directories), with and without monitoring; returns {"settings", "runs": {label: {mode:
-    summary}}, "records": [...]}. `load_bundle(run)` defaults to ModelBundle.load."""
+    summary}}, "records": [...]}. `load_bundle(run)` defaults to ModelBundle.load. With
+    `ray_address` ("" for Ray on this machine) the solves are spread over Ray worker actors,
+    one agent (station) each, one per CPU of the cluster (drake_symplan/cluster.py)."""
     if not runs:
         raise ValueError("give at least one run (a model bundle directory)")
     problems = load_problems(problems_dir)[:limit]
@@ -78,31 +82,65 @@ def evaluate_planning(runs: list, problems_dir, planner: str = "fd", backend: st
         load_bundle = ModelBundle.load
     bundles = {run_label(run): load_bundle(run) for run in runs}  # bad runs fail up front
     done, records = _resume(records_path)
-    if agent is None:
-        from drake_symplan.agent.solve import Agent
+    todo = [(label, bool(mode), problem) for label in bundles for mode in monitor
+            for problem in problems if (label, bool(mode), str(Path(problem["dir"]))) not in done]
 
-        agent = Agent(backend)
-    for label, bundle in bundles.items():
-        for mode in monitor:
-            for problem in problems:
-                key = (label, bool(mode), str(Path(problem["dir"])))
-                if key in done:
-                    continue
-                record = {"run": label, **solve_record(agent, bundle, problem, planner, timeout,
-                                                       bool(mode), max_replans)}
-                records.append(record)
-                if records_path is not None:
-                    with open(records_path, "a") as f:
-                        f.write(json.dumps(record) + "\n")
-                if progress:
-                    progress(record)
-    wanted = {(label, bool(mode), str(Path(p["dir"])))
-              for label in bundles for mode in monitor for p in problems}
-    records = [r for r in records if (r["run"], r["monitor"], r["problem"]) in wanted]
+    def finish(record: dict) -> None:
+        records.append(record)
+        if records_path is not None:
+            with open(records_path, "a") as f:
+                f.write(json.dumps(record) + "\n")
+        if progress:
+            progress(record)
+
+    settings = (planner, timeout, max_replans)
+    if ray_address is not None:
+        _solve_on_ray(ray_address, backend, bundles, todo, settings, finish)
+    elif todo:
+        if agent is None:
+            from drake_symplan.agent.solve import Agent
+
+            agent = Agent(backend)
+        for label, mode, problem in todo:
+            finish(solve_job(agent, label, bundles[label], problem, mode, *settings))
+    order = {(label, bool(mode), str(Path(p["dir"]))): i for i, (label, mode, p) in enumerate(
+        (label, mode, p) for label in bundles for mode in monitor for p in problems)}
+    records = sorted((r for r in records if (r["run"], r["monitor"], r["problem"]) in order),
+                     key=lambda r: order[(r["run"], r["monitor"], r["problem"])])
     return {"settings": {"problems_dir": str(problems_dir), "problems": len(problems),
                          "planner": planner, "backend": backend, "timeout": timeout,
                          "max_replans": max_replans},
             "runs": summarise(records), "records": records}
+
+
+def solve_job(agent, label: str, bundle, problem: dict, monitor: bool, planner: str,
+              timeout: float, max_replans: int, tick=None) -> dict:
+    """One evaluation record: run `label`'s bundle on `problem` (a load_problems entry,
+    with its scenes under "scenes" when the driver read them for a Ray worker)."""
+    return {"run": label, **solve_record(agent, bundle, problem, planner, timeout, monitor,
+                                         max_replans)}
+
+
+def _solve_on_ray(address: str, backend: str, bundles: dict, todo: list, settings: tuple,
+                  finish) -> None:
+    """The solves on Ray worker actors, each with its own Agent; the driver reads the
+    scene files and writes the records, so the workers need neither."""
+    from drake_symplan.agent.solve import Agent
+    from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
+    from drake_symplan.world.scenes import load_scene
+
+    with ray_session(address) as ray:
+        if not todo:
+            return
+        refs = {label: ray.put(bundle) for label, bundle in bundles.items()}  # sent once
+        jobs = []
+        for i, (label, mode, problem) in enumerate(todo):
+            folder = Path(problem["dir"])
+            scenes = (load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml"))
+            jobs.append((i, label, refs[label], {**problem, "scenes": scenes}, mode,
+                         *settings))
+        run_jobs(ray, Agent, (backend,), solve_job, jobs,
+                 min(cluster_cpus(ray), len(jobs)), lambda i, record: finish(record))
 
 
 def _resume(records_path) -> tuple[set, list[dict]]:

@@ -83,6 +83,9 @@ def register(subparsers) -> None:
     p.add_argument("--records", type=Path, default=None,
                    help="append one JSON line per solve here; a re-run resumes from it")
     p.add_argument("--plot", type=Path, default=None, help="write the figure to this PNG")
+    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                   help="solve on Ray workers, one per CPU: on this machine (no ADDRESS) or "
+                   "the cluster whose head is at ADDRESS (HOST:PORT); needs .[ray]")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_eval_planning)
 
@@ -164,7 +167,7 @@ def cmd_eval_planning(args: argparse.Namespace) -> dict:
     monitor = {"both": (True, False), "on": (True,), "off": (False,)}[args.monitor]
     result = evaluate_planning(args.runs, args.problems, args.planner, args.backend, monitor,
                                args.timeout, args.max_replans, args.limit, args.records,
-                               load_bundle=load_bundle)
+                               load_bundle=load_bundle, ray_address=args.ray)
     out = {"settings": result["settings"], "runs": result["runs"]}
     if args.plot:
         plot_planning(result["runs"], args.plot)

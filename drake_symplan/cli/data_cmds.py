@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 
 from drake_symplan.cli.main import positive_int
 
@@ -14,8 +13,12 @@ def register(subparsers) -> None:
     collect.add_argument("--backend", choices=("hand", "arm"), default="hand",
                          help="hand: fast weld-constraint hand; arm: UR10 in full physics")
     collect.add_argument("--transitions", type=int, required=True, help="how many in all (exactly); rerun with a larger N to extend a collection")
-    collect.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1,
-                         help="worker processes (default: one per CPU)")
+    collect.add_argument("--workers", type=positive_int, default=None,
+                         help="worker processes (default: one per CPU; with --ray, one per "
+                         "CPU of the Ray cluster)")
+    collect.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                         help="run the workers on Ray: on this machine (no ADDRESS) or on "
+                         "the cluster whose head is at ADDRESS (HOST:PORT); needs .[ray]")
     collect.add_argument("--out", required=True, help="data set directory")
     collect.add_argument("--seed", type=int, default=0)
     collect.add_argument("--objects", default="2-4", help="objects per scene: N or MIN-MAX")
@@ -56,12 +59,13 @@ def cmd_collect(args: argparse.Namespace) -> dict:
         min_objects=lo, max_objects=hi, episode_length=args.episode_length,
         long_fraction=args.long_fraction, chunk_size=args.chunk_size,
         noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout)
-    summary = collect(args.out, config, workers=args.workers, progress=not args.no_progress)
+    summary = collect(args.out, config, workers=args.workers, progress=not args.no_progress,
+                      ray_address=args.ray)
     if not args.json:
         run = summary["this_run"]
         print(format_stats(summary))
         print(f"this run: {run['new_transitions']} new transitions in {run['wall_seconds']} s "
-              f"({run['rate_per_s']}/s, {run['workers']} workers)")
+              f"({run['rate_per_s']}/s, {run['workers']} {run['engine']} workers)")
     return summary
 
 

@@ -12,14 +12,19 @@ full chunks are the first chunks of the larger one.
 
 Each worker process builds its own station (back-end) once and takes chunks from a pool;
 transitions are reported to the parent as they happen for a tqdm bar with rate and ETA.
-Workers exit if their parent dies. Each shard also stores its chunk's bookkeeping
+Workers exit if their parent dies. With `ray_address` the workers are Ray actors instead
+(drake_symplan/cluster.py), on this machine or a cluster: each returns its chunk's arrays
+and the driver writes the shard, so the data set is the same file for file; Ray restarts a
+killed worker and retries the chunk it had in flight. Each shard also stores its chunk's bookkeeping
 (outcome classes, why episodes ended, skipped transitions) so `stats` can summarise a data
 set from its files alone.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses as dc
+import itertools
 import json
 import math
 import multiprocessing as mp
@@ -189,6 +194,7 @@ def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
     config = CollectConfig(**config_dict)
     _worker.update(config=config, progress=progress, parent=parent_pid,
                    backend=make_backend(config.backend))
+    progress.put(0)  # started: its station is built
 
 
 def _tick() -> None:
@@ -198,26 +204,77 @@ def _tick() -> None:
         _worker["progress"].put(1)
 
 
-def _run_chunk_task(out_dir: str, c: int) -> dict:
-    arrays, extra, info = run_chunk(_worker["backend"], _worker["config"], c, _tick)
-    storage.write_shard(out_dir, c, arrays, extra={**extra, "info": _json_array(info)})
-    return info
+def _run_chunk_task(out_dir: str, c: int) -> None:
+    storage.write_shard(out_dir, c, *chunk_shard(_worker["backend"], _worker["config"], c,
+                                                 _tick))
 
 
-def _json_array(info: dict) -> np.ndarray:
-    return np.array(json.dumps(info))
+def chunk_shard(backend, config: CollectConfig, c: int, on_transition=None, tick=None):
+    """Chunk c as `storage.write_shard(out_dir, c, arrays, extra)` takes it: (arrays, extra
+    with the bookkeeping under "info"). `tick(n)`, if given, is told the transitions so far
+    (a Ray job's progress, cluster.run_jobs)."""
+    if tick is not None:
+        count = itertools.count(1)
+        on_transition = lambda: tick(next(count))  # noqa: E731
+    arrays, extra, info = run_chunk(backend, config, c, on_transition)
+    return arrays, {**extra, "info": np.array(json.dumps(info))}
 
 
 # --- the command -----------------------------------------------------------------------
 
 
-def collect(out_dir: str | Path, config: CollectConfig, workers: int = 1,
-            progress: bool = True) -> dict:
-    """Collects (or finishes collecting) `config.transitions` into `out_dir`; the summary."""
+def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
+            progress: bool = True, ray_address: str | None = None) -> dict:
+    """Collects (or finishes collecting) `config.transitions` into `out_dir`; the summary.
+    `workers` None: one per CPU (of the Ray cluster with `ray_address`). `ray_address`
+    None: local worker processes; "" Ray on this machine; else the Ray cluster there."""
     from drake_symplan.data.stats import dataset_stats
 
     out_dir = Path(out_dir)
-    workers = max(1, int(workers))
+    t0 = time.perf_counter()
+    with contextlib.ExitStack() as stack:
+        ray = None
+        if ray_address is not None:  # joined first: a bad address writes nothing
+            from drake_symplan.cluster import cluster_cpus, ray_session
+
+            ray = stack.enter_context(ray_session(ray_address))
+            workers = min(workers or cluster_cpus(ray), cluster_cpus(ray))
+        workers = max(1, int(workers or os.cpu_count() or 1))
+        manifest, todo, already = _prepare(out_dir, config)
+        bar = stack.enter_context(contextlib.closing(
+            _progress_bar(config.transitions, already, progress)))
+        if not todo:
+            started = time.perf_counter()
+        elif ray is not None:
+            started = _run_ray(ray, out_dir, config, todo, min(workers, len(todo)), bar)
+        elif workers == 1:
+            from drake_symplan.data.backends import make_backend
+
+            backend = make_backend(config.backend)
+            started = time.perf_counter()
+            for c in todo:
+                storage.write_shard(out_dir, c, *chunk_shard(backend, config, c,
+                                                             lambda: bar.update(1)))
+        else:
+            started = _run_pool(out_dir, config, todo, min(workers, len(todo)), bar)
+    wall = time.perf_counter() - t0
+
+    summary = dataset_stats(out_dir)
+    new = config.transitions - already
+    summary["this_run"] = {"new_transitions": new, "wall_seconds": round(wall, 2),
+                           "workers": workers, "engine": "local" if ray is None else "ray",
+                           "startup_seconds": round(started - t0, 2),
+                           "rate_per_s": round(new / wall, 3) if wall > 0 else None}
+    manifest.update(status="complete", counts={
+        k: summary[k] for k in ("transitions", "episodes", "shards", "dropped_episodes")})
+    storage.write_manifest(out_dir, manifest)
+    storage.write_json(out_dir, "summary.json", summary)
+    return summary
+
+
+def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int]:
+    """Writes or checks the manifest and clears what a kill left; (manifest, the chunks
+    still to collect, the transitions already there)."""
     identity = dc.asdict(config)
     if (out_dir / storage.MANIFEST).exists():
         manifest = storage.read_manifest(out_dir)
@@ -247,32 +304,7 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int = 1,
             path.unlink()  # a short last chunk of a collection being extended: redo it
             del done[c]
     todo = [c for c in range(config.num_chunks) if c not in done]
-    already = sum(config.chunk_count(c) for c in done)
-
-    t0 = time.perf_counter()
-    bar = _progress_bar(config.transitions, already, progress)
-    if todo and workers == 1:
-        from drake_symplan.data.backends import make_backend
-
-        backend = make_backend(config.backend)
-        for c in todo:
-            arrays, extra, info = run_chunk(backend, config, c, lambda: bar.update(1))
-            storage.write_shard(out_dir, c, arrays, extra={**extra, "info": _json_array(info)})
-    elif todo:
-        _run_pool(out_dir, config, todo, min(workers, len(todo)), bar)
-    bar.close()
-    wall = time.perf_counter() - t0
-
-    summary = dataset_stats(out_dir)
-    summary["this_run"] = {"new_transitions": config.transitions - already,
-                           "wall_seconds": round(wall, 2), "workers": workers,
-                           "rate_per_s": round((config.transitions - already) / wall, 3)
-                           if wall > 0 else None}
-    manifest.update(status="complete", counts={
-        k: summary[k] for k in ("transitions", "episodes", "shards", "dropped_episodes")})
-    storage.write_manifest(out_dir, manifest)
-    storage.write_json(out_dir, "summary.json", summary)
-    return summary
+    return manifest, todo, sum(config.chunk_count(c) for c in done)
 
 
 def _extends(stored: dict | None, identity: dict) -> bool:
@@ -284,16 +316,23 @@ def _extends(stored: dict | None, identity: dict) -> bool:
     return same and identity["transitions"] > stored["transitions"]
 
 
-def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: int, bar):
+def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: int,
+              bar) -> float:
+    """The chunks on local worker processes; returns when they had all started."""
     ctx = mp.get_context("spawn")  # Drake and forked children do not mix
     progress = ctx.Queue()
+    started, ready = time.perf_counter(), 0
     with ctx.Pool(workers, initializer=_init_worker,
                   initargs=(dc.asdict(config), progress, os.getpid())) as pool:
         pending = [pool.apply_async(_run_chunk_task, (str(out_dir), c)) for c in todo]
         while pending:
             try:
                 while True:
-                    bar.update(progress.get(timeout=0.2))
+                    n = progress.get(timeout=0.2)
+                    bar.update(n)
+                    ready += n == 0
+                    if n == 0 and ready == workers:
+                        started = time.perf_counter()
             except queue_lib.Empty:
                 pass
             still = []
@@ -305,6 +344,32 @@ def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: in
             pending = still
         pool.close()
         pool.join()
+    return started
+
+
+def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers: int,
+             bar) -> float:
+    """The chunks on Ray worker actors (cluster.run_jobs); the driver writes each shard as
+    it comes. The bar counts, per chunk, the most transitions any attempt reached, so a
+    retried chunk is not counted twice. Returns when the workers had all started."""
+    from drake_symplan.cluster import run_jobs
+    from drake_symplan.data.backends import make_backend
+
+    seen = dict.fromkeys(todo, 0)
+    written: set[int] = set()
+
+    def advance(c: int, n: int) -> None:
+        if c not in written and n > seen[c]:
+            bar.update(n - seen[c])
+            seen[c] = n
+
+    def write(c: int, shard: tuple) -> None:
+        storage.write_shard(out_dir, c, *shard)
+        advance(c, config.chunk_count(c))
+        written.add(c)
+
+    return run_jobs(ray, make_backend, (config.backend,), chunk_shard,
+                    [(c, config, c) for c in todo], workers, write, advance)
 
 
 class _NoBar:
