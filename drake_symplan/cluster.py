@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import socket
 import time
+import uuid
 from collections.abc import Callable, Iterable
 from contextlib import contextmanager
 
@@ -77,9 +78,13 @@ class StationWorker:
     """One Ray worker: its state (a back-end with its station, an agent) is built once and
     every job it runs reuses it."""
 
-    def __init__(self, setup: Callable, setup_args: tuple, progress):
+    def __init__(self, setup: Callable, setup_args: tuple, progress: str):
+        import ray
+
+        # By name: an actor handle among the arguments would keep them in the object store,
+        # from where a restart may not get them back (ray-project/ray#53727).
+        self.progress = ray.get_actor(progress)
         self.state = setup(*setup_args)
-        self.progress = progress
 
     def ready(self) -> bool:
         return True
@@ -115,8 +120,10 @@ def run_jobs(ray, setup: Callable, setup_args: tuple, job: Callable,
     from ray.util import ActorPool
 
     remote = ray.remote(num_cpus=1, max_restarts=-1, max_task_retries=-1)(StationWorker)
-    progress = ray.remote(num_cpus=0, max_restarts=-1, max_task_retries=-1)(Progress).remote()
-    actors = [remote.remote(setup, setup_args, progress) for _ in range(workers)]
+    name = f"symplan-progress-{uuid.uuid4().hex}"
+    progress = ray.remote(num_cpus=0, max_restarts=-1, max_task_retries=-1)(Progress).options(
+        name=name).remote()
+    actors = [remote.remote(setup, setup_args, name) for _ in range(workers)]
     ready = [a.ready.remote() for a in actors]  # an actor runs its calls in order
     ready_at = None
     pool = ActorPool(actors)
