@@ -9,7 +9,14 @@ they only simulated (`physics_only_rate_per_s`: the ceiling for any speed-up out
 physics). `--parity-pairs N` also runs N identical (scene, action) pairs on both back-ends
 (data/parity.py).
 
+`--ray` compares the engines instead: per back-end, `--runs` rounds, each one collection
+with the local worker processes and one with Ray worker actors on this machine (same
+workers, same seed, order alternating between rounds); reports the median end-to-end rates
+(worker start-up included), their ratio, the median start-up (until every worker has its
+station) of each engine, and apart from those the seconds `ray.init()` took to start Ray.
+
     python tools/bench_collect.py --json [--out FILE] [--parity-pairs 300]
+    python tools/bench_collect.py --ray --json [--backends hand] [--runs 5]
 """
 
 from __future__ import annotations
@@ -55,6 +62,33 @@ def bench_backend(backend: str, transitions: int, workers: int, objects: int, ru
                 workers / statistics.median(p["physics"] for p in phases), 3)}
 
 
+def bench_engines(backend: str, transitions: int, workers: int, objects: int, runs: int,
+                  seed: int) -> dict:
+    """Local worker processes against Ray actors (Ray already initialised), interleaved."""
+    from drake_symplan.data.collect import CollectConfig, collect
+
+    rows = {"local": [], "ray": []}
+    for r in range(runs):
+        config = CollectConfig(backend=backend, transitions=transitions, seed=seed + r,
+                               min_objects=objects, max_objects=objects,
+                               chunk_size=max(1, transitions // (2 * workers)))
+        for engine in ("local", "ray") if r % 2 == 0 else ("ray", "local"):
+            with tempfile.TemporaryDirectory() as tmp:
+                run = collect(Path(tmp) / "data", config, workers=workers, progress=False,
+                              ray_address="" if engine == "ray" else None)["this_run"]
+            rows[engine].append({k: run[k] for k in ("rate_per_s", "wall_seconds",
+                                                     "startup_seconds")})
+    med = {e: {k: round(statistics.median(row[k] for row in rs), 3) for k in rs[0]}
+           for e, rs in rows.items()}
+    return {"backend": backend, "workers": workers, "objects": objects,
+            "transitions_per_run": transitions, "rounds": rows,
+            "median_local_rate_per_s": med["local"]["rate_per_s"],
+            "median_ray_rate_per_s": med["ray"]["rate_per_s"],
+            "ray_over_local": round(med["ray"]["rate_per_s"] / med["local"]["rate_per_s"], 3),
+            "median_local_startup_seconds": med["local"]["startup_seconds"],
+            "median_ray_startup_seconds": med["ray"]["startup_seconds"]}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -66,14 +100,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--backends", default="hand,arm")
     parser.add_argument("--parity-pairs", type=int, default=0)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--ray", action="store_true",
+                        help="compare Ray actors with the local workers on this machine")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--out", help="also write the JSON result here")
     args = parser.parse_args(argv)
 
     result: dict = {"backends": {}}
     sizes = {"hand": args.hand_transitions, "arm": args.arm_transitions}
+    bench = bench_backend
+    if args.ray:
+        import ray
+
+        t0 = time.perf_counter()
+        ray.init(num_cpus=args.workers, include_dashboard=False, log_to_driver=False)
+        result["ray_init_seconds"] = round(time.perf_counter() - t0, 2)
+        bench = bench_engines
     for backend in [b for b in args.backends.split(",") if b]:
-        result["backends"][backend] = bench_backend(
+        result["backends"][backend] = bench(
             backend, sizes[backend], args.workers, args.objects, args.runs, args.seed)
     if args.parity_pairs > 0:
         from drake_symplan.data.parity import measure_parity
@@ -90,8 +134,14 @@ def main(argv: list[str] | None = None) -> int:
         print(text)
     else:
         for name, b in result["backends"].items():
-            print(f"{name}: {b['median_rate_per_s']}/s end to end, "
-                  f"{b['median_steady_rate_per_s']}/s steady ({b['workers']} workers)")
+            if args.ray:
+                print(f"{name}: local {b['median_local_rate_per_s']}/s, Ray "
+                      f"{b['median_ray_rate_per_s']}/s (x{b['ray_over_local']}); start-up "
+                      f"{b['median_local_startup_seconds']} s / "
+                      f"{b['median_ray_startup_seconds']} s ({b['workers']} workers)")
+            else:
+                print(f"{name}: {b['median_rate_per_s']}/s end to end, "
+                      f"{b['median_steady_rate_per_s']}/s steady ({b['workers']} workers)")
         if "parity" in result:
             p = result["parity"]
             print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']}, "
