@@ -1,14 +1,19 @@
 #!/usr/bin/env bash
-# Regenerates the shipped default model, models/learned/, from nothing (about 45 minutes on
-# 2 cores): the 31k hand data set with whole scenes, one invariant RelationalDeepSym (seed 0,
-# Table I settings), its effect-first operators (min count 10, chosen on data_out/val1k_s98).
+# Regenerates the shipped default model, models/learned/, from nothing (about 90 minutes on
+# 2 cores): the 50k hand data set with whole scenes (seed 12), one invariant
+# RelationalDeepSym (seed 0, Table I settings), its effect-first operators (min count 10).
+# The same commands as the relational_s0 stages of `symplan reproduce --scale paper`.
 # Every step resumes or is skipped when its output is there. Then:
-#   symplan eval operators --data data_out/eval2k_s97 --json   (the default model's figures)
+#   symplan eval operators --data data_out/eval2k_s97 --max-problems 30 --json
 set -eu
 cd "$(dirname "$0")/.."
-symplan collect --backend hand --transitions 31000 --workers 2 --out data_out/hand31k_s12 --seed 12
+symplan collect --backend hand --transitions 50000 --workers 2 --out data_out/hand50k_s12 --seed 12
 symplan collect --backend hand --transitions 2000 --workers 2 --out data_out/eval2k_s97 --seed 97
-run=runs/ops31k/relational_inv_s0
-[ -f "$run/metrics.json" ] || symplan train --config configs/table1.yaml --model relational \
-  --model-option invariant=true --data data_out/hand31k_s12 --out "$run" --seed 0 --no-progress
-symplan bundle --run "$run" --data data_out/hand31k_s12 --out models/learned --min-count 10
+run=runs/hand50k_s12/relational_s0
+resume=""
+[ -f "$run/last.pt" ] && resume="--resume"
+[ -f "$run/metrics.json" ] || symplan train --model relational --model-option invariant=true \
+  --data data_out/hand50k_s12 --out "$run" --seed 0 --epochs 300 --patience 30 --threads 1 \
+  --no-progress $resume
+symplan bundle --run "$run" --data data_out/hand50k_s12 --out models/learned --learner effect \
+  --min-count 10
