@@ -92,9 +92,11 @@ class OracleBundle:
     operators = [EffectOperator(0, "center", "center", 2, (("free", 0), ("free", 1)),
                                 (("on", 0, 1),), (("free", 1),), 1)]
 
-    def __init__(self, force_mismatches: int = 0, hide_atoms: int = 0):
+    def __init__(self, force_mismatches: int = 0, hide_atoms: int = 0,
+                 fail_replans: bool = False):
         self.force_mismatches = force_mismatches  # mismatches() reports one this many times
         self.hide_atoms = hide_atoms  # atoms() sees none this many times
+        self.fail_replans = fail_replans  # problems after the first name an unknown object
         self.goal_contacts = []
 
     def read(self, names, features, contacts=()):
@@ -130,6 +132,8 @@ class OracleBundle:
     def problem(self, start, goal, goal_contacts, name="goal", costs=True):
         self.goal_contacts.append(set(goal_contacts))
         goal_atoms = self.goal_atoms(goal, goal_contacts)
+        if self.fail_replans and len(self.goal_contacts) > 1:
+            goal_atoms = {("free", "nowhere")}  # the planner rejects the problem
         fmt = lambda atoms: " ".join("(" + " ".join(a) + ")" for a in sorted(atoms))  # noqa: E731
         return (f"(define (problem {name}) (:domain oracle) (:objects "
                 f"{' '.join(start.state.objects)} - obj) (:init {fmt(self._atoms(start))}) "
@@ -219,6 +223,14 @@ def test_the_monitor_replans_on_a_forced_mismatch():
     capped, _ = solve(OracleBundle(force_mismatches=5), max_replans=1, goal=tower)
     assert capped.replans == 1 and capped.status == "success"
     assert capped.executed == ["(pick_center_place_center_n1_op0 a b)",
+                               "(pick_center_place_center_n1_op0 c a)"]
+
+
+def test_a_failed_replan_lets_the_current_plan_run_on():
+    tower = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.125)])
+    result, _ = solve(OracleBundle(force_mismatches=1, fail_replans=True), goal=tower)
+    assert result.replans == 1 and result.status == "success", result.to_json()
+    assert result.executed == ["(pick_center_place_center_n1_op0 a b)",
                                "(pick_center_place_center_n1_op0 c a)"]
 
 

@@ -14,7 +14,8 @@ for many solves (the evaluation).
    perception's association. Before it runs, its offsets may be swapped for an
    interchangeable operator's that land the source nearer its goal (agent/refine.py).
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
-   step's operator predicted; on a mismatch the agent replans from the perceived state.
+   step's operator predicted; on a mismatch the agent replans from the perceived state
+   (if that replan fails, the current plan runs on).
    When the plan has run out, the goal's atoms must hold in the perceived symbols, or it
    replans too. At most `max_replans` replans; after that the current plan runs on.
    Without monitoring the first plan runs open-loop, as in the paper.
@@ -216,9 +217,13 @@ class _Run:
                     believed = self._believe(reading)
                     wrong = self.bundle.mismatches(reading, step, before)
                 if wrong and self.result.replans < self.max_replans:
-                    steps, stop = self._replan(reading)
-                    if stop:
+                    replanned, stop = self._replan(reading)
+                    if not stop:
+                        steps = replanned
+                    elif not steps:
                         return self._end(now, *stop)
+                    # else the planner found nothing from here (timeout, no plan): the
+                    # current plan runs on, as it would open loop.
             # The plan has run out. The monitor checks that the goal's atoms are seen too:
             # a step can pass its own check and still disturb another object.
             if not self.monitor or self.result.replans >= self.max_replans:
