@@ -110,3 +110,16 @@ def test_sexpr_parser_reports_unbalanced_text():
     for bad in ("(define (x)", "(define))", "x y"):
         with pytest.raises(ValueError):
             parse_sexpr(bad)
+
+
+def test_every_contact_degree_is_declared_when_operators_use_one():
+    from drake_symplan.symbolic.effect_operators import EffectOperator
+    from drake_symplan.symbolic.pddl import domain_pddl
+
+    op = EffectOperator(0, "center", "center", 2, (("touching0", 0), ("touching0", 1)),
+                        (("touching1", 0), ("touching1", 1)),
+                        (("touching0", 0), ("touching0", 1)), 10, 10, 10)
+    text = domain_pddl([op], 1, 1)
+    for n in range(4):  # touching3 appears in no operator, but a goal may hold it
+        assert f"(touching{n} ?x0 - obj)" in text
+    assert "touching" not in domain_pddl([], 1, 1)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drake_symplan.structs import OFFSETS, Action
+from drake_symplan.symbolic.effect_operators import MAX_DEGREE, degree_atom
 from drake_symplan.symbolic.operators import Operator
 from drake_symplan.symbolic.states import (
     Atom,
@@ -71,6 +72,11 @@ def domain_pddl(
     extra = sorted({a[0]: len(a) - 1 for op in operators
                     for a in [*op.preconditions(), *op.effects()[0], *op.effects()[1]]
                     if a[0] not in declared}.items())
+    degrees = {degree_atom(n) for n in range(MAX_DEGREE + 1)}
+    if degrees & {p for p, _ in extra}:
+        # A state or goal may hold a degree no operator mentions (an object touching more
+        # objects than in training): declare the whole family so the problem parses.
+        extra = sorted(dict(extra, **dict.fromkeys(degrees, 1)).items())
     preds = [f"({p} ?x - {TYPE})" for p in unary]
     preds += [f"({p} ?x ?y - {TYPE})" for p in binary + ["different"]]
     preds += [f"({p} " + " ".join(f"?x{i}" for i in range(n)) + f" - {TYPE})"

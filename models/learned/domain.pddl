@@ -15,6 +15,7 @@
     (touching0 ?x0 - obj)
     (touching1 ?x0 - obj)
     (touching2 ?x0 - obj)
+    (touching3 ?x0 - obj)
   )
   (:functions (total-cost) - number)
   ; rank 0: 1517 transitions; reliability 0.96 (1522/1589), cost 1
