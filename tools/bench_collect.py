@@ -133,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         result["parity"] = parity
     text = json.dumps(result, indent=2)
     if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)  # --out may name a new folder
         Path(args.out).write_text(text)
     if args.json:
         print(text)

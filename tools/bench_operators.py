@@ -186,6 +186,7 @@ def main() -> int:
     text = json.dumps(result, indent=2)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.parent.mkdir(parents=True, exist_ok=True)  # --out may name a new folder
         args.out.write_text(text + "\n")
     if args.json:
         print(text)

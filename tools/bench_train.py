@@ -149,6 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     text = json.dumps(result, indent=2)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)  # --out may name a new folder
         Path(args.out).write_text(text + "\n")
     if args.json:
         print(text)
