@@ -72,3 +72,15 @@ def test_without_goal_contact_the_absolute_goal_position_counts():
     # b stands 7.5 cm left of a's goal now: release at b's right.
     assert refine_step(b, STEP, [], STATE, GOAL_ATOMS, now, goal, set()) == \
         "(pick_center_place_right_n10_op1 a b)"
+
+
+def test_the_planner_sees_one_operator_per_precondition_and_effect():
+    from drake_symplan.symbolic.bundle import planning_operators
+
+    shaky = EffectOperator(6, "left", "left", 2, FREE, ON, (("p0", 1),), 10, 10, 2)
+    kept = planning_operators([shaky, *OPERATORS])
+    # op0-op2 and op5 equal the unreliable shaky one: the most reliable (op0) stands for
+    # them; op3 (another effect) and op4 (other preconditions) stay.
+    assert [op.index for op in kept] == [0, 3, 4]
+    assert "pick_left_place_left_n10_op6" not in bundle().domain
+    assert bundle().domain.count("(:action") == 3

@@ -67,6 +67,20 @@ class Reading:
         return c
 
 
+def planning_operators(operators: list[EffectOperator]) -> list[EffectOperator]:
+    """The operators the planner sees: of those with the same preconditions and effects
+    (they differ in their offsets only), the cheapest (most reliable; the more frequent on
+    a tie). Fewer actions to ground; the agent picks the offsets among all of them when it
+    executes a step (agent/refine.py)."""
+    best: dict[tuple, EffectOperator] = {}
+    for op in operators:  # most frequent first
+        key = (op.n_params, frozenset(op.pre), frozenset(op.add), frozenset(op.delete))
+        if key not in best or op.cost < best[key].cost:
+            best[key] = op
+    kept = {id(op) for op in best.values()}
+    return [op for op in operators if id(op) in kept]
+
+
 def operators_to_json(operators: list[EffectOperator], semantics: Semantics, info: dict) -> dict:
     return {"semantics": dataclasses.asdict(semantics),
             **info, "operators": [
@@ -99,8 +113,9 @@ class ModelBundle:
             semantics, info, provenance, margin)
         self.by_name = {op.name: op for op in operators}
         n_unary, n_rel = info["n_unary"], info["n_relations"]
-        self.domain = domain_pddl(operators, n_unary, n_rel, costs=True)
-        self.domain_strips = domain_pddl(operators, n_unary, n_rel, costs=False)
+        planned = planning_operators(operators)
+        self.domain = domain_pddl(planned, n_unary, n_rel, costs=True)
+        self.domain_strips = domain_pddl(planned, n_unary, n_rel, costs=False)
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> ModelBundle:
@@ -261,8 +276,10 @@ def write_bundle(out: str | Path, run_dir: str | Path, operators, semantics: Sem
 
     write_atomic(out / "operators.json", json.dumps(data, indent=1))
     write_atomic(out / "domain.pddl",
-                 domain_pddl(operators, model.n_unary, model.n_relations, costs=True))
+                 domain_pddl(planning_operators(operators), model.n_unary, model.n_relations,
+                             costs=True))
     write_atomic(out / "domain_strips.pddl",
-                 domain_pddl(operators, model.n_unary, model.n_relations, costs=False))
+                 domain_pddl(planning_operators(operators), model.n_unary, model.n_relations,
+                             costs=False))
     write_atomic(out / "provenance.json", json.dumps(provenance, indent=1))
     return out

@@ -59,27 +59,6 @@
       (increase (total-cost) 1)
     )
   )
-  ; rank 2: 506 transitions; reliability 0.98 (502/510), cost 1
-  (:action pick_center_place_right_n506_op2
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (p0 ?o1)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 1)
-    )
-  )
   ; rank 3: 489 transitions; reliability 0.94 (492/526), cost 2
   (:action pick_right_place_right_n489_op3
     :parameters (?o0 - obj ?o1 - obj)
@@ -115,27 +94,6 @@
       (not_r2 ?o0 ?o1)
       (r0 ?o0 ?o1)
       (r1 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 2)
-    )
-  )
-  ; rank 5: 434 transitions; reliability 0.90 (438/488), cost 2
-  (:action pick_left_place_left_n434_op5
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
       (touching1 ?o0)
       (touching1 ?o1)
       (not (touching0 ?o0))
@@ -252,52 +210,6 @@
       (increase (total-cost) 2)
     )
   )
-  ; rank 11: 255 transitions; reliability 0.89 (257/289), cost 2
-  (:action pick_left_place_center_n255_op11
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r1 ?o1 ?o0)
-      (not_r2 ?o0 ?o1)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 2)
-    )
-  )
-  ; rank 12: 254 transitions; reliability 0.91 (259/284), cost 2
-  (:action pick_right_place_center_n254_op12
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 2)
-    )
-  )
   ; rank 13: 208 transitions; reliability 0.98 (206/211), cost 1
   (:action pick_left_place_center_n208_op13
     :parameters (?o0 - obj ?o1 - obj)
@@ -338,28 +250,6 @@
       (not (touching0 ?o0))
       (not (touching0 ?o1))
       (increase (total-cost) 2)
-    )
-  )
-  ; rank 15: 169 transitions; reliability 0.97 (172/178), cost 1
-  (:action pick_right_place_center_n169_op15
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (p0 ?o0)
-      (p0 ?o1)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 1)
     )
   )
   ; rank 16: 155 transitions; reliability 0.95 (162/171), cost 2
@@ -512,54 +402,6 @@
       (increase (total-cost) 70)
     )
   )
-  ; rank 22: 103 transitions; reliability 0.88 (99/113), cost 2
-  (:action pick_center_place_right_n103_op22
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (not_p0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (touching0 ?o0)
-      (touching0 ?o1)
-      (not (not_r0 ?o1 ?o0))
-      (not (r0 ?o0 ?o1))
-      (not (r1 ?o0 ?o1))
-      (not (r2 ?o0 ?o1))
-      (not (touching1 ?o0))
-      (not (touching1 ?o1))
-      (increase (total-cost) 2)
-    )
-  )
-  ; rank 23: 102 transitions; reliability 0.95 (94/99), cost 2
-  (:action pick_right_place_center_n102_op23
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (not_r1 ?o0 ?o1)
-      (r0 ?o1 ?o0)
-      (not (not_r0 ?o1 ?o0))
-      (not (r1 ?o0 ?o1))
-      (increase (total-cost) 2)
-    )
-  )
   ; rank 24: 93 transitions; reliability 0.00 (0/0), cost 70
   (:action pick_center_place_center_n93_op24
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -669,35 +511,6 @@
       (increase (total-cost) 70)
     )
   )
-  ; rank 28: 83 transitions; reliability 0.00 (0/0), cost 70
-  (:action pick_left_place_center_n83_op28
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (not_r1 ?o1 ?o0)
-      (not_r2 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (not (not_r1 ?o0 ?o1))
-      (not (not_r2 ?o1 ?o0))
-      (not (r1 ?o1 ?o0))
-      (not (r2 ?o0 ?o1))
-      (increase (total-cost) 70)
-    )
-  )
   ; rank 29: 82 transitions; reliability 1.00 (90/90), cost 1
   (:action pick_left_place_center_n82_op29
     :parameters (?o0 - obj ?o1 - obj)
@@ -718,28 +531,6 @@
       (not_r2 ?o0 ?o1)
       (not (r2 ?o0 ?o1))
       (increase (total-cost) 1)
-    )
-  )
-  ; rank 30: 79 transitions; reliability 0.12 (79/667), cost 22
-  (:action pick_right_place_left_n79_op30
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (not_p0 ?o1)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r0 ?o0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (r2 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 22)
     )
   )
   ; rank 31: 74 transitions; reliability 0.91 (78/86), cost 2
@@ -829,38 +620,6 @@
       (increase (total-cost) 70)
     )
   )
-  ; rank 34: 66 transitions; reliability 0.91 (67/74), cost 2
-  (:action pick_left_place_left_n66_op34
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_r0 ?o2 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching0 ?o2)
-      (touching1 ?o1)
-      (not (not_r0 ?o2 ?o0))
-      (not (r0 ?o0 ?o2))
-      (not (r1 ?o0 ?o2))
-      (not (r2 ?o0 ?o2))
-      (not (touching0 ?o1))
-      (not (touching1 ?o2))
-      (increase (total-cost) 2)
-    )
-  )
   ; rank 35: 64 transitions; reliability 0.29 (35/120), cost 13
   (:action pick_center_place_right_n64_op35
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -887,50 +646,8 @@
       (increase (total-cost) 13)
     )
   )
-  ; rank 36: 64 transitions; reliability 0.93 (56/60), cost 2
-  (:action pick_right_place_right_n64_op36
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o0 ?o1)
-      (not (not_r1 ?o0 ?o1))
-      (increase (total-cost) 2)
-    )
-  )
   ; rank 37: 63 transitions; reliability 0.98 (61/62), cost 1
   (:action pick_left_place_left_n63_op37
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o0 ?o1)
-      (not (not_r1 ?o0 ?o1))
-      (increase (total-cost) 1)
-    )
-  )
-  ; rank 38: 63 transitions; reliability 0.97 (57/59), cost 1
-  (:action pick_center_place_center_n63_op38
     :parameters (?o0 - obj ?o1 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -1193,40 +910,6 @@
       (increase (total-cost) 1)
     )
   )
-  ; rank 48: 53 transitions; reliability 0.86 (49/57), cost 3
-  (:action pick_center_place_right_n53_op48
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_p0 ?o1)
-      (not_r0 ?o2 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_r1 ?o1 ?o0)
-      (not_r2 ?o0 ?o1)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (touching0 ?o2)
-      (touching1 ?o1)
-      (not (not_r0 ?o2 ?o0))
-      (not (r0 ?o0 ?o2))
-      (not (r1 ?o0 ?o2))
-      (not (r2 ?o0 ?o2))
-      (not (touching0 ?o1))
-      (not (touching1 ?o2))
-      (increase (total-cost) 3)
-    )
-  )
   ; rank 49: 53 transitions; reliability 0.84 (51/61), cost 3
   (:action pick_center_place_right_n53_op49
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -1254,27 +937,6 @@
       (not (touching1 ?o0))
       (not (touching1 ?o2))
       (increase (total-cost) 3)
-    )
-  )
-  ; rank 50: 51 transitions; reliability 0.60 (3/5), cost 6
-  (:action pick_left_place_left_n51_op50
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o1 ?o0)
-      (not_r2 ?o0 ?o1)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r2 ?o0 ?o1)
-      (not (not_r2 ?o0 ?o1))
-      (increase (total-cost) 6)
     )
   )
   ; rank 51: 51 transitions; reliability 1.00 (2/2), cost 1
@@ -1355,27 +1017,6 @@
       (increase (total-cost) 3)
     )
   )
-  ; rank 54: 48 transitions; reliability 0.40 (2/5), cost 10
-  (:action pick_right_place_left_n48_op54
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r2 ?o1 ?o0)
-      (not (not_r2 ?o1 ?o0))
-      (increase (total-cost) 10)
-    )
-  )
   ; rank 55: 47 transitions; reliability 0.92 (46/50), cost 2
   (:action pick_right_place_center_n47_op55
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -1435,35 +1076,6 @@
       (not (touching0 ?o0))
       (not (touching1 ?o2))
       (increase (total-cost) 8)
-    )
-  )
-  ; rank 57: 44 transitions; reliability 0.80 (41/51), cost 3
-  (:action pick_center_place_left_n44_op57
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_p0 ?o0)
-      (not_p0 ?o1)
-      (not_r0 ?o2 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (touching0 ?o0)
-      (touching0 ?o2)
-      (not (not_r0 ?o2 ?o0))
-      (not (r0 ?o0 ?o2))
-      (not (r1 ?o0 ?o2))
-      (not (r2 ?o0 ?o2))
-      (not (touching1 ?o0))
-      (not (touching1 ?o2))
-      (increase (total-cost) 3)
     )
   )
   ; rank 58: 44 transitions; reliability 0.93 (27/29), cost 2
@@ -1592,40 +1204,6 @@
       (not (touching0 ?o1))
       (not (touching1 ?o2))
       (increase (total-cost) 1)
-    )
-  )
-  ; rank 62: 41 transitions; reliability 0.80 (39/49), cost 3
-  (:action pick_center_place_left_n41_op62
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_p0 ?o1)
-      (not_r0 ?o2 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (touching0 ?o2)
-      (touching1 ?o1)
-      (not (not_r0 ?o2 ?o0))
-      (not (r0 ?o0 ?o2))
-      (not (r1 ?o0 ?o2))
-      (not (r2 ?o0 ?o2))
-      (not (touching0 ?o1))
-      (not (touching1 ?o2))
-      (increase (total-cost) 3)
     )
   )
   ; rank 63: 40 transitions; reliability 0.00 (0/0), cost 70
@@ -1893,31 +1471,6 @@
       (increase (total-cost) 2)
     )
   )
-  ; rank 73: 36 transitions; reliability 0.52 (34/66), cost 8
-  (:action pick_right_place_right_n36_op73
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (touching0 ?o0)
-      (touching0 ?o1)
-      (not (not_r0 ?o0 ?o1))
-      (not (not_r2 ?o1 ?o0))
-      (not (r0 ?o1 ?o0))
-      (not (r1 ?o1 ?o0))
-      (not (touching1 ?o0))
-      (not (touching1 ?o1))
-      (increase (total-cost) 8)
-    )
-  )
   ; rank 74: 35 transitions; reliability 0.00 (0/0), cost 70
   (:action pick_left_place_left_n35_op74
     :parameters (?o0 - obj ?o1 - obj)
@@ -2048,43 +1601,6 @@
       (increase (total-cost) 7)
     )
   )
-  ; rank 79: 34 transitions; reliability 0.04 (36/987), cost 34
-  (:action pick_right_place_center_n34_op79
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (touching1 ?o1)
-      (not (touching0 ?o1))
-      (increase (total-cost) 34)
-    )
-  )
-  ; rank 80: 33 transitions; reliability 0.10 (32/318), cost 24
-  (:action pick_left_place_left_n33_op80
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o1)
-      (touching2 ?o0)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 24)
-    )
-  )
   ; rank 81: 33 transitions; reliability 0.80 (28/35), cost 3
   (:action pick_left_place_right_n33_op81
     :parameters (?o0 - obj ?o1 - obj)
@@ -2152,28 +1668,6 @@
       (increase (total-cost) 29)
     )
   )
-  ; rank 84: 33 transitions; reliability 0.79 (31/39), cost 3
-  (:action pick_right_place_center_n33_op84
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r0 ?o1 ?o0)
-      (not (not_r0 ?o1 ?o0))
-      (increase (total-cost) 3)
-    )
-  )
   ; rank 85: 32 transitions; reliability 0.88 (43/49), cost 2
   (:action pick_center_place_left_n32_op85
     :parameters (?o0 - obj ?o1 - obj)
@@ -2198,22 +1692,6 @@
       (not (not_r2 ?o0 ?o1))
       (not (r1 ?o0 ?o1))
       (increase (total-cost) 2)
-    )
-  )
-  ; rank 86: 31 transitions; reliability 0.06 (40/675), cost 29
-  (:action pick_center_place_left_n31_op86
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (not_p0 ?o1)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (touching1 ?o0)
-      (not (touching0 ?o0))
-      (increase (total-cost) 29)
     )
   )
   ; rank 87: 30 transitions; reliability 0.73 (36/49), cost 4
@@ -2334,32 +1812,6 @@
       (not (touching0 ?o0))
       (not (touching1 ?o2))
       (increase (total-cost) 4)
-    )
-  )
-  ; rank 92: 30 transitions; reliability 0.00 (0/0), cost 70
-  (:action pick_right_place_right_n30_op92
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (r2 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r1 ?o0 ?o1)
-      (not (not_r1 ?o0 ?o1))
-      (not (r0 ?o1 ?o0))
-      (increase (total-cost) 70)
     )
   )
   ; rank 93: 29 transitions; reliability 0.67 (32/48), cost 5
@@ -2537,28 +1989,6 @@
       (increase (total-cost) 70)
     )
   )
-  ; rank 99: 27 transitions; reliability 0.09 (29/318), cost 25
-  (:action pick_right_place_right_n27_op99
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o1)
-      (touching2 ?o0)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (increase (total-cost) 25)
-    )
-  )
   ; rank 100: 26 transitions; reliability 0.81 (44/54), cost 3
   (:action pick_right_place_center_n26_op100
     :parameters (?o0 - obj ?o1 - obj)
@@ -2581,21 +2011,6 @@
       (not (not_r2 ?o0 ?o1))
       (not (r1 ?o0 ?o1))
       (increase (total-cost) 3)
-    )
-  )
-  ; rank 101: 25 transitions; reliability 0.03 (29/984), cost 36
-  (:action pick_left_place_center_n25_op101
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (touching1 ?o1)
-      (not (touching0 ?o1))
-      (increase (total-cost) 36)
     )
   )
   ; rank 102: 25 transitions; reliability 0.00 (0/0), cost 70
@@ -2948,64 +2363,6 @@
       (increase (total-cost) 10)
     )
   )
-  ; rank 114: 23 transitions; reliability 0.04 (12/310), cost 34
-  (:action pick_right_place_left_n23_op114
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (touching0 ?o0)
-      (touching0 ?o1)
-      (not (not_r0 ?o1 ?o0))
-      (not (r0 ?o0 ?o1))
-      (not (r1 ?o0 ?o1))
-      (not (r2 ?o0 ?o1))
-      (not (touching1 ?o0))
-      (not (touching1 ?o1))
-      (increase (total-cost) 34)
-    )
-  )
-  ; rank 115: 23 transitions; reliability 1.00 (23/23), cost 1
-  (:action pick_right_place_center_n23_op115
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_r0 ?o2 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching0 ?o2)
-      (touching1 ?o1)
-      (not (not_r0 ?o2 ?o0))
-      (not (r0 ?o0 ?o2))
-      (not (r1 ?o0 ?o2))
-      (not (r2 ?o0 ?o2))
-      (not (touching0 ?o1))
-      (not (touching1 ?o2))
-      (increase (total-cost) 1)
-    )
-  )
   ; rank 116: 22 transitions; reliability 0.08 (23/289), cost 26
   (:action pick_left_place_center_n22_op116
     :parameters (?o0 - obj ?o1 - obj)
@@ -3049,38 +2406,6 @@
       (increase (total-cost) 70)
     )
   )
-  ; rank 118: 22 transitions; reliability 0.79 (23/29), cost 3
-  (:action pick_left_place_center_n22_op118
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_p0 ?o1)
-      (not_r2 ?o1 ?o2)
-      (p0 ?o0)
-      (r0 ?o2 ?o1)
-      (r1 ?o1 ?o2)
-      (r2 ?o2 ?o1)
-      (touching0 ?o0)
-      (touching1 ?o1)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_p0 ?o0)
-      (not_r1 ?o2 ?o0)
-      (not_r2 ?o0 ?o2)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o2 ?o0)
-      (touching1 ?o0)
-      (touching2 ?o2)
-      (not (p0 ?o0))
-      (not (touching0 ?o0))
-      (not (touching1 ?o2))
-      (increase (total-cost) 3)
-    )
-  )
   ; rank 119: 22 transitions; reliability 0.60 (3/5), cost 6
   (:action pick_center_place_left_n22_op119
     :parameters (?o0 - obj ?o1 - obj)
@@ -3100,32 +2425,6 @@
       (r2 ?o1 ?o0)
       (not (not_r2 ?o1 ?o0))
       (increase (total-cost) 6)
-    )
-  )
-  ; rank 120: 22 transitions; reliability 0.00 (0/0), cost 70
-  (:action pick_center_place_center_n22_op120
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (not_r0 ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o1 ?o0)
-      (not_r2 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o1)
-      (r1 ?o0 ?o1)
-      (r1 ?o1 ?o0)
-      (r2 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r0 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (not (not_r0 ?o0 ?o1))
-      (not (not_r2 ?o0 ?o1))
-      (increase (total-cost) 70)
     )
   )
   ; rank 121: 22 transitions; reliability 0.00 (0/0), cost 70
@@ -3268,31 +2567,6 @@
       (not (touching1 ?o0))
       (not (touching1 ?o1))
       (increase (total-cost) 22)
-    )
-  )
-  ; rank 126: 21 transitions; reliability 0.90 (36/40), cost 2
-  (:action pick_left_place_center_n21_op126
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (r0 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (not_r2 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (not (not_r1 ?o0 ?o1))
-      (not (not_r2 ?o1 ?o0))
-      (not (r2 ?o0 ?o1))
-      (increase (total-cost) 2)
     )
   )
   ; rank 127: 21 transitions; reliability 0.00 (0/1), cost 70
@@ -3799,21 +3073,6 @@
       (increase (total-cost) 11)
     )
   )
-  ; rank 145: 18 transitions; reliability 0.02 (22/1042), cost 40
-  (:action pick_left_place_left_n18_op145
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (touching1 ?o1)
-      (not (touching0 ?o1))
-      (increase (total-cost) 40)
-    )
-  )
   ; rank 146: 18 transitions; reliability 0.00 (0/0), cost 70
   (:action pick_left_place_center_n18_op146
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -3899,34 +3158,6 @@
       (increase (total-cost) 1)
     )
   )
-  ; rank 149: 18 transitions; reliability 0.38 (17/45), cost 11
-  (:action pick_center_place_left_n18_op149
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_p0 ?o0)
-      (not_p0 ?o1)
-      (not_r0 ?o2 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching1 ?o0)
-      (touching2 ?o2)
-    )
-    :effect (and
-      (touching0 ?o0)
-      (touching1 ?o2)
-      (not (not_r0 ?o2 ?o0))
-      (not (r0 ?o0 ?o2))
-      (not (r1 ?o0 ?o2))
-      (not (r2 ?o0 ?o2))
-      (not (touching1 ?o0))
-      (not (touching2 ?o2))
-      (increase (total-cost) 11)
-    )
-  )
   ; rank 150: 18 transitions; reliability 0.00 (0/0), cost 70
   (:action pick_right_place_left_n18_op150
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -3948,39 +3179,6 @@
       (not_r0 ?o0 ?o2)
       (not (r0 ?o0 ?o2))
       (increase (total-cost) 70)
-    )
-  )
-  ; rank 151: 17 transitions; reliability 1.00 (19/19), cost 1
-  (:action pick_left_place_center_n17_op151
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_r0 ?o2 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (r2 ?o0 ?o1)
-      (touching0 ?o2)
-      (touching1 ?o1)
-      (not (not_r0 ?o2 ?o0))
-      (not (r0 ?o0 ?o2))
-      (not (r1 ?o0 ?o2))
-      (not (r2 ?o0 ?o2))
-      (not (touching0 ?o1))
-      (not (touching1 ?o2))
-      (increase (total-cost) 1)
     )
   )
   ; rank 152: 17 transitions; reliability 0.00 (0/0), cost 70
@@ -4036,26 +3234,6 @@
       (not (touching0 ?o0))
       (not (touching0 ?o1))
       (increase (total-cost) 3)
-    )
-  )
-  ; rank 154: 17 transitions; reliability 1.00 (17/17), cost 1
-  (:action pick_right_place_center_n17_op154
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (r1 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o0 ?o1)
-      (not (not_r1 ?o0 ?o1))
-      (increase (total-cost) 1)
     )
   )
   ; rank 155: 17 transitions; reliability 0.50 (1/2), cost 8
@@ -4192,36 +3370,6 @@
       (not (not_r0 ?o1 ?o0))
       (not (r1 ?o0 ?o1))
       (increase (total-cost) 19)
-    )
-  )
-  ; rank 160: 16 transitions; reliability 0.63 (19/30), cost 6
-  (:action pick_center_place_center_n16_op160
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_r0 ?o1 ?o2)
-      (p0 ?o0)
-      (r0 ?o2 ?o1)
-      (r1 ?o2 ?o1)
-      (r2 ?o2 ?o1)
-      (touching0 ?o0)
-      (touching1 ?o1)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_p0 ?o0)
-      (not_r0 ?o2 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o2)
-      (r2 ?o0 ?o2)
-      (touching1 ?o0)
-      (touching2 ?o2)
-      (not (p0 ?o0))
-      (not (touching0 ?o0))
-      (not (touching1 ?o2))
-      (increase (total-cost) 6)
     )
   )
   ; rank 161: 16 transitions; reliability 0.80 (20/25), cost 3
@@ -4397,27 +3545,6 @@
       (increase (total-cost) 70)
     )
   )
-  ; rank 167: 15 transitions; reliability 0.73 (37/51), cost 4
-  (:action pick_center_place_center_n15_op167
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r1 ?o1 ?o0)
-      (not_r2 ?o0 ?o1)
-      (p0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o1 ?o0)
-      (not (not_r1 ?o1 ?o0))
-      (increase (total-cost) 4)
-    )
-  )
   ; rank 168: 15 transitions; reliability 0.06 (9/145), cost 29
   (:action pick_center_place_center_n15_op168
     :parameters (?o0 - obj ?o1 - obj)
@@ -4514,24 +3641,6 @@
       (increase (total-cost) 70)
     )
   )
-  ; rank 172: 15 transitions; reliability 0.81 (17/21), cost 3
-  (:action pick_right_place_center_n15_op172
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r1 ?o1 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o1 ?o0)
-      (not (not_r1 ?o1 ?o0))
-      (increase (total-cost) 3)
-    )
-  )
   ; rank 173: 15 transitions; reliability 0.98 (44/45), cost 1
   (:action pick_right_place_right_n15_op173
     :parameters (?o0 - obj ?o1 - obj)
@@ -4553,21 +3662,6 @@
       (not (not_r2 ?o0 ?o1))
       (not (r2 ?o1 ?o0))
       (increase (total-cost) 1)
-    )
-  )
-  ; rank 174: 15 transitions; reliability 0.02 (19/971), cost 40
-  (:action pick_right_place_right_n15_op174
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_p0 ?o0)
-      (touching0 ?o0)
-      (touching0 ?o1)
-    )
-    :effect (and
-      (touching1 ?o1)
-      (not (touching0 ?o1))
-      (increase (total-cost) 40)
     )
   )
   ; rank 175: 14 transitions; reliability 0.91 (20/22), cost 2
@@ -4692,49 +3786,6 @@
       (not (touching0 ?o0))
       (not (touching0 ?o1))
       (increase (total-cost) 31)
-    )
-  )
-  ; rank 180: 14 transitions; reliability 1.00 (13/13), cost 1
-  (:action pick_center_place_left_n14_op180
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (r1 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o0 ?o1)
-      (not (not_r1 ?o0 ?o1))
-      (increase (total-cost) 1)
-    )
-  )
-  ; rank 181: 14 transitions; reliability 0.03 (11/360), cost 36
-  (:action pick_center_place_left_n14_op181
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (p0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (touching0 ?o0)
-      (touching0 ?o1)
-      (not (not_r0 ?o0 ?o1))
-      (not (r0 ?o1 ?o0))
-      (not (r1 ?o1 ?o0))
-      (not (touching1 ?o0))
-      (not (touching1 ?o1))
-      (increase (total-cost) 36)
     )
   )
   ; rank 182: 14 transitions; reliability 0.34 (37/110), cost 12
@@ -4901,24 +3952,6 @@
       (increase (total-cost) 8)
     )
   )
-  ; rank 188: 14 transitions; reliability 0.73 (19/26), cost 4
-  (:action pick_right_place_right_n14_op188
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r1 ?o1 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o1 ?o0)
-      (not (not_r1 ?o1 ?o0))
-      (increase (total-cost) 4)
-    )
-  )
   ; rank 189: 13 transitions; reliability 0.24 (18/76), cost 15
   (:action pick_left_place_left_n13_op189
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -4978,27 +4011,6 @@
       (increase (total-cost) 8)
     )
   )
-  ; rank 191: 13 transitions; reliability 0.32 (19/59), cost 12
-  (:action pick_left_place_center_n13_op191
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r1 ?o1 ?o0)
-      (not_r2 ?o0 ?o1)
-      (p0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o0 ?o1)
-      (r2 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o1 ?o0)
-      (not (not_r1 ?o1 ?o0))
-      (increase (total-cost) 12)
-    )
-  )
   ; rank 192: 13 transitions; reliability 0.00 (0/16), cost 70
   (:action pick_left_place_center_n13_op192
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -5041,26 +4053,6 @@
       (touching1 ?o1)
       (not (touching0 ?o1))
       (increase (total-cost) 10)
-    )
-  )
-  ; rank 194: 13 transitions; reliability 0.64 (14/22), cost 6
-  (:action pick_right_place_center_n13_op194
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r2 ?o1 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (r0 ?o1 ?o0)
-      (r1 ?o1 ?o0)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r2 ?o1 ?o0)
-      (not (not_r2 ?o1 ?o0))
-      (increase (total-cost) 6)
     )
   )
   ; rank 195: 13 transitions; reliability 0.93 (14/15), cost 2
@@ -5168,24 +4160,6 @@
       (increase (total-cost) 2)
     )
   )
-  ; rank 198: 12 transitions; reliability 1.00 (13/13), cost 1
-  (:action pick_left_place_center_n12_op198
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o1 ?o0)
-      (not_r1 ?o0 ?o1)
-      (p0 ?o0)
-      (p0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o0 ?o1)
-      (not (not_r1 ?o0 ?o1))
-      (increase (total-cost) 1)
-    )
-  )
   ; rank 199: 12 transitions; reliability 0.82 (9/11), cost 3
   (:action pick_left_place_right_n12_op199
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
@@ -5251,24 +4225,6 @@
       (not (touching1 ?o1))
       (not (touching1 ?o2))
       (increase (total-cost) 70)
-    )
-  )
-  ; rank 201: 12 transitions; reliability 0.76 (13/17), cost 4
-  (:action pick_center_place_left_n12_op201
-    :parameters (?o0 - obj ?o1 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (not_r0 ?o0 ?o1)
-      (not_r1 ?o1 ?o0)
-      (p0 ?o0)
-      (p0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o1)
-    )
-    :effect (and
-      (r1 ?o1 ?o0)
-      (not (not_r1 ?o1 ?o0))
-      (increase (total-cost) 4)
     )
   )
   ; rank 202: 12 transitions; reliability 0.73 (11/15), cost 4
@@ -5673,41 +4629,6 @@
       (not (touching1 ?o1))
       (not (touching2 ?o2))
       (increase (total-cost) 70)
-    )
-  )
-  ; rank 216: 11 transitions; reliability 0.88 (14/16), cost 2
-  (:action pick_center_place_center_n11_op216
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_p0 ?o1)
-      (not_p0 ?o2)
-      (not_r1 ?o0 ?o2)
-      (not_r2 ?o2 ?o0)
-      (p0 ?o0)
-      (r0 ?o2 ?o0)
-      (r1 ?o2 ?o0)
-      (r2 ?o0 ?o2)
-      (touching0 ?o1)
-      (touching1 ?o0)
-      (touching1 ?o2)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (r0 ?o0 ?o1)
-      (r1 ?o0 ?o1)
-      (touching0 ?o2)
-      (touching1 ?o1)
-      (not (not_r1 ?o0 ?o2))
-      (not (not_r2 ?o2 ?o0))
-      (not (r0 ?o2 ?o0))
-      (not (r1 ?o2 ?o0))
-      (not (r2 ?o0 ?o2))
-      (not (touching0 ?o1))
-      (not (touching1 ?o2))
-      (increase (total-cost) 2)
     )
   )
   ; rank 217: 11 transitions; reliability 0.04 (27/666), cost 33
