@@ -96,6 +96,7 @@ def symbol_view(named_scene, reading) -> dict:
 def plan_view(bundle, steps: list[str]) -> list[dict]:
     """Each plan step: its readable form, operator, reliability and the grounded
     preconditions and effects."""
+    from drake_symplan.symbolic.effect_operators import ground_slots
     from drake_symplan.symbolic.pddl import plan_step_action
 
     out = []
@@ -104,7 +105,7 @@ def plan_view(bundle, steps: list[str]) -> list[dict]:
         args = plan_step_action(step).args
 
         def ground(atoms, args=args):
-            return [atom_text((a[0], *(args[i] for i in a[1:]))) for a in atoms]
+            return [atom_text(a) for a in ground_slots(atoms, args)]
 
         out.append({"step": step, "readable": readable_step(step), "operator": op.name,
                     "reliability": round(op.reliability, 3), "preconditions": ground(op.pre),

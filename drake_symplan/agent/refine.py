@@ -19,12 +19,13 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan.structs import OFFSET_METRES
+from drake_symplan.symbolic.effect_operators import ground_slots
 
 MIN_GAIN = 0.01  # m: a change of offsets must bring the source this much nearer its goal
 
 
-def _ground(atoms, args):
-    return {(a[0], *(args[i] for i in a[1:])) for a in atoms}
+def _ground(atoms, args) -> set:
+    return set(ground_slots(atoms, args))
 
 
 def _successor(op, args, state: set) -> set:

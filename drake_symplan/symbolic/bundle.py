@@ -27,6 +27,7 @@ from drake_symplan.symbolic.effect_operators import (
     EffectOperator,
     Semantics,
     atoms_and_unknown,
+    ground_slots,
     key,
 )
 from drake_symplan.symbolic.pddl import domain_pddl, plan_step_action, problem_from_atoms
@@ -206,11 +207,7 @@ class ModelBundle:
         """The (add, delete) atoms the step's operator predicts, grounded on its arguments."""
         op = self.operator_of(step)
         args = plan_step_action(step).args
-
-        def ground(atoms):
-            return [(a[0], *(args[i] for i in a[1:])) for a in atoms]
-
-        return ground(op.add), ground(op.delete)
+        return ground_slots(op.add, args), ground_slots(op.delete, args)
 
     def mismatches(self, after: Reading, step: str, before: Reading | None = None) -> list[Atom]:
         """Predicted atoms that did not come true (an add that is absent, a delete still

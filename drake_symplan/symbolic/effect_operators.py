@@ -153,6 +153,11 @@ def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real, degree=None) -> 
     return atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree)[0]
 
 
+def ground_slots(atoms, args) -> list[Atom]:
+    """Slot atoms (name, slot, ...) of an operator with its slots bound to `args`."""
+    return [(a[0], *(args[i] for i in a[1:])) for a in atoms]
+
+
 def degree_atom(n: int) -> str:
     """`touching0` .. `touching3` (3 or more): how many objects an object touches."""
     return f"touching{min(int(n), MAX_DEGREE)}"
