@@ -260,19 +260,7 @@ class Reproduction:
 
 
 def _versions() -> dict:
-    from importlib.metadata import PackageNotFoundError, version
+    from drake_symplan.data.collect import code_version
 
-    out = {}
-    for name in ("drake_symplan", "drake", "torch", "numpy", "up-fast-downward", "pyperplan",
-                 "ray"):
-        try:
-            out[name] = version(name)
-        except PackageNotFoundError:
-            continue
-    try:
-        out["git_commit"] = subprocess.run(
-            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
-            cwd=Path(__file__).parent).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        pass
-    return out
+    return code_version(("drake_symplan", "drake", "torch", "numpy", "up-fast-downward",
+                         "pyperplan", "ray"))

@@ -82,11 +82,12 @@ class CollectConfig:
                              self.long_fraction)
 
 
-def code_version() -> dict:
+def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
+    """Installed versions of `packages` (None: not installed) and the git commit."""
     from importlib.metadata import PackageNotFoundError, version
 
     out = {}
-    for pkg in ("drake_symplan", "drake", "numpy"):
+    for pkg in packages:
         try:
             out[pkg] = version(pkg)
         except PackageNotFoundError:
