@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.agent.refine import equivalents, reaches, refine_step
+from drake_symplan.structs import Action
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.effect_operators import EFFECT, EffectOperator
 
@@ -84,3 +85,52 @@ def test_the_planner_sees_one_operator_per_precondition_and_effect():
     assert [op.index for op in kept] == [0, 3, 4]
     assert "pick_left_place_left_n10_op6" not in bundle().domain
     assert bundle().domain.count("(:action") == 3
+
+
+def scene(boxes, contacts=()):
+    """A perceived scene of upright boxes: name -> (type, xyz)."""
+    from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
+
+    return PerceivedScene([PerceivedObject(n, t, np.array(p, float), 0.0, 0.0, np.zeros(9),
+                                           False, np.eye(3)) for n, (t, p) in boxes.items()],
+                          set(contacts))
+
+
+def cubes(**xy):
+    return scene({n: ("cube", (x, y, 0.025)) for n, (x, y) in xy.items()})
+
+
+def test_a_box_off_its_goal_on_the_table_is_put_down_beside_another():
+    from drake_symplan.agent.refine import reposition_action, reposition_step
+
+    now = cubes(a=(0.5, 0.3), b=(0.6, 0.0), c=(0.4, -0.2))
+    goal = cubes(a=(0.6, 0.08), b=(0.6, 0.0), c=(0.4, -0.2))
+    # a's goal is 8 cm to b's right: a cube is grasped at its centre, released at b's right.
+    step = reposition_step([], now, goal, 0.05)
+    assert step == "(reposition_center_right a b)"
+    assert reposition_action(step) == Action("a", "center", "b", "right")
+    assert reposition_action(STEP) is None
+    # Within the tolerance already: nothing to do.
+    assert reposition_step([], goal, goal, 0.05) is None
+    # A later step moves a: that step decides where it goes.
+    assert reposition_step(["(pick_center_place_center_n10_op0 a c)"], now, goal, 0.05) is None
+    # No box offers a landing within LAND_TOLERANCE of the goal.
+    far = cubes(a=(0.6, 0.2), b=(0.6, 0.0), c=(0.4, -0.2))
+    assert reposition_step([], now, far, 0.05) is None
+
+
+def test_no_repositioning_onto_an_occupied_spot_of_a_box_that_carries_or_is_carried():
+    from drake_symplan.agent.refine import reposition_step
+
+    goal = cubes(a=(0.6, 0.08), b=(0.6, 0.0), c=(0.4, -0.2))
+    taken = cubes(a=(0.5, 0.3), b=(0.6, 0.0), c=(0.6, 0.1))  # c stands where a would land
+    assert reposition_step([], taken, goal, 0.05) is None
+    carrying = scene({"a": ("cube", (0.5, 0.3, 0.025)), "b": ("cube", (0.6, 0.0, 0.025)),
+                      "c": ("cube", (0.5, 0.3, 0.075))}, [("a", "c")])
+    goal_c = cubes(a=(0.6, 0.08), b=(0.6, 0.0), c=(0.5, 0.3))
+    assert reposition_step([], carrying, goal_c, 0.05) is None  # c would fall off a
+    # In the goal a rests on b: the plan's step onto b places it, not a repositioning.
+    on_b = scene({"a": ("cube", (0.6, 0.0, 0.075)), "b": ("cube", (0.6, 0.0, 0.025)),
+                  "c": ("cube", (0.4, -0.2, 0.025))}, [("a", "b")])
+    assert reposition_step([], cubes(a=(0.5, 0.3), b=(0.6, 0.0), c=(0.4, -0.2)), on_b,
+                           0.05) is None

@@ -12,16 +12,31 @@ continuous parameters of a step (here: among the three discrete offsets per hand
 
 Where the source rests on the target in the goal scene, the position that counts is the
 one relative to the target (the target may move later); otherwise it is absolute.
+
+The symbols do not say where on the table a box stands either, so a plan can reach the
+goal's atoms with a stack built 20 cm from where the goal has it. `reposition_step` fills
+that gap before each step and after the last: a box that rests on nothing in the goal, is
+off its goal position, carries nothing and is moved by no later step, is put down beside
+another box (the same pick/place action) so that it lands within the tolerance of its
+goal, on a free spot of the table. Its learned operators have no symbolic effect to
+predict; the monitor checks afterwards that the rest of the plan still applies.
 """
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
-from drake_symplan.structs import OFFSET_METRES
+from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.structs import OFFSET_METRES, OFFSETS, Action
 from drake_symplan.symbolic.effect_operators import ground_slots
 
 MIN_GAIN = 0.01  # m: a change of offsets must bring the source this much nearer its goal
+LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
+CLEARANCE = 0.01  # m: free table between a repositioned box and every other box
+RESTS_ON = 0.03  # m: a box in contact with another and this much higher rests on it
+_REPOSITION = re.compile(r"^\(reposition_(?P<grasp>[a-z]+)_(?P<release>[a-z]+) (\S+) (\S+)\)$")
 
 
 def _ground(atoms, args) -> set:
@@ -92,3 +107,54 @@ def refine_step(bundle, step: str, rest: list[str], state: set, goal_atoms: set,
     errors = [landing_error(s, bundle, now, goal, contacts) for s in options]
     best = int(np.argmin(errors))
     return options[best] if errors[0] - errors[best] >= MIN_GAIN else step
+
+
+def reposition_action(step: str) -> Action | None:
+    """`(reposition_center_right o1 o0)` -> its Action; None for an operator's step."""
+    m = _REPOSITION.match(step.strip())
+    return None if m is None else Action(m[3], m["grasp"], m[4], m["release"])
+
+
+def footprint(obj) -> np.ndarray:
+    """A perceived box's half extents along world x and y."""
+    return np.abs(obj.R[:2, :]) @ np.asarray(HALF_EXTENTS[obj.type])
+
+
+def rests_on(scene, name: str) -> list[str]:
+    """The boxes `name` rests on in a perceived scene (in contact with them, and higher)."""
+    box = scene.object(name)
+    return [o for a, b in scene.contacts if name in (a, b)
+            for o in [b if a == name else a]
+            if box.position[2] - scene.object(o).position[2] > RESTS_ON]
+
+
+def reposition_step(rest: list[str], now, goal, tolerance: float) -> str | None:
+    """A step that puts a box resting on nothing in the goal within `tolerance` of its goal
+    position, beside another box, or None. `now`, `goal`: perceived scenes by the same
+    names; `rest`: the plan's remaining steps (their sources are left to them)."""
+    from drake_symplan.symbolic.pddl import plan_step_action
+
+    movers = {plan_step_action(s).action.source for s in rest}
+    boxes = {o.name: o for o in now.objects}
+    carriers = {b for n in boxes for b in rests_on(now, n)}
+    wanted = {n: goal.object(n).position for n in boxes}
+    off = sorted((n for n in boxes if np.linalg.norm(boxes[n].position - wanted[n]) > tolerance
+                  and n not in movers and n not in carriers and not rests_on(goal, n)),
+                 key=lambda n: -np.linalg.norm(boxes[n].position - wanted[n]))
+    for src in off:
+        size = footprint(boxes[src])
+        best = None
+        for tgt, grasp, release in ((t, g, r) for t in boxes if t != src
+                                    for g in OFFSETS for r in OFFSETS):
+            if abs(OFFSET_METRES[grasp]) >= size[1]:  # the grasp point is off the box
+                continue
+            land = boxes[tgt].position[:2] + [0.0, OFFSET_METRES[release] - OFFSET_METRES[grasp]]
+            error = float(np.linalg.norm(land - wanted[src][:2]))
+            if error > LAND_TOLERANCE or (best is not None and error >= best[0]):
+                continue
+            if all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
+                   for n, o in boxes.items() if n != src):
+                best = (error, f"(reposition_{grasp}_{release} {src} {tgt})")
+        if best is not None:
+            return best[1]
+    return None

@@ -12,7 +12,9 @@ for many solves (the evaluation).
 3. Each step is executed by the back-end on the perceived objects (the arm: IK-planned
    pick/place in full physics); the scene perceived after it keeps the names through
    perception's association. Before it runs, its offsets may be swapped for an
-   interchangeable operator's that land the source nearer its goal (agent/refine.py).
+   interchangeable operator's that land the source nearer its goal, and a box that the
+   symbols leave off its goal position on the table may be put down beside another first
+   (agent/refine.py; both with `refine`).
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
    step's operator predicted; on a mismatch the agent replans from the perceived state
    (if that replan fails, the current plan runs on).
@@ -31,7 +33,13 @@ import time
 from contextlib import contextmanager
 
 from drake_symplan.agent import beliefs
-from drake_symplan.agent.refine import advance, refine_step
+from drake_symplan.agent.refine import (
+    advance,
+    reaches,
+    refine_step,
+    reposition_action,
+    reposition_step,
+)
 
 GOAL_TOLERANCE = 0.05  # m
 STATUSES = ("success", "failure", "no_plan", "timeout", "infeasible", "error")
@@ -168,6 +176,7 @@ class _Run:
         self.monitor, self.max_replans, self.refine = monitor, max_replans, refine
         self.result = SolveResult("failure")
         self.goal, self.goal_reading, self.goal_atoms = None, None, set()
+        self.repositions = 0
 
     def go(self, start: beliefs.Named, goal: beliefs.Named) -> SolveResult:
         self.goal = goal
@@ -186,9 +195,17 @@ class _Run:
             return self._end(now, *stop)
         self.result.plan = list(steps)
         while True:
-            while steps:
+            while True:
+                if self.refine and self.repositions < 2 * len(now.names):
+                    extra = reposition_step(steps, now, self.goal.scene, GOAL_TOLERANCE)
+                    if extra is not None:
+                        steps.insert(0, extra)
+                        self.repositions += 1
+                if not steps:
+                    break
                 step = steps.pop(0)
-                if self.refine:
+                moving = reposition_action(step)
+                if self.refine and moving is None:
                     with self.clock("symbols"):
                         step = refine_step(self.bundle, step, steps, believed,
                                            self.goal_atoms,
@@ -196,7 +213,7 @@ class _Run:
                                            beliefs.positions(self.goal.scene),
                                            self.goal.scene.contacts)
                 with self.clock("execute"):
-                    action = self.bundle.action_of(step)
+                    action = moving or self.bundle.action_of(step)
                     execution = self.agent.backend.execute(action, now)
                 self.result.executed.append(step)
                 if execution.status == "infeasible":
@@ -209,13 +226,15 @@ class _Run:
                                      f"after {step} perception lost {', '.join(seen.lost)}")
                 before, now = reading, seen.scene
                 if not self.monitor:  # open loop: the state is what the operator predicted
-                    if self.refine:
+                    if self.refine and moving is None:
                         believed = advance(self.bundle, step, believed)
                     continue
                 with self.clock("symbols"):
                     reading = self._read(now)
                     believed = self._believe(reading)
-                    wrong = self.bundle.mismatches(reading, step, before)
+                    # A repositioning predicts no symbolic change: the rest must still apply.
+                    wrong = not reaches(self.bundle, steps, believed, self.goal_atoms) \
+                        if moving else self.bundle.mismatches(reading, step, before)
                 if wrong and self.result.replans < self.max_replans:
                     replanned, stop = self._replan(reading)
                     if not stop:
