@@ -110,6 +110,16 @@ def test_timeout_stops_the_planner(backend, hanoi_files):
     assert _processes_mentioning(str(hanoi_files / "p16.pddl")) == []
 
 
+def test_fast_downward_through_its_driver_finds_the_same_plan(hanoi_files, monkeypatch):
+    from drake_symplan.planning import planners
+
+    direct = fast_downward(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl")
+    monkeypatch.setattr(planners, "_fd_components", lambda driver: None)
+    driven = fast_downward(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl")
+    assert direct.status == driven.status == "solved"
+    assert direct.plan == driven.plan and len(direct.plan) == 7
+
+
 def test_missing_fast_downward_is_a_clear_error(hanoi_files, monkeypatch):
     result = fast_downward(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl",
                            driver="/nonexistent/fast-downward.py")
