@@ -139,6 +139,11 @@ class OracleBundle:
                 f"{' '.join(start.state.objects)} - obj) (:init {fmt(self._atoms(start))}) "
                 f"(:goal (and {fmt(goal_atoms)})))")
 
+    def plan(self, start, goal, planner, timeout, goal_contacts):
+        from drake_symplan.planning.planners import plan_pddl
+
+        return plan_pddl(self.domain, self.problem(start, goal, goal_contacts), planner, timeout)
+
     def action_of(self, step):
         _, a, b = step.strip("()").split()
         return Action(a, "center", b, "center")

@@ -100,3 +100,35 @@ def test_plans_on_the_cost_domain_check_with_the_strips_reader(bundle):
     plan = bundle.plan(start, goal, "fd").plan
     assert check_plan(bundle.domain, text, plan) is None
     assert check_plan(bundle.domain, text, []) is not None  # the goal does not hold yet
+
+
+def test_planning_starts_with_the_objects_whose_goal_atoms_change(bundle, monkeypatch):
+    from drake_symplan.planning import planners
+
+    start = reading([1, 1, 1])
+    goal = reading([1, 1, 1], on=[("a", "b")], contacts=[("a", "b")])
+    # a and b take part in the missing r0(a, b); c neither changes nor touches them.
+    assert bundle.focus(start, goal) == ("a", "b")
+    # c touches b at the start: it is planned with too.
+    assert bundle.focus(reading([1, 1, 1], contacts=[("b", "c")]), goal) == ("a", "b", "c")
+    assert bundle.focus(goal, goal) == ()
+    text = bundle.problem(start, goal, objects=("a", "b"))
+    assert "(:objects a b - obj)" in text and " c" not in text.split(":init")[1]
+    problems = []
+    real = planners.plan_pddl
+
+    def spy(domain, problem, *args, **kwargs):
+        problems.append(problem)
+        return real(domain, problem, *args, **kwargs)
+
+    monkeypatch.setattr(planners, "plan_pddl", spy)
+    result = bundle.plan(start, goal, "fd")
+    assert result.solved and len(result.plan) == 1 and len(problems) == 1
+    assert "(:objects a b - obj)" in problems[0]
+    # Already there: the empty plan, without a planner call.
+    assert bundle.plan(goal, goal, "fd").plan == [] and len(problems) == 1
+    # a and b lack p0, which no operator adds:
+    # unsolvable on the focus, then on all objects before that is the answer.
+    stuck = reading([0, 0, 1])
+    assert bundle.plan(stuck, goal, "fd").status == "unsolvable" and len(problems) == 3
+    assert "(:objects a b c - obj)" in problems[2]

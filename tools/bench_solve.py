@@ -5,7 +5,7 @@
 
 Per problem: perceive the goal scene and the start scene (depth cameras, box fitting,
 naming after the scene files), read both scenes' symbols with the model bundle, write the
-PDDL problem, plan. The overhead is the sum of those four; putting a scene on the table and
+PDDL problem and plan (the bundle's `plan`, as the agent does). The overhead is their sum; putting a scene on the table and
 letting physics settle it (the simulator's part, `show`) is reported apart. Medians over
 the problems; the target is a median overhead <= 0.5 s (issue 22), reported, not asserted.
 
@@ -28,11 +28,10 @@ from pathlib import Path
 import numpy as np
 
 TARGET_S = 0.5
-PHASES = ("perceive", "symbols", "write", "plan")
+PHASES = ("perceive", "symbols", "plan")
 
 
 def bench_problem(agent, bundle, folder: Path, planner: str, timeout: float) -> dict:
-    from drake_symplan.planning.planners import plan_pddl
     from drake_symplan.world.scenes import load_scene
 
     start, goal = load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml")
@@ -49,12 +48,8 @@ def bench_problem(agent, bundle, folder: Path, planner: str, timeout: float) -> 
     readings = {k: bundle.read(s.scene.names, s.scene.features(), s.scene.contacts)
                 for k, s in scenes.items()}
     seconds["symbols"] = time.perf_counter() - t
-    t = time.perf_counter()
-    costs = planner == "fd"  # pyperplan reads no action costs
-    text = bundle.problem(readings["start"], readings["goal"], scenes["goal"].scene.contacts,
-                          costs=costs)
-    seconds["write"] = time.perf_counter() - t
-    found = plan_pddl(bundle.domain if costs else bundle.domain_strips, text, planner, timeout)
+    found = bundle.plan(readings["start"], readings["goal"], planner, timeout,
+                        scenes["goal"].scene.contacts)
     seconds["plan"] = found.seconds
     lost = scenes["goal"].lost + scenes["start"].lost
     return {"problem": str(folder), "status": found.status, "plan_length": len(found.plan),

@@ -276,15 +276,9 @@ class _Run:
 
     def _plan(self, reading) -> tuple[list[str], tuple[str, str] | None]:
         """(steps, None), or ([], (cause, message)) when the planner found no plan."""
-        from drake_symplan.planning.planners import plan_pddl
-
-        costs = self.planner == "fd"  # pyperplan reads no action costs
-        with self.clock("symbols"):
-            text = self.bundle.problem(reading, self.goal_reading, self.goal.scene.contacts,
-                                       costs=costs)
         with self.clock("plan"):
-            domain = self.bundle.domain if costs else self.bundle.domain_strips
-            found = plan_pddl(domain, text, self.planner, self.timeout)
+            found = self.bundle.plan(reading, self.goal_reading, self.planner, self.timeout,
+                                     self.goal.scene.contacts)
         if found.solved:
             return list(found.plan), None
         return [], (_PLANNER_STATUS.get(found.status, "error"),
