@@ -172,9 +172,14 @@ class Reproduction:
                                 folder / "done.json", stdout=folder / "done.json"))
         return stages
 
+    def planning_runs(self) -> list[Path]:
+        """The bundles the arm problems are solved with, seed by seed (relational, then
+        attentive), so that an unfinished evaluation has whole seeds of both."""
+        return [self.bundles()[(m, seed, "effect")] for seed in self.scale.planning_seeds
+                for m in ("relational", "attentive")]
+
     def planning_stage(self) -> Stage:
-        runs = [self.bundles()[(m, seed, "effect")] for m in ("relational", "attentive")
-                for seed in self.scale.planning_seeds]
+        runs = self.planning_runs()
         return Stage("eval planning",
                      ["eval", "planning", "--runs", *runs, "--problems", self.out / "problems",
                       "--records", self.results / "planning.jsonl", "--plot",
@@ -202,6 +207,13 @@ class Reproduction:
         self._write_provenance(time.perf_counter() - t0)
         self.say(f"done in {time.perf_counter() - t0:.0f} s: {path}")
         return path
+
+    def report(self) -> Path:
+        """results.md from the stages done so far (an unfinished planning evaluation:
+        the runs and modes it has finished), without running anything."""
+        from drake_symplan.results_tables import write_results
+
+        return write_results(self)
 
     def _parallel(self, stages: list) -> None:
         """Runs `stages` (each a Stage or a tuple run in order) `jobs` at a time."""

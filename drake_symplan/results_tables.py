@@ -107,6 +107,9 @@ def summarise_planning(result: dict) -> dict:
                 labels = sorted({g for s in summaries for g in s[key]}, key=int)
                 entry[key] = {g: stat([s[key][g]["success"] for s in summaries if g in s[key]])
                               for g in labels}
+            bands = sorted({b for s in summaries for b in s.get("by_band", {})})
+            entry["by_band"] = {b: stat([s["by_band"][b]["success"] for s in summaries
+                                         if b in s["by_band"]]) for b in bands}
             causes = defaultdict(int)
             for s in summaries:
                 for cause, n in s["failure_causes"].items():
@@ -119,17 +122,52 @@ def summarise_planning(result: dict) -> dict:
 def planning_markdown(table: dict) -> str:
     ns = sorted({n for m in table.values() for e in m.values() for n in e["by_objects"]}, key=int)
     ks = sorted({k for m in table.values() for e in m.values() for k in e["by_k"]}, key=int)
-    head = ["model", "execution", "seeds", "problems", "success"]
+    bands = list(dict.fromkeys(b for m in table.values() for e in m.values()
+                               for b in e.get("by_band", {})))
+    head = ["model", "execution", "seeds", "problems", "success", *bands]
     head += [f"{n} objects" for n in ns] + [f"k={k}" for k in ks] + ["failures (all seeds)"]
     rows = []
     for model, modes in table.items():
         for mode, e in modes.items():
             rows.append([model, mode.replace("_", " "), str(e["seeds"]), str(e["problems"]),
                          pm(e["success"])]
+                        + [pm(e["by_band"][b]) if b in e.get("by_band", {}) else "–"
+                           for b in bands]
                         + [pm(e["by_objects"][n]) if n in e["by_objects"] else "–" for n in ns]
                         + [pm(e["by_k"][k]) if k in e["by_k"] else "–" for k in ks]
                         + [", ".join(f"{c} {n}" for c, n in e["failure_causes"].items()) or "–"])
     return _table(head, rows)
+
+
+def finished_planning(rep) -> tuple[dict, str]:
+    """The planning evaluation's result for results.md and a note: the stage's own
+    output once it has finished; before that, the (run, mode) pairs whose every problem is
+    in its records so far, summarised the same way."""
+    from drake_symplan.agent.evaluation import MODES, plot_planning, run_label, summarise
+    from drake_symplan.agent.problems import load_problems
+
+    res = rep.results
+    if (res / "planning.json").exists():
+        return json.loads((res / "planning.json").read_text()), ""
+    records_path = res / "planning.jsonl"
+    records = [json.loads(line) for line in records_path.read_text().splitlines()
+               if line.strip()] if records_path.exists() else []
+    problems = {str(Path(p["dir"])) for p in load_problems(rep.out / "problems")} \
+        if (rep.out / "problems").is_dir() else set()
+    groups = defaultdict(dict)
+    for r in records:
+        if r["problem"] in problems:
+            groups[(r["run"], r["monitor"])][r["problem"]] = r
+    pairs = [(run_label(run), mode) for run in rep.planning_runs() for mode in (True, False)]
+    whole = [pair for pair in pairs if problems and len(groups[pair]) == len(problems)]
+    summary = summarise([r for pair in whole for r in groups[pair].values()])
+    if whole:
+        plot_planning(summary, res / "planning.png")
+    done = sum(len(groups[pair]) for pair in pairs)
+    note = (f"Unfinished: {done} of {len(pairs) * len(problems)} solves done; the table "
+            "holds the runs whose every problem is solved: "
+            + (", ".join(f"{run} ({MODES[mode]})" for run, mode in whole) or "none") + ".")
+    return {"runs": summary}, note
 
 
 # --- a reproduction's results.md --------------------------------------------------------
@@ -142,7 +180,8 @@ def write_results(rep) -> Path:
     res = rep.results
     effects = json.loads((res / "effects.json").read_text())
     operators = summarise_operators(collect_operator_reports(rep.out / "runs"))
-    planning = summarise_planning(json.loads((res / "planning.json").read_text()))
+    planning_result, planning_note = finished_planning(rep)
+    planning = summarise_planning(planning_result)
     write_atomic(res / "operators.json", json.dumps(operators, indent=1))
     write_atomic(res / "planning_table.json", json.dumps(planning, indent=1))
     s = rep.scale
@@ -156,8 +195,8 @@ def write_results(rep) -> Path:
         "## Planning at the symbolic level, held-out episodes (% solved by Fast Downward)", "",
         operators_markdown(operators), "",
         f"## Planning in the arm, {s.planning_problems} problems per object count "
-        f"(% within 5 cm)", "", planning_markdown(planning), "", "![planning](planning.png)",
-        ""])
+        f"(% within 5 cm)", "", *([planning_note, ""] if planning_note else []),
+        planning_markdown(planning), "", "![planning](planning.png)", ""])
     path = res / "results.md"
     write_atomic(path, text)
     return path

@@ -63,6 +63,48 @@ def test_a_failing_stage_is_one_line_and_exit_1(tmp_path, capsys):
     assert main(["reproduce", "--scale", "huge", "--out", str(tmp_path)]) == 2
 
 
+def test_an_unfinished_planning_evaluation_reports_its_whole_runs(tmp_path):
+    from drake_symplan.results_tables import (
+        finished_planning,
+        planning_markdown,
+        summarise_planning,
+    )
+
+    rep = Reproduction("small", tmp_path)
+    assert [r.parent.name for r in rep.planning_runs()] == ["relational_s0", "attentive_s0"]
+    folders = []
+    for name, k in (("p000", 1), ("p001", 4)):
+        folder = tmp_path / "problems" / "o2" / name
+        folder.mkdir(parents=True)
+        (folder / "problem.json").write_text(json.dumps({"k": k, "n_objects": 2}))
+        folders.append(str(folder))
+    rep.results.mkdir()
+
+    def record(run, monitor, problem, k, status):
+        return {"run": f"{run}/bundle_effect", "monitor": monitor, "problem": problem,
+                "n_objects": 2, "k": k, "status": status,
+                "failure_cause": None if status == "success" else "execution",
+                "success_true": status == "success", "symbolic_goal_reached": True,
+                "plan_length": 1, "executed": 1, "replans": 0,
+                "seconds": {"plan": 0.1}, "error_cm": {}}
+
+    lines = [record("relational_s0", True, folders[0], 1, "success"),
+             record("relational_s0", True, folders[1], 4, "failure"),
+             record("attentive_s0", True, folders[0], 1, "success")]  # one of two
+    (rep.results / "planning.jsonl").write_text("\n".join(json.dumps(x) for x in lines))
+    result, note = finished_planning(rep)
+    assert note.startswith("Unfinished: 3 of 8 solves done") and \
+        "relational_s0/bundle_effect (monitor)." in note
+    table = summarise_planning(result)
+    assert list(table) == ["relational"] and list(table["relational"]) == ["monitor"]
+    entry = table["relational"]["monitor"]
+    assert entry["success"]["mean"] == 0.5
+    assert entry["by_band"]["2-4 objects, k 1-3"]["mean"] == 1.0
+    assert entry["by_band"]["2-4 objects, k 4-5"]["mean"] == 0.0
+    assert "| relational | monitor | 1 | 2 | 50 ± 0 | 100 ± 0 | 0 ± 0 |" in \
+        planning_markdown(table)
+
+
 @pytest.mark.slow
 def test_small_scale_end_to_end_then_a_goal_in_the_arm(tmp_path):
     from drake_symplan.agent.solve import solve

@@ -27,6 +27,9 @@ from drake_symplan.agent.solve import GOAL_TOLERANCE
 from drake_symplan.atomic import save_figure
 
 MODES = {True: "monitor", False: "open_loop"}
+# The targets are set on these bands of (object count, k).
+BANDS = {"2-4 objects, k 1-3": ((2, 3, 4), (1, 2, 3)), "2-4 objects, k 4-5": ((2, 3, 4), (4, 5)),
+         "8 objects, k 1-3": ((8,), (1, 2, 3))}
 
 
 def run_label(run) -> str:
@@ -186,6 +189,10 @@ def summarise(records: list[dict]) -> dict:
             "success_true": round(_rate(rs, "success_true"), 4),
             "by_objects": _group(rs, "n_objects"),
             "by_k": _group(rs, "k"),
+            "by_band": {band: {"problems": len(b), "success": round(_rate(b), 4)}
+                        for band, (ns, ks) in BANDS.items()
+                        for b in [[r for r in rs if r["n_objects"] in ns and r["k"] in ks]]
+                        if b},
             "plan_seconds": {"median": round(statistics.median(plan_s), 4),
                              "mean": round(float(np.mean(plan_s)), 4)},
             "plan_length_minus_k": round(float(np.mean(

@@ -1,5 +1,6 @@
-"""`symplan reproduce --scale small|paper [--out DIR] [--ray [ADDRESS]]`: the whole pipeline
-and every results table, resumable (drake_symplan/reproduce.py).
+"""`symplan reproduce --scale small|paper [--out DIR] [--ray [ADDRESS]] [--report]`: the whole
+pipeline and every results table, resumable (drake_symplan/reproduce.py); `--report` writes
+the tables of the stages done so far.
 
 Exit status: 0 done, 1 a stage failed (one line on stderr naming it and its log), 2 bad
 input."""
@@ -29,6 +30,8 @@ def register(subparsers) -> None:
                    help="training runs at a time, and local collection workers (default 2)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="collect and solve the arm problems on Ray (no address: this machine)")
+    p.add_argument("--report", action="store_true",
+                   help="run nothing: write results.md from the stages done so far")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run_reproduce)
 
@@ -41,6 +44,11 @@ def run_reproduce(args):
         raise CommandError(f"--out {out} is a file, not a directory")
     rep = Reproduction(args.scale, out, jobs=args.jobs, ray=args.ray,
                        say=lambda text: print(text, file=sys.stderr, flush=True))
+    if args.report:
+        if not (rep.results / "effects.json").exists():
+            raise CommandError(f"nothing to report in {out}: its effects stage has not run")
+        path = rep.report()
+        return {"status": "report", "results": str(path), "out": str(out)}
     try:
         path = rep.run()
     except StageFailed as e:
