@@ -134,3 +134,20 @@ def test_no_repositioning_onto_an_occupied_spot_of_a_box_that_carries_or_is_carr
                   "c": ("cube", (0.4, -0.2, 0.025))}, [("a", "b")])
     assert reposition_step([], cubes(a=(0.5, 0.3), b=(0.6, 0.0), c=(0.4, -0.2)), on_b,
                            0.05) is None
+
+
+def test_a_stack_in_the_wrong_place_moves_as_one():
+    from drake_symplan.agent.refine import carried, reposition_step
+
+    def stack(y):  # a rests on b at (0.6, y)
+        return scene({"a": ("cube", (0.6, y, 0.075)), "b": ("cube", (0.6, y, 0.025))},
+                     [("a", "b")])
+
+    assert carried(stack(0.0), "b") == {"a"} and carried(stack(0.0), "a") == set()
+    # The goal has the stack 7.5 cm to the left: pick b (a rides along), release at a's
+    # left, a's position taken before the move.
+    assert reposition_step([], stack(0.0), stack(-0.075), 0.05) == \
+        "(reposition_center_left b a)"
+    # A later step moves a: b alone is off by 7.5 cm and goes all the same.
+    assert reposition_step(["(pick_center_place_center_n10_op0 a b)"], stack(0.0),
+                           stack(-0.075), 0.05) == "(reposition_center_left b a)"

@@ -16,10 +16,11 @@ one relative to the target (the target may move later); otherwise it is absolute
 The symbols do not say where on the table a box stands either, so a plan can reach the
 goal's atoms with a stack built 20 cm from where the goal has it. `reposition_step` fills
 that gap before each step and after the last: a box that rests on nothing in the goal, is
-off its goal position, carries nothing and is moved by no later step, is put down beside
-another box (the same pick/place action) so that it lands within the tolerance of its
-goal, on a free spot of the table. Its learned operators have no symbolic effect to
-predict; the monitor checks afterwards that the rest of the plan still applies.
+off its goal position (or carries one that is) and is moved by no later step, is put
+down beside another box (the same pick/place action) so that it lands within the
+tolerance of its goal, on a free spot of the table; what rests on it rides along (a
+stack built in the wrong place moves as one, released relative to its own top if need be). Its learned operators have no symbolic effect to predict; the
+monitor checks afterwards that the rest of the plan still applies.
 """
 
 from __future__ import annotations
@@ -128,33 +129,53 @@ def rests_on(scene, name: str) -> list[str]:
             if box.position[2] - scene.object(o).position[2] > RESTS_ON]
 
 
+def carried(scene, name: str) -> set[str]:
+    """The boxes that rest on `name` in a perceived scene, directly or on one that does:
+    they ride along when it is carried (skills/pick_place.py carries slowly enough)."""
+    load, todo = set(), [name]
+    while todo:
+        base = todo.pop()
+        for other in scene.names:
+            if other != name and other not in load and base in rests_on(scene, other):
+                load.add(other)
+                todo.append(other)
+    return load
+
+
 def reposition_step(rest: list[str], now, goal, tolerance: float) -> str | None:
-    """A step that puts a box resting on nothing in the goal within `tolerance` of its goal
-    position, beside another box, or None. `now`, `goal`: perceived scenes by the same
-    names; `rest`: the plan's remaining steps (their sources are left to them)."""
+    """A step that puts a box resting on nothing in the goal, with what rests on it, within
+    `tolerance` of its goal position, beside another box, or None. `now`, `goal`: perceived
+    scenes by the same names; `rest`: the plan's remaining steps (their sources are left to
+    them)."""
     from drake_symplan.symbolic.pddl import plan_step_action
 
     movers = {plan_step_action(s).action.source for s in rest}
     boxes = {o.name: o for o in now.objects}
-    carriers = {b for n in boxes for b in rests_on(now, n)}
     wanted = {n: goal.object(n).position for n in boxes}
-    off = sorted((n for n in boxes if np.linalg.norm(boxes[n].position - wanted[n]) > tolerance
-                  and n not in movers and n not in carriers and not rests_on(goal, n)),
-                 key=lambda n: -np.linalg.norm(boxes[n].position - wanted[n]))
-    for src in off:
-        size = footprint(boxes[src])
+
+    def error(n) -> float:
+        return float(np.linalg.norm(boxes[n].position - wanted[n]))
+
+    loads = {n: carried(now, n) for n in boxes}
+    sources = sorted((n for n in boxes if n not in movers and not rests_on(goal, n)
+                      and max(error(m) for m in {n} | loads[n] - movers) > tolerance),
+                     key=lambda n: -max(error(m) for m in {n} | loads[n]))
+    for src in sources:
+        size, load = footprint(boxes[src]), loads[src]
         best = None
         for tgt, grasp, release in ((t, g, r) for t in boxes if t != src
                                     for g in OFFSETS for r in OFFSETS):
             if abs(OFFSET_METRES[grasp]) >= size[1]:  # the grasp point is off the box
                 continue
             land = boxes[tgt].position[:2] + [0.0, OFFSET_METRES[release] - OFFSET_METRES[grasp]]
-            error = float(np.linalg.norm(land - wanted[src][:2]))
-            if error > LAND_TOLERANCE or (best is not None and error >= best[0]):
+            shift = land - boxes[src].position[:2]
+            miss = max(float(np.linalg.norm(boxes[n].position[:2] + shift - wanted[n][:2]))
+                       for n in {src} | load - movers)
+            if miss > LAND_TOLERANCE or (best is not None and miss >= best[0]):
                 continue
             if all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
-                   for n, o in boxes.items() if n != src):
-                best = (error, f"(reposition_{grasp}_{release} {src} {tgt})")
+                   for n, o in boxes.items() if n != src and n not in load):
+                best = (miss, f"(reposition_{grasp}_{release} {src} {tgt})")
         if best is not None:
             return best[1]
     return None
