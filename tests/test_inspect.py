@@ -57,6 +57,8 @@ def test_readable_steps():
         "pick o3 at its centre, release on o1's left"
     assert readable_step("(PICK_LEFT_PLACE_CENTER_N5_OP0 o0 o2 o1)") == \
         "pick o0 at its left end, release on o2's centre"
+    assert readable_step("(reposition_center_right o1 o0)") == \
+        "pick o1 at its centre, release on o0's right (repositioning)"
 
 
 def test_patterns_and_colours():

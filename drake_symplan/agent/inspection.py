@@ -40,11 +40,14 @@ RELEASE = {"center": "centre", "left": "left", "right": "right"}
 
 def readable_step(step: str) -> str:
     """'(pick_center_place_left_n86_op2 o3 o1)' -> 'pick o3 at its centre, release on
-    o1's left'."""
+    o1's left'; a repositioning (agent/refine.py) says so."""
+    from drake_symplan.agent.refine import reposition_action
     from drake_symplan.symbolic.pddl import plan_step_action
 
-    a = plan_step_action(step).action
-    return f"pick {a.source} {GRASP[a.grasp]}, release on {a.target}'s {RELEASE[a.release]}"
+    moved = reposition_action(step)
+    a = moved or plan_step_action(step).action
+    text = f"pick {a.source} {GRASP[a.grasp]}, release on {a.target}'s {RELEASE[a.release]}"
+    return text if moved is None else f"{text} (repositioning)"
 
 
 def atom_text(atom) -> str:
