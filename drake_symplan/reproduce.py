@@ -174,7 +174,8 @@ class Reproduction:
 
     def planning_runs(self) -> list[Path]:
         """The bundles the arm problems are solved with, seed by seed (relational, then
-        attentive), so that an unfinished evaluation has whole seeds of both."""
+        attentive), so that an unfinished evaluation has whole seeds of both (monitored
+        first: eval planning solves one monitoring mode after the other)."""
         return [self.bundles()[(m, seed, "effect")] for seed in self.scale.planning_seeds
                 for m in ("relational", "attentive")]
 

@@ -85,7 +85,9 @@ def evaluate_planning(runs: list, problems_dir, planner: str = "fd", backend: st
         load_bundle = ModelBundle.load
     bundles = {run_label(run): load_bundle(run) for run in runs}  # bad runs fail up front
     done, records = _resume(records_path)
-    todo = [(label, bool(mode), problem) for label in bundles for mode in monitor
+    # Monitoring mode by mode, run by run: an unfinished evaluation has whole runs of the
+    # first mode (the headline) before any of the second.
+    todo = [(label, bool(mode), problem) for mode in monitor for label in bundles
             for problem in problems if (label, bool(mode), str(Path(problem["dir"]))) not in done]
 
     def finish(record: dict) -> None:
