@@ -115,6 +115,9 @@ def summarise_planning(result: dict) -> dict:
                 for cause, n in s["failure_causes"].items():
                     causes[cause] += n
             entry["failure_causes"] = dict(causes)
+            entry["execution_symbols_reached"] = sum(
+                s.get("execution_failures", {}).get("symbolic_goal_reached", 0)
+                for s in summaries)
             out.setdefault(model, {})[mode] = entry
     return out
 
@@ -135,8 +138,18 @@ def planning_markdown(table: dict) -> str:
                            for b in bands]
                         + [pm(e["by_objects"][n]) if n in e["by_objects"] else "–" for n in ns]
                         + [pm(e["by_k"][k]) if k in e["by_k"] else "–" for k in ks]
-                        + [", ".join(f"{c} {n}" for c, n in e["failure_causes"].items()) or "–"])
+                        + [failures_text(e)])
     return _table(head, rows)
+
+
+def failures_text(entry: dict) -> str:
+    """'execution 159 (110 with the goal's symbols), timeout 54, ...' over all seeds."""
+    parts = []
+    for cause, n in entry["failure_causes"].items():
+        reached = entry.get("execution_symbols_reached", 0) if cause == "execution" else 0
+        parts.append(f"{cause} {n}" + (f" ({reached} with the goal's symbols)" if reached
+                                        else ""))
+    return ", ".join(parts) or "–"
 
 
 def finished_planning(rep) -> tuple[dict, str]:
