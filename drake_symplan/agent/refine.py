@@ -37,6 +37,7 @@ MIN_GAIN = 0.01  # m: a change of offsets must bring the source this much nearer
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
 CLEARANCE = 0.01  # m: free table between a repositioned box and every other box
 RESTS_ON = 0.03  # m: a box in contact with another and this much higher rests on it
+REPOSITIONS_PER_OBJECT = 2  # a solve's repositionings at most, per object
 _REPOSITION = re.compile(r"^\(reposition_(?P<grasp>[a-z]+)_(?P<release>[a-z]+) (\S+) (\S+)\)$")
 
 

@@ -34,6 +34,7 @@ from contextlib import contextmanager
 
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.refine import (
+    REPOSITIONS_PER_OBJECT,
     advance,
     reaches,
     refine_step,
@@ -196,7 +197,7 @@ class _Run:
         self.result.plan = list(steps)
         while True:
             while True:
-                if self.refine and self.repositions < 2 * len(now.names):
+                if self.refine and self.repositions < REPOSITIONS_PER_OBJECT * len(now.names):
                     extra = reposition_step(steps, now, self.goal.scene, GOAL_TOLERANCE)
                     if extra is not None:
                         steps.insert(0, extra)

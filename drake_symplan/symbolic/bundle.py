@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -206,8 +207,6 @@ class ModelBundle:
              goal_contacts=None):
         """Plans from start to goal; a planning.PlanResult. The `focus` objects first; only
         if that proves unsolvable, all of them, in the time left."""
-        import time
-
         from drake_symplan.planning.planners import PlanResult, plan_pddl
 
         t0 = time.perf_counter()
