@@ -301,7 +301,7 @@ def main(argv=None) -> int:
     result = agent.solve(start, goal, bundle, args.planner, record=args.out)
     out = result.to_json()
     if result.executed != steps:
-        say("executed (after replanning): " + "; ".join(readable_step(s)
+        say("executed (repositionings and replans included): " + "; ".join(readable_step(s)
                                                          for s in result.executed))
     for name, o in out["objects"].items():
         say(f"  {name}: {o['error_cm']} cm from its goal")
