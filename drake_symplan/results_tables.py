@@ -156,15 +156,19 @@ def finished_planning(rep) -> tuple[dict, str]:
     """The planning evaluation's result for results.md and a note: the stage's own
     output once it has finished; before that, the (run, mode) pairs whose every problem is
     in its records so far, summarised the same way."""
-    from drake_symplan.agent.evaluation import MODES, plot_planning, run_label, summarise
+    from drake_symplan.agent.evaluation import (
+        MODES,
+        plot_planning,
+        read_records,
+        run_label,
+        summarise,
+    )
     from drake_symplan.agent.problems import load_problems
 
     res = rep.results
     if (res / "planning.json").exists():
         return json.loads((res / "planning.json").read_text()), ""
-    records_path = res / "planning.jsonl"
-    records = [json.loads(line) for line in records_path.read_text().splitlines()
-               if line.strip()] if records_path.exists() else []
+    records = read_records(res / "planning.jsonl")
     problems = {str(Path(p["dir"])) for p in load_problems(rep.out / "problems")} \
         if (rep.out / "problems").is_dir() else set()
     groups = defaultdict(dict)

@@ -148,11 +148,16 @@ def _solve_on_ray(address: str, backend: str, bundles: dict, todo: list, setting
                  min(cluster_cpus(ray), len(jobs)), lambda i, record: finish(record))
 
 
-def _resume(records_path) -> tuple[set, list[dict]]:
+def read_records(records_path) -> list[dict]:
+    """The records of a JSON-lines file (none if there is no such file)."""
     if records_path is None or not Path(records_path).is_file():
-        return set(), []
-    records = [json.loads(line) for line in Path(records_path).read_text().splitlines()
-               if line.strip()]
+        return []
+    return [json.loads(line) for line in Path(records_path).read_text().splitlines()
+            if line.strip()]
+
+
+def _resume(records_path) -> tuple[set, list[dict]]:
+    records = read_records(records_path)
     return {(r["run"], r["monitor"], r["problem"]) for r in records}, records
 
 

@@ -19,8 +19,9 @@ that gap before each step and after the last: a box that rests on nothing in the
 off its goal position (or carries one that is) and is moved by no later step, is put
 down beside another box (the same pick/place action) so that it lands within the
 tolerance of its goal, on a free spot of the table; what rests on it rides along (a
-stack built in the wrong place moves as one, released relative to its own top if need be). Its learned operators have no symbolic effect to predict; the
-monitor checks afterwards that the rest of the plan still applies.
+stack built in the wrong place moves as one, released relative to its own top if need
+be). Its learned operators have no symbolic effect to predict; the monitor checks
+afterwards that the rest of the plan still applies.
 """
 
 from __future__ import annotations
