@@ -23,6 +23,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.atomic import write_atomic
 
 
@@ -91,11 +92,11 @@ class Reproduction:
     """The stages of one scale in `out`; `run()` runs what is not done yet."""
 
     def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
-                 say=print):
+                 say=print, solve: SolveConfig = DEFAULT_SOLVE):
         if scale not in SCALES:
             raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
         self.name, self.scale, self.out = scale, SCALES[scale], Path(out)
-        self.jobs, self.ray, self.say = jobs, ray, say
+        self.jobs, self.ray, self.say, self.solve = jobs, ray, say, solve
         self.train_data, self.heldout_data = self.out / "data/train", self.out / "data/heldout"
         self.results = self.out / "results"
         self.log: list[dict] = []
@@ -184,7 +185,8 @@ class Reproduction:
         return Stage("eval planning",
                      ["eval", "planning", "--runs", *runs, "--problems", self.out / "problems",
                       "--records", self.results / "planning.jsonl", "--plot",
-                      self.results / "planning.png", "--json", *self._ray()],
+                      self.results / "planning.png", "--json", *self.solve.flags(),
+                      *self._ray()],
                      self.results / "planning.json", stdout=self.results / "planning.json")
 
     # --- running ----------------------------------------------------------------

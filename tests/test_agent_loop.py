@@ -2,32 +2,37 @@
 after the scene file, the monitor's replanning, goal contacts, the check and its JSON.
 
 FakeBackend moves a picked box onto the target's top and perceives exact boxes;
-OracleBundle reads "a rests on b" from the features and plans with a one-action domain
-(Fast Downward or pyperplan run for real)."""
+OracleAbstraction reads "a rests on b" from the features and plans with a one-action
+domain (Fast Downward or pyperplan run for real)."""
 
 from __future__ import annotations
 
-import dataclasses as dc
+import contextlib
 
 import numpy as np
 import pytest
 
+from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
 from drake_symplan.agent import beliefs
+from drake_symplan.agent.config import SolveConfig
 from drake_symplan.agent.solve import Agent, SolveResult
-from drake_symplan.data.backends import Execution
 from drake_symplan.perception.features import object_features
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
+from drake_symplan.robot.backends import Execution
 from drake_symplan.structs import Action, ObjectState
-from drake_symplan.symbolic.effect_operators import EffectOperator
 from drake_symplan.symbolic.states import SymbolicState
+from drake_symplan.symbolic.structs import Atom, LiftedOperator
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
-DOMAIN = """(define (domain oracle) (:requirements :strips :typing) (:types obj)
- (:predicates (on ?x ?y - obj) (free ?x - obj))
+DOMAIN = """(define (domain symplan) (:requirements :strips :typing :action-costs) (:types obj)
+ (:predicates (on ?x ?y - obj) (free ?x - obj) (different ?x ?y - obj))
+ (:functions (total-cost) - number)
  (:action pick_center_place_center_n1_op0 :parameters (?a ?b - obj)
   :precondition (and (free ?a) (free ?b))
-  :effect (and (on ?a ?b) (not (free ?b)))))
+  :effect (and (on ?a ?b) (not (free ?b)) (increase (total-cost) 1))))
 """
+DOMAIN_STRIPS = DOMAIN.replace(" :action-costs", "").replace(
+    " (:functions (total-cost) - number)\n", "").replace(" (increase (total-cost) 1)", "")
 
 
 class FakeStation:
@@ -55,6 +60,15 @@ class FakeBackend:
         self.station = FakeStation()
         self.executed: list[Action] = []
 
+    def reset(self, scene):
+        self.station.reset(scene)
+
+    def ground_truth_states(self):
+        return self.station.object_states()
+
+    def recording(self, path):
+        return contextlib.nullcontext()
+
     def perceive(self, prior=None):
         items = sorted(self.station.truth.items(), key=lambda kv: tuple(kv[1]))
         objects = [PerceivedObject(f"p{i}", self.station.types[n], p.copy(), 0.0, 0.0,
@@ -76,28 +90,29 @@ def _on(a, b) -> bool:
     return abs(a[2] - b[2] - 0.05) < 0.01 and np.linalg.norm(a[:2] - b[:2]) < 0.03
 
 
-@dc.dataclass
-class Reading:
-    state: SymbolicState
-    unary_uncertain: np.ndarray
-    relational_uncertain: np.ndarray
-
-
 class OracleBundle:
-    """A model bundle that knows the fake world: p0 = free (nothing rests on it),
-    r0(a, b) = a rests on b, read from the features' positions."""
+    """A model bundle's data for the fake world: its one operator, for choosing offsets
+    (agent/refine.py; nothing to choose) and for reading plan steps."""
 
-    domain = domain_strips = DOMAIN
-    # The domain's one operator, for choosing offsets (agent/refine.py): nothing to choose.
-    operators = [EffectOperator(0, "center", "center", 2, (("free", 0), ("free", 1)),
+    domain, domain_strips = DOMAIN, DOMAIN_STRIPS
+    operators = [LiftedOperator(0, "center", "center", 2, (("free", 0), ("free", 1)),
                                 (("on", 0, 1),), (("free", 1),), 1)]
+    by_name = {op.name: op for op in operators}
+    path = "oracle"
+
+
+class OracleAbstraction(Abstraction):
+    """The abstraction of a model that knows the fake world: p0 = free (nothing rests on
+    it), r0(a, b) = a rests on b, read from the features' positions."""
 
     def __init__(self, force_mismatches: int = 0, hide_atoms: int = 0,
                  fail_replans: bool = False):
+        super().__init__(OracleBundle())
         self.force_mismatches = force_mismatches  # mismatches() reports one this many times
-        self.hide_atoms = hide_atoms  # atoms() sees none this many times
-        self.fail_replans = fail_replans  # problems after the first name an unknown object
+        self.hide_atoms = hide_atoms  # atoms() of what is seen is empty this many times
+        self.fail_replans = fail_replans  # plans after the first fail (a planner error)
         self.goal_contacts = []
+        self.plans = 0
 
     def read(self, names, features, contacts=()):
         pos = np.asarray(features)[:, :3]
@@ -105,54 +120,40 @@ class OracleBundle:
         on = np.array([[i != j and _on(pos[i], pos[j]) for j in range(n)] for i in range(n)])
         free = ~on.any(axis=0)
         state = SymbolicState(tuple(names), free[:, None], on[None])
-        return Reading(state, np.zeros((n, 1), bool), np.zeros((1, n, n), bool))
+        return Reading(state, np.zeros((n, 1), bool), np.zeros((1, n, n), bool),
+                       {tuple(p) for p in contacts})
 
     def _atoms(self, reading, pairs=None):
         s = reading.state
-        atoms = {("free", o) for o, f in zip(s.objects, s.unary[:, 0], strict=True) if f}
+        atoms = {Atom("free", o) for o, f in zip(s.objects, s.unary[:, 0], strict=True) if f}
         for i, a in enumerate(s.objects):
             for j, b in enumerate(s.objects):
                 if s.relational[0, i, j] and (pairs is None or (a, b) in pairs):
-                    atoms.add(("on", a, b))
-        return atoms
+                    atoms.add(Atom("on", a, b))
+        return frozenset(atoms)
 
-    def operator_of(self, step):
-        return self.operators[0]
-
-    def atoms(self, reading, guess=False):
-        if self.hide_atoms > 0:
+    def atoms(self, reading, guess=False, contacts_only=None):
+        if self.hide_atoms > 0 and not guess:
             self.hide_atoms -= 1
-            return set(), set()
-        return self._atoms(reading), set()
+            return frozenset(), frozenset()
+        return self._atoms(reading), frozenset()
 
-    def goal_atoms(self, goal, goal_contacts):
-        pairs = {p for a, b in goal_contacts for p in ((a, b), (b, a))}
-        return {a for a in self._atoms(goal, pairs) if a[0] == "on"}
+    def goal_atoms(self, goal):
+        self.goal_contacts.append(set(goal.contacts))
+        pairs = {p for a, b in goal.contacts for p in ((a, b), (b, a))}
+        return frozenset(a for a in self._atoms(goal, pairs) if a[0] == "on")
 
-    def problem(self, start, goal, goal_contacts, name="goal", costs=True):
-        self.goal_contacts.append(set(goal_contacts))
-        goal_atoms = self.goal_atoms(goal, goal_contacts)
-        if self.fail_replans and len(self.goal_contacts) > 1:
-            goal_atoms = {("free", "nowhere")}  # the planner rejects the problem
-        fmt = lambda atoms: " ".join("(" + " ".join(a) + ")" for a in sorted(atoms))  # noqa: E731
-        return (f"(define (problem {name}) (:domain oracle) (:objects "
-                f"{' '.join(start.state.objects)} - obj) (:init {fmt(self._atoms(start))}) "
-                f"(:goal (and {fmt(goal_atoms)})))")
+    def plan(self, start, goal, planner="fd", timeout=10.0):
+        self.plans += 1
+        if self.fail_replans and self.plans > 1:
+            return Plan("error", message="forced")
+        return super().plan(start, goal, planner, timeout)
 
-    def plan(self, start, goal, planner, timeout, goal_contacts):
-        from drake_symplan.planning.planners import plan_pddl
-
-        return plan_pddl(self.domain, self.problem(start, goal, goal_contacts), planner, timeout)
-
-    def action_of(self, step):
-        _, a, b = step.strip("()").split()
-        return Action(a, "center", b, "center")
-
-    def mismatches(self, after, step, before):
+    def mismatches(self, after, step):
         if self.force_mismatches > 0:
             self.force_mismatches -= 1
             return [("free", "forced")]
-        _, a, b = step.strip("()").split()
+        a, b = step.args
         return [] if ("on", a, b) in self._atoms(after) else [("on", a, b)]
 
 
@@ -164,19 +165,21 @@ START = Scene([cube("a", 0.6, -0.2), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25)])
 GOAL = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25)])
 
 
-def solve(bundle, monitor=True, max_replans=2, start=START, goal=GOAL) -> tuple[SolveResult,
-                                                                              FakeBackend]:
+def solve(abstraction, monitor=True, max_replans=2, start=START, goal=GOAL
+          ) -> tuple[SolveResult, FakeBackend]:
     backend = FakeBackend()
-    result = Agent(backend).solve(start, goal, bundle, "fd", 20.0, monitor, max_replans,
-                                  refine=False)
+    config = SolveConfig("fd", 20.0, monitor, max_replans, refine=False)
+    result = Agent(backend).solve(start, goal, abstraction, config)
     return result, backend
 
 
+STEP = "(pick_center_place_center_n1_op0 a b)"
+
+
 def test_solves_a_one_action_goal_and_reports_the_documented_json():
-    bundle = OracleBundle()
-    result, backend = solve(bundle)
+    result, backend = solve(OracleAbstraction())
     assert result.status == "success", result.to_json()
-    assert result.plan == result.executed == ["(pick_center_place_center_n1_op0 a b)"]
+    assert [str(s) for s in result.plan] == [str(s) for s in result.executed] == [STEP]
     assert backend.executed == [Action("a", "center", "b", "center")]
     out = result.to_json()
     assert set(out) == {"status", "plan", "executed", "replans", "objects", "seconds"}
@@ -187,27 +190,25 @@ def test_solves_a_one_action_goal_and_reports_the_documented_json():
 
 
 def test_goal_contacts_are_the_perceived_goal_contacts_under_file_names():
-    bundle = OracleBundle()
-    solve(bundle)
-    assert bundle.goal_contacts[0] == {("a", "b")}  # c touches nothing in the goal
+    abstraction = OracleAbstraction()
+    solve(abstraction)
+    assert abstraction.goal_contacts[0] == {("a", "b")}  # c touches nothing in the goal
 
 
 def test_the_bundle_writes_goal_relations_only_between_the_contacting_pairs():
     from pathlib import Path
 
     from drake_symplan.symbolic.bundle import ModelBundle
-    from drake_symplan.symbolic.bundle import Reading as BundleReading
     from drake_symplan.symbolic.effect_operators import EFFECT
-    from drake_symplan.symbolic.pddl import read_problem
 
     bundle = ModelBundle(Path("hand-made"), None, [], EFFECT, {"n_unary": 1, "n_relations": 2},
                          {})
     names = ("a", "b", "c")
     every_bit = SymbolicState(names, np.ones((3, 1), bool), np.ones((2, 3, 3), bool))
     unsure = np.zeros((3, 1), bool), np.zeros((2, 3, 3), bool)
-    start = BundleReading(every_bit, *unsure, contacts={("a", "b"), ("b", "c")})
-    goal = BundleReading(every_bit, *unsure, contacts={("a", "b"), ("b", "c")})
-    _, _, atoms = read_problem(bundle.problem(start, goal, {("a", "b")}, costs=False))
+    start = Reading(every_bit, *unsure, contacts={("a", "b"), ("b", "c")})
+    goal = Reading(every_bit, *unsure, contacts={("a", "b")})
+    atoms = Abstraction(bundle).task(start, goal).goal
     # Unary symbols, and each object's contact degree in the goal's contacts (a, b).
     assert {a for a in atoms if len(a) == 2} == {("p0", "a"), ("p0", "b"), ("p0", "c"),
                                                  ("touching1", "a"), ("touching1", "b"),
@@ -217,40 +218,38 @@ def test_the_bundle_writes_goal_relations_only_between_the_contacting_pairs():
 
 
 def test_the_monitor_replans_on_a_forced_mismatch():
-    result, _ = solve(OracleBundle(force_mismatches=1))
+    result, _ = solve(OracleAbstraction(force_mismatches=1))
     assert result.replans == 1
     assert result.status == "success"  # the replan from the perceived state is empty
-    open_loop, _ = solve(OracleBundle(force_mismatches=1), monitor=False)
+    open_loop, _ = solve(OracleAbstraction(force_mismatches=1), monitor=False)
     assert open_loop.replans == 0 and open_loop.status == "success"
     tower = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.125)])
-    twice, _ = solve(OracleBundle(force_mismatches=5), goal=tower)
+    twice, _ = solve(OracleAbstraction(force_mismatches=5), goal=tower)
     assert twice.replans == 2 and len(twice.executed) == 2
-    capped, _ = solve(OracleBundle(force_mismatches=5), max_replans=1, goal=tower)
+    capped, _ = solve(OracleAbstraction(force_mismatches=5), max_replans=1, goal=tower)
     assert capped.replans == 1 and capped.status == "success"
-    assert capped.executed == ["(pick_center_place_center_n1_op0 a b)",
-                               "(pick_center_place_center_n1_op0 c a)"]
+    assert [str(s) for s in capped.executed] == [STEP, "(pick_center_place_center_n1_op0 c a)"]
 
 
 def test_a_failed_replan_lets_the_current_plan_run_on():
     tower = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.125)])
-    result, _ = solve(OracleBundle(force_mismatches=1, fail_replans=True), goal=tower)
+    result, _ = solve(OracleAbstraction(force_mismatches=1, fail_replans=True), goal=tower)
     assert result.replans == 1 and result.status == "success", result.to_json()
-    assert result.executed == ["(pick_center_place_center_n1_op0 a b)",
-                               "(pick_center_place_center_n1_op0 c a)"]
+    assert [str(s) for s in result.executed] == [STEP, "(pick_center_place_center_n1_op0 c a)"]
 
 
 def test_the_monitor_replans_when_the_goal_atoms_are_not_seen_at_the_end():
-    result, _ = solve(OracleBundle(hide_atoms=1))
+    result, _ = solve(OracleAbstraction(hide_atoms=1))
     assert result.replans == 1 and result.status == "success"
     assert len(result.executed) == 1  # the replan, from what is seen, is empty
-    open_loop, _ = solve(OracleBundle(hide_atoms=1), monitor=False)
+    open_loop, _ = solve(OracleAbstraction(hide_atoms=1), monitor=False)
     assert open_loop.replans == 0
 
 
 def test_no_plan_is_a_verdict_with_its_cause():
     # a and c both on b: once one is there, b is not free for the other.
     goal = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.075)])
-    result, backend = solve(OracleBundle(), goal=goal)
+    result, backend = solve(OracleAbstraction(), goal=goal)
     assert result.status == "no_plan" and result.failure_cause == "no_plan"
     assert backend.executed == [] and result.symbolic_goal_reached is False
     assert result.to_json()["failure_cause"] == "no_plan"
@@ -264,7 +263,8 @@ def test_an_object_left_short_of_its_goal_is_an_execution_failure():
             return Execution("ok", None, self.perceive(before))
 
     backend = Nudging()
-    result = Agent(backend).solve(START, GOAL, OracleBundle(), "fd", 20.0, False, refine=False)
+    config = SolveConfig("fd", 20.0, monitor=False, refine=False)
+    result = Agent(backend).solve(START, GOAL, OracleAbstraction(), config)
     assert result.status == "failure" and result.failure_cause == "execution"
     assert result.objects["c"]["error_cm"] == pytest.approx(8.0)
     assert result.symbolic_goal_reached  # the symbols cannot tell where c stands
@@ -307,7 +307,7 @@ def test_evaluate_planning_on_a_fake_world(tmp_path):
     save_scene(GOAL, folder / "goal.yaml")
     (folder / "problem.json").write_text(json.dumps({"k": 1, "seed": 0, "n_objects": 3}))
     records = tmp_path / "records.jsonl"
-    kwargs = dict(agent=Agent(FakeBackend()), load_bundle=lambda run: OracleBundle(),
+    kwargs = dict(agent=Agent(FakeBackend()), load=lambda run: OracleAbstraction(),
                   records_path=records)
     result = evaluate_planning([tmp_path / "oracle"], tmp_path, **kwargs)
     summary = result["runs"][f"{tmp_path.name}/oracle"]

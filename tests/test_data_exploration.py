@@ -169,7 +169,7 @@ class ScriptedBackend:
         return self.seen.pop(0)
 
     def execute(self, action, before):
-        from drake_symplan.data.backends import Execution
+        from drake_symplan.robot.backends import Execution
 
         return Execution("ok", before, self.after.pop(0))
 
@@ -212,8 +212,8 @@ def test_a_misperceived_scene_is_skipped_and_the_episode_goes_on_once_all_are_se
 
 
 def test_perception_raising_drops_the_episode_and_keeps_what_it_recorded():
-    from drake_symplan.data.backends import Backend, PerceptionFailure
     from drake_symplan.data.exploration import EpisodeConfig, run_episode
+    from drake_symplan.robot.backends import Backend, PerceptionFailure
 
     class RaisingPerceiver:
         def perceive(self, *args, **kwargs):

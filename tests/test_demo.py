@@ -50,8 +50,12 @@ def test_other_bad_input(tmp_path, capsys):
     assert_bad_input(code, out, err, "no model at")
     code, out, err = run_main(["--start", tmp_path / "s.yaml"], capsys)
     assert_bad_input(code, out, err, "give --start and --goal together")
-    code, out, err = run_main(["--objects", "1"], capsys)
+    code, out, err = run_main(["--seed", "0", "--objects", "1"], capsys)
     assert_bad_input(code, out, err, "--objects must be in [2, ")
+    code, out, err = run_main(["--seed", "0", "--start", DEMO, "--goal", DEMO], capsys)
+    assert_bad_input(code, out, err, "give --seed (a sampled problem) or --start/--goal")
+    code, out, err = run_main(["--timeout", "0"], capsys)
+    assert_bad_input(code, out, err, "--timeout must be positive")
     code, out, err = run_main(["--start", tmp_path / "s.yaml", "--goal", tmp_path / "g.yaml"],
                               capsys)
     assert_bad_input(code, out, err, "s.yaml")

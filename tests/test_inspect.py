@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drake_symplan.abstraction.abstraction import Reading
 from drake_symplan.agent.inspection import (
     PALETTE,
     UNCERTAIN,
@@ -26,9 +27,9 @@ from drake_symplan.agent.inspection import (
     symbol_view,
 )
 from drake_symplan.cli import main as cli_main
-from drake_symplan.symbolic.bundle import Reading
-from drake_symplan.symbolic.effect_operators import EffectOperator
+from drake_symplan.structs import Action
 from drake_symplan.symbolic.states import SymbolicState
+from drake_symplan.symbolic.structs import LiftedOperator, Reposition, parse_step
 from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
 
 REPO = Path(__file__).resolve().parents[1]
@@ -53,11 +54,14 @@ def scene_and_reading():
 
 
 def test_readable_steps():
-    assert readable_step("(pick_center_place_left_n86_op2 o3 o1)") == \
+    ops = {op.name: op for op in (
+        LiftedOperator(2, "center", "left", 2, (), (("p0", 0),), (), 86),
+        LiftedOperator(0, "left", "center", 3, (), (("p0", 0),), (), 5))}
+    assert readable_step(parse_step("(pick_center_place_left_n86_op2 o3 o1)", ops)) == \
         "pick o3 at its centre, release on o1's left"
-    assert readable_step("(PICK_LEFT_PLACE_CENTER_N5_OP0 o0 o2 o1)") == \
+    assert readable_step(parse_step("(PICK_LEFT_PLACE_CENTER_N5_OP0 o0 o2 o1)", ops)) == \
         "pick o0 at its left end, release on o2's centre"
-    assert readable_step("(reposition_center_right o1 o0)") == \
+    assert readable_step(Reposition(Action("o1", "center", "o0", "right"))) == \
         "pick o1 at its centre, release on o0's right (repositioning)"
 
 
@@ -82,13 +86,12 @@ def test_symbol_view_draws_certain_set_relations_between_contacts_only():
 
 
 def test_plan_steps_are_grounded_and_the_panel_holds_them():
-    op = EffectOperator(3, "center", "left", 2, (("p0", 1),), (("r0", 0, 1),),
+    op = LiftedOperator(3, "center", "left", 2, (("p0", 1),), (("r0", 0, 1),),
                         (("touching0", 0),), 40, applicable=50, succeeded=40)
-    bundle = types.SimpleNamespace(operator_of=lambda step: op)
-    steps = plan_view(bundle, [f"({op.name} a b)"])
+    steps = plan_view([parse_step(f"({op.name} a b)", {op.name: op})])
     assert steps == [{"step": f"({op.name} a b)",
                       "readable": "pick a at its centre, release on b's left",
-                      "operator": op.name, "reliability": 0.8, "preconditions": ["p0(b)"],
+                      "source": "a", "target": "b", "operator": op.name, "reliability": 0.8, "preconditions": ["p0(b)"],
                       "add": ["r0(a, b)"], "delete": ["touching0(a)"]}]
     scene, reading = scene_and_reading()
     view = symbol_view(scene, reading)

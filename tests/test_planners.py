@@ -14,7 +14,8 @@ from drake_symplan.cli import main as cli_main
 from drake_symplan.planning.planners import PLANNERS, PlanResult, fast_downward, plan, plan_pddl
 from drake_symplan.symbolic import synthetic
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
-from drake_symplan.symbolic.pddl import check_plan, domain_pddl, plan_step_action, problem_pddl
+from drake_symplan.symbolic.pddl import check_plan, domain_pddl, problem_pddl
+from drake_symplan.symbolic.structs import parse_step
 
 HANOI = """
 (define (domain hanoi)
@@ -205,10 +206,12 @@ def test_operators_command_from_saved_symbols(tmp_path, monkeypatch, capsys):
 def learned_domain():
     data = synthetic.random_transitions(20000, seed=0)
     ops = learn_operators(data, LearnConfig(min_count=20))
-    return domain_pddl(ops.operators, synthetic.N_UNARY, synthetic.N_RELATIONS)
+    return (domain_pddl(ops.operators, synthetic.N_UNARY, synthetic.N_RELATIONS),
+            {op.name: op for op in ops.operators})
 
 
 def test_both_planners_accept_learned_domains_and_agree_on_plan_length(learned_domain):
+    learned_domain, operators = learned_domain
     rng = np.random.default_rng(0)
     solved = 0
     for _ in range(20):
@@ -221,13 +224,14 @@ def test_both_planners_accept_learned_domains_and_agree_on_plan_length(learned_d
         for result in (fd, pp) if fd.solved else ():
             assert check_plan(learned_domain, problem, result.plan) is None
             for step in result.plan:
-                action = plan_step_action(step).action
+                action = parse_step(step, operators).action
                 assert action.source in start.objects and action.target in start.objects
         solved += fd.solved
     assert solved >= 15
 
 
 def test_pyperplan_child_is_gone_after_each_call(learned_domain):
+    learned_domain, _ = learned_domain
     rng = np.random.default_rng(1)
     start, goal, contacts = synthetic.random_problem(3, 2, rng)
     before = os.getpid()

@@ -1,28 +1,39 @@
-"""The model bundle: written and loaded back, its problems and its step monitor, on a tiny
-untrained model and hand-made operators and readings (known answers)."""
+"""The model bundle and its abstraction: written and loaded back, the tasks and plans it
+makes and its step monitor, on a tiny untrained model and hand-made operators and readings
+(known answers)."""
 
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import pytest
 import torch
 
+from drake_symplan.abstraction import abstraction as abstraction_module
+from drake_symplan.abstraction.abstraction import Abstraction, Reading, problem_text, reliability
 from drake_symplan.learning.checkpoint import save_checkpoint
 from drake_symplan.learning.models import build_model
-from drake_symplan.symbolic.bundle import BundleError, ModelBundle, Reading, write_bundle
-from drake_symplan.symbolic.effect_operators import EFFECT, EffectOperator
+from drake_symplan.symbolic.bundle import (
+    OPERATORS_VERSION,
+    BundleError,
+    ModelBundle,
+    write_bundle,
+)
+from drake_symplan.symbolic.effect_operators import EFFECT
 from drake_symplan.symbolic.states import SymbolicState
+from drake_symplan.symbolic.structs import LiftedOperator, Step
 
 # Stack ?o0 on ?o1 when both have p0 and touch nothing: adds r0(?o0, ?o1), not_r0(?o1, ?o0),
 # and each now touches one object.
-STACK = EffectOperator(
+STACK = LiftedOperator(
     0, "center", "left", 2, (("p0", 0), ("p0", 1), ("touching0", 0), ("touching0", 1)),
     (("not_r0", 1, 0), ("r0", 0, 1), ("touching1", 0), ("touching1", 1)),
     (("touching0", 0), ("touching0", 1)), 40, applicable=50, succeeded=40)
 
 
 @pytest.fixture
-def bundle(tmp_path) -> ModelBundle:
+def bundle(tmp_path) -> Abstraction:
     torch.manual_seed(0)
     model = build_model("relational", state_dim=9, n_unary=1, n_relations=1)
     run = tmp_path / "run"
@@ -31,7 +42,7 @@ def bundle(tmp_path) -> ModelBundle:
                                       "model_state": model.state_dict(), "epoch": 1})
     write_bundle(tmp_path / "bundle", run, [STACK], EFFECT, {"learner": "effect"},
                  {"command": "test"})
-    return ModelBundle.load(tmp_path / "bundle")
+    return Abstraction(ModelBundle.load(tmp_path / "bundle"))
 
 
 def reading(p0, on=(), contacts=(), uncertain=()):
@@ -47,20 +58,25 @@ def reading(p0, on=(), contacts=(), uncertain=()):
 
 
 def test_a_bundle_round_trips_and_plans_with_costs(bundle):
-    assert [op.name for op in bundle.operators] == [STACK.name]
-    assert bundle.operators[0].reliability == 0.8
-    assert "(increase (total-cost) 3)" in bundle.domain and "total-cost" not in \
-        bundle.domain_strips
+    data = bundle.bundle
+    assert [op.name for op in data.operators] == [STACK.name]
+    assert data.operators[0].reliability == 0.8
+    assert "(increase (total-cost) 3)" in data.domain and "total-cost" not in \
+        data.domain_strips
+    written = json.loads((data.path / "operators.json").read_text())
+    assert written["version"] == OPERATORS_VERSION and written["learner"] == "effect"
     start, goal = reading([1, 1, 0]), reading([1, 1, 0], on=[("a", "b")],
                                               contacts=[("a", "b")])
-    text = bundle.problem(start, goal)
+    text = problem_text(bundle.task(start, goal), costs=True)
     assert "(r0 a b)" in text and "(not_r0 b a)" in text and "r0 a c" not in text
     result = bundle.plan(start, goal, "fd")
-    assert result.solved and len(result.plan) == 1
-    action = bundle.action_of(result.plan[0])
+    assert result.solved and len(result.steps) == 1
+    step = result.steps[0]
+    assert isinstance(step, Step) and step.operator.name == STACK.name
+    action = step.action
     assert (action.source, action.grasp, action.target, action.release) == (
         "a", "center", "b", "left")
-    assert bundle.reliability(result.plan) == 0.8
+    assert reliability(result.steps) == 0.8
     assert bundle.plan(start, goal, "pyperplan").solved
 
 
@@ -71,24 +87,28 @@ def test_goal_relations_only_between_objects_in_contact(bundle):
 
 
 def test_the_monitor_reports_what_did_not_come_true(bundle):
-    step = f"({STACK.name} a b)"
-    before = reading([1, 1, 0])
+    step = bundle.step(f"({STACK.name} a b)")
     done = reading([1, 1, 0], on=[("a", "b")], contacts=[("a", "b")])
-    assert bundle.mismatches(done, step, before) == []
+    assert bundle.mismatches(done, step) == []
     fell = reading([1, 1, 0])  # a did not end on b: no contact, no relation atoms
-    assert set(bundle.mismatches(fell, step, before)) == {
+    assert set(bundle.mismatches(fell, step)) == {
         ("not_r0", "b", "a"), ("r0", "a", "b"), ("touching1", "a"), ("touching1", "b"),
         ("touching0", "a"), ("touching0", "b")}
     unsure = reading([1, 1, 0], contacts=[("a", "b")], uncertain=[("a", "b"), ("b", "a")])
-    assert bundle.mismatches(unsure, step, before) == []  # uncertain bits are no evidence
+    assert bundle.mismatches(unsure, step) == []  # uncertain bits are no evidence
 
 
 def test_a_missing_or_incomplete_bundle_is_one_clear_error(tmp_path, bundle):
     with pytest.raises(BundleError, match="does not exist"):
         ModelBundle.load(tmp_path / "nowhere")
-    (bundle.path / "operators.json").unlink()
+    path = bundle.bundle.path / "operators.json"
+    data = json.loads(path.read_text())
+    path.write_text(json.dumps({**data, "version": 99}))
+    with pytest.raises(BundleError, match="version 99"):
+        ModelBundle.load(path.parent)
+    path.unlink()
     with pytest.raises(BundleError, match="has no operators.json"):
-        ModelBundle.load(bundle.path)
+        ModelBundle.load(path.parent)
 
 
 def test_plans_on_the_cost_domain_check_with_the_strips_reader(bundle):
@@ -96,37 +116,39 @@ def test_plans_on_the_cost_domain_check_with_the_strips_reader(bundle):
 
     start, goal = reading([1, 1, 0]), reading([1, 1, 0], on=[("a", "b")],
                                               contacts=[("a", "b")])
-    text = bundle.problem(start, goal)
-    plan = bundle.plan(start, goal, "fd").plan
-    assert check_plan(bundle.domain, text, plan) is None
-    assert check_plan(bundle.domain, text, []) is not None  # the goal does not hold yet
+    text = problem_text(bundle.task(start, goal), costs=True)
+    plan = [str(s) for s in bundle.plan(start, goal, "fd").steps]
+    assert check_plan(bundle.bundle.domain, text, plan) is None
+    assert check_plan(bundle.bundle.domain, text, []) is not None  # the goal does not hold
 
 
 def test_planning_starts_with_the_objects_whose_goal_atoms_change(bundle, monkeypatch):
-    from drake_symplan.planning import planners
-
     start = reading([1, 1, 1])
     goal = reading([1, 1, 1], on=[("a", "b")], contacts=[("a", "b")])
+
+    def focus(s, g):
+        return bundle.focus(bundle.task(s, g), s, g)
+
     # a and b take part in the missing r0(a, b); c neither changes nor touches them.
-    assert bundle.focus(start, goal) == ("a", "b")
+    assert focus(start, goal) == ("a", "b")
     # c touches b at the start: it is planned with too.
-    assert bundle.focus(reading([1, 1, 1], contacts=[("b", "c")]), goal) == ("a", "b", "c")
-    assert bundle.focus(goal, goal) == ()
-    text = bundle.problem(start, goal, objects=("a", "b"))
+    assert focus(reading([1, 1, 1], contacts=[("b", "c")]), goal) == ("a", "b", "c")
+    assert focus(goal, goal) == ()
+    text = problem_text(bundle.task(start, goal).restricted(("a", "b")), costs=True)
     assert "(:objects a b - obj)" in text and " c" not in text.split(":init")[1]
     problems = []
-    real = planners.plan_pddl
+    real = abstraction_module.plan_pddl
 
     def spy(domain, problem, *args, **kwargs):
         problems.append(problem)
         return real(domain, problem, *args, **kwargs)
 
-    monkeypatch.setattr(planners, "plan_pddl", spy)
+    monkeypatch.setattr(abstraction_module, "plan_pddl", spy)
     result = bundle.plan(start, goal, "fd")
-    assert result.solved and len(result.plan) == 1 and len(problems) == 1
+    assert result.solved and len(result.steps) == 1 and len(problems) == 1
     assert "(:objects a b - obj)" in problems[0]
     # Already there: the empty plan, without a planner call.
-    assert bundle.plan(goal, goal, "fd").plan == [] and len(problems) == 1
+    assert bundle.plan(goal, goal, "fd").steps == [] and len(problems) == 1
     # a and b lack p0, which no operator adds:
     # unsolvable on the focus, then on all objects before that is the answer.
     stuck = reading([0, 0, 1])

@@ -21,6 +21,16 @@ def strs(atoms):
     return sorted(" ".join(a) for a in atoms)
 
 
+def p0_bits(op) -> list[bool]:
+    """p0 of each parameter in the operator's preconditions."""
+    return [("p0", i) in op.pre for i in range(op.n_params)]
+
+
+def no_true_bit(op) -> bool:
+    """No precondition bit is set (every precondition atom is a not_ one)."""
+    return all(a[0].startswith("not_") for a in op.pre)
+
+
 def test_paper_example_groups_two_samples_under_a_substitution():
     # Paper III-C: p(x1)=0, p(x2)=0, p(x3)=1, pick-place(x3, x1) and
     # p(x1)=0, p(x2)=1, p(x3)=0, pick-place(x2, x3) are one group.
@@ -32,7 +42,7 @@ def test_paper_example_groups_two_samples_under_a_substitution():
     assert len(ops.operators) == 1
     op = ops.operators[0]
     assert op.count == 2 and op.n_params == 3
-    assert op.pre_unary[:, 0].tolist() == [True, False, False]  # ?o0 is the source
+    assert p0_bits(op) == [True, False, False]  # ?o0 is the source
     assert op.name == "pick_center_place_center_n2_op0"
 
 
@@ -58,7 +68,7 @@ def test_source_and_target_roles_are_not_swapped():
             Row((0, 1), set(), (1, "center", 0, "center"))]
     ops = learn(rows)
     assert len(ops.operators) == 2
-    assert sorted(op.pre_unary[:, 0].tolist() for op in ops.operators) == [
+    assert sorted(p0_bits(op) for op in ops.operators) == [
         [False, True], [True, False]]
 
 
@@ -91,7 +101,7 @@ def test_tied_objects_with_different_outcomes_give_one_canonical_effect():
             next_rel=rel - {(2, 0, 3), (0, 3, 0)}),
     ]
     (op,) = learn(rows).operators
-    assert op.count == 2 and op.n_effects == 1 and op.effect_count == 2
+    assert op.count == 2 and op.outcomes == 1 and op.effect_count == 2
     add, delete = op.effects()
     assert len(add) == 2 and len(delete) == 2
 
@@ -125,7 +135,7 @@ def test_most_frequent_effect_wins():
     on = {(1, 0, 1), (2, 1, 0)}
     rows = [Row(pre.unary, set(), pre.action, next_rel=on)] * 3 + [pre] * 2
     (op,) = learn(rows).operators
-    assert (op.count, op.effect_count, op.n_effects) == (5, 3, 2)
+    assert (op.count, op.effect_count, op.outcomes) == (5, 3, 2)
     assert strs(op.effects()[0]) == ["r1 ?o0 ?o1", "r2 ?o1 ?o0"]
 
 
@@ -134,7 +144,7 @@ def test_equally_frequent_effects_break_ties_independently_of_order():
     moved = Row(pre.unary, set(), pre.action, next_rel={(1, 0, 1)})
     for rows in ([pre, moved], [moved, pre]):
         (op,) = learn(rows).operators
-        assert op.effect_count == 1 and op.n_effects == 2
+        assert op.effect_count == 1 and op.outcomes == 2
         assert op.effects() == learn([pre, moved]).operators[0].effects()
 
 
@@ -235,15 +245,16 @@ def test_synthetic_world_operators_match_its_rules():
     ops = learn_operators(data, LearnConfig(min_count=20))
     # A clear cube onto a clear cube on the table, released centred: it ends on it.
     found = [op for op in ops.operators if op.n_params == 2 and op.release == "center"
-             and not op.pre_unary.any() and not op.pre_relational.any()]
+             and no_true_bit(op)]
     assert {op.grasp for op in found} == {"left", "center", "right"}
     for op in found:
         add, delete = op.effects()
         assert strs(add) == ["r0 ?o0 ?o1", "r2 ?o1 ?o0"]
-        assert op.n_effects == 1
+        assert op.outcomes == 1
     # Off-centre onto a long block: lands off-centre 85 % of the time (stochastic).
     off = [op for op in ops.operators if op.n_params == 2 and op.release == "left"
-           and op.pre_unary[:, 0].tolist() == [False, True] and not op.pre_relational.any()]
+           and p0_bits(op) == [False, True]
+           and not any(a[0].startswith("r") for a in op.pre)]
     assert off and all(strs(op.effects()[0]) == ["r1 ?o0 ?o1", "r2 ?o1 ?o0"] for op in off)
     assert {op.grasp for op in off} == {"left", "center", "right"}
-    assert any(op.n_effects == 2 and op.effect_count < op.count for op in off)
+    assert any(op.outcomes == 2 and op.effect_count < op.count for op in off)

@@ -3,18 +3,17 @@
 import numpy as np
 import pytest
 
-from drake_symplan.structs import Action
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
 from drake_symplan.symbolic.pddl import (
     check_plan,
     domain_pddl,
     parse_sexpr,
-    plan_step_action,
     problem_pddl,
     read_domain,
     read_problem,
 )
 from drake_symplan.symbolic.states import SymbolicState, difference_facts
+from drake_symplan.symbolic.structs import LiftedOperator
 from drake_symplan.symbolic.synthetic import Row, dataset_from_rows
 
 
@@ -95,16 +94,6 @@ def test_problem_needs_same_objects():
         problem_pddl(two_cubes(False), other, set())
 
 
-def test_plan_step_maps_to_action_by_role():
-    step = plan_step_action("(pick_center_place_right_n736_op19 o3 o1 o2)")
-    assert step.action == Action("o3", "center", "o1", "right")
-    assert (step.count, step.index, step.args) == (736, 19, ("o3", "o1", "o2"))
-    assert plan_step_action("PICK_LEFT_PLACE_LEFT_N5_OP0 a b").action.source == "a"
-    for bad in ("(pick_up_place_left_n5_op0 a b)", "(move a b)", "(pick_left_place_left_n5_op0 a)"):
-        with pytest.raises(ValueError):
-            plan_step_action(bad)
-
-
 def test_sexpr_parser_reports_unbalanced_text():
     assert parse_sexpr("(define (x) ; comment )\n (y z))") == ["define", ["x"], ["y", "z"]]
     for bad in ("(define (x)", "(define))", "x y"):
@@ -113,10 +102,7 @@ def test_sexpr_parser_reports_unbalanced_text():
 
 
 def test_every_contact_degree_is_declared_when_operators_use_one():
-    from drake_symplan.symbolic.effect_operators import EffectOperator
-    from drake_symplan.symbolic.pddl import domain_pddl
-
-    op = EffectOperator(0, "center", "center", 2, (("touching0", 0), ("touching0", 1)),
+    op = LiftedOperator(0, "center", "center", 2, (("touching0", 0), ("touching0", 1)),
                         (("touching1", 0), ("touching1", 1)),
                         (("touching0", 0), ("touching0", 1)), 10, 10, 10)
     text = domain_pddl([op], 1, 1)

@@ -27,11 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.cli.options import add_planner_arguments
+
 TARGET_S = 0.5
 PHASES = ("perceive", "symbols", "plan")
 
 
-def bench_problem(agent, bundle, folder: Path, planner: str, timeout: float) -> dict:
+def bench_problem(agent, abstraction, folder: Path, planner: str, timeout: float) -> dict:
     from drake_symplan.world.scenes import load_scene
 
     start, goal = load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml")
@@ -39,20 +41,18 @@ def bench_problem(agent, bundle, folder: Path, planner: str, timeout: float) -> 
     scenes = {}
     for key, scene in (("goal", goal), ("start", start)):
         t = time.perf_counter()
-        agent.show(scene)
+        agent.robot.reset(scene)
         seconds["show"] += time.perf_counter() - t
         t = time.perf_counter()
         scenes[key] = agent.see(scene)
         seconds["perceive"] += time.perf_counter() - t
     t = time.perf_counter()
-    readings = {k: bundle.read(s.scene.names, s.scene.features(), s.scene.contacts)
-                for k, s in scenes.items()}
+    readings = {k: abstraction.read_scene(s.scene) for k, s in scenes.items()}
     seconds["symbols"] = time.perf_counter() - t
-    found = bundle.plan(readings["start"], readings["goal"], planner, timeout,
-                        scenes["goal"].scene.contacts)
+    found = abstraction.plan(readings["start"], readings["goal"], planner, timeout)
     seconds["plan"] = found.seconds
     lost = scenes["goal"].lost + scenes["start"].lost
-    return {"problem": str(folder), "status": found.status, "plan_length": len(found.plan),
+    return {"problem": str(folder), "status": found.status, "plan_length": len(found.steps),
             "lost": lost, "seconds": seconds,
             "overhead": sum(seconds[p] for p in PHASES)}
 
@@ -66,17 +66,18 @@ def main(argv=None) -> int:
     parser.add_argument("--count", type=int, default=20)
     parser.add_argument("--objects", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--planner", choices=("fd", "pyperplan"), default="fd")
-    parser.add_argument("--timeout", type=float, default=10.0)
+    add_planner_arguments(parser)
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
 
+    from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.problems import load_problems, make_problems
     from drake_symplan.agent.solve import Agent
     from drake_symplan.cli.agent_cmds import load_bundle
 
     bundle = load_bundle(args.model)
+    abstraction = Abstraction(bundle)
     t = time.perf_counter()
     agent = Agent("arm")
     setup = time.perf_counter() - t
@@ -87,9 +88,9 @@ def main(argv=None) -> int:
             make_problems(problems_dir, args.objects, [1, 2, 3], args.count, args.seed,
                           agent=agent)
         problems = load_problems(problems_dir)[:args.count]
-        bench_problem(agent, bundle, Path(problems[0]["dir"]), args.planner,
+        bench_problem(agent, abstraction, Path(problems[0]["dir"]), args.planner,
                       args.timeout)  # warm-up: imports, the renderer, the page cache
-        rows = [bench_problem(agent, bundle, Path(p["dir"]), args.planner, args.timeout)
+        rows = [bench_problem(agent, abstraction, Path(p["dir"]), args.planner, args.timeout)
                 for p in problems]
     overhead = [r["overhead"] for r in rows]
     statuses: dict[str, int] = {}

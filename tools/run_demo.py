@@ -41,7 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.cli.main import CommandError
+from drake_symplan.cli.options import add_solve_arguments, solve_config
+
 REPO = Path(__file__).resolve().parents[1]
+SHIPPED = REPO / "models" / "demo"  # the default problem: start.yaml, goal.yaml, problem.json
 MAX_ATTEMPTS = 12  # random problems tried before giving up on a non-trivial goal
 # --from-scratch: shares of the budget by which collection and training must end.
 COLLECT_SHARE, TRAIN_SHARE = 0.4, 0.85
@@ -54,6 +58,15 @@ WHY = {True: "the goal's symbols hold in the final scene: the learned symbols do
               "or the execution went wrong"}
 
 
+def shown(path) -> str:
+    """`path` as printed: relative to the working directory when it lies under it."""
+    path = Path(path).resolve()
+    try:
+        return str(path.relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
+
+
 class BadInput(Exception):
     """Told in one line on stderr, exit status 2."""
 
@@ -63,15 +76,22 @@ def parse_args(argv):
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", type=Path, default=None,
                    help="model bundle directory (default: the shipped models/learned/)")
-    p.add_argument("--seed", type=int, default=0, help="scene, goal and k (default 0)")
-    p.add_argument("--objects", type=int, default=3, help="objects in the scene (default 3)")
+    p.add_argument("--seed", type=int, default=None,
+                   help="sample a new problem with this seed: a random scene, then k random "
+                   "arm actions make the goal (default: the shipped problem, models/demo/)")
+    p.add_argument("--objects", type=int, default=3,
+                   help="with --seed: objects in the scene (default 3)")
     p.add_argument("--k", type=int, choices=(1, 2, 3), default=None,
-                   help="random actions from start to goal (default: 2 or 3, by the seed)")
-    p.add_argument("--start", type=Path, default=None, help="start scene YAML (with --goal)")
+                   help="with --seed: random actions from start to goal (default: 2 or 3, "
+                   "by the seed)")
+    p.add_argument("--start", type=Path, default=None,
+                   help="start scene YAML (with --goal), e.g. a problem of `symplan "
+                   "problems make` or a file of `symplan scene sample`")
     p.add_argument("--goal", type=Path, default=None, help="goal scene YAML (with --start)")
     p.add_argument("--out", type=Path, default=REPO / "out" / "demo.html",
                    help="the HTML recording (default out/demo.html)")
-    p.add_argument("--planner", choices=("fd", "pyperplan"), default="fd")
+    p.add_argument("--no-record", action="store_true", help="write no recording")
+    add_solve_arguments(p)
     p.add_argument("--meshcat", action="store_true",
                    help="watch live on localhost; keeps serving until Enter is pressed")
     p.add_argument("--json", action="store_true", help="print the result as JSON only")
@@ -91,6 +111,10 @@ def check_inputs(args):
 
     if (args.start is None) != (args.goal is None):
         raise BadInput("give --start and --goal together")
+    if args.start is not None and args.seed is not None:
+        raise BadInput("give --seed (a sampled problem) or --start/--goal, not both")
+    if args.start is None and args.seed is None:
+        args.start, args.goal = SHIPPED / "start.yaml", SHIPPED / "goal.yaml"
     if args.start is None and not 2 <= args.objects <= MAX_OBJECTS:
         raise BadInput(f"--objects must be in [2, {MAX_OBJECTS}], got {args.objects}")
     start = goal = None
@@ -141,7 +165,8 @@ def from_scratch(args, say):
     from drake_symplan.symbolic.bundle import ModelBundle
 
     budget, t0 = args.budget_minutes * 60, time.perf_counter()
-    work = args.work / f"seed{args.seed}"
+    seed = 0 if args.seed is None else args.seed
+    work = args.work / f"seed{seed}"
     data, run, out = work / "data", work / "run", work / "bundle"
     try:
         bundle = ModelBundle.load(out)
@@ -154,7 +179,7 @@ def from_scratch(args, say):
 
     def collect(n):
         symplan(["collect", "--backend", "hand", "--transitions", n, "--workers", workers,
-                 "--out", data, "--seed", args.seed, "--objects", "2-4", "--no-progress"], say)
+                 "--out", data, "--seed", seed, "--objects", "2-4", "--no-progress"], say)
 
     manifest = data / "manifest.json"
     if manifest.is_file():  # a re-run: the data set collected before, as it is
@@ -168,7 +193,7 @@ def from_scratch(args, say):
     say(f"  data set: {total} transitions ({time.perf_counter() - t0:.0f} s)")
     left = TRAIN_SHARE * budget - (time.perf_counter() - t0)
     symplan(["train", "--model", "relational", "--data", data, "--out", run, "--seed",
-             args.seed, "--model-option", "invariant=true", "--threads", workers,
+             seed, "--model-option", "invariant=true", "--threads", workers,
              "--epochs", 300, "--no-progress"] + (["--resume"] if (run / "last.pt").is_file()
                                                   else []), say, timeout=max(left, 30))
     # Operators need support: with a small data set, fewer transitions per operator.
@@ -196,19 +221,20 @@ def make_goal(agent, args, say):
     return None
 
 
-def preview_plan(agent, bundle, start_scene, goal_scene, planner):
-    """(planner status, the plan the agent will start with): both scenes perceived and
-    read, then planned."""
-    goal = agent.look(goal_scene)
-    start = agent.look(start_scene)
-    if goal.lost or start.lost:
-        return "perception lost an object", []
-
-    def read(named):
-        return bundle.read(named.scene.names, named.scene.features(), named.scene.contacts)
-
-    found = bundle.plan(read(start), read(goal), planner, 10.0, goal.scene.contacts)
-    return found.status, list(found.plan)
+def explain_no_plan(abstraction, plan, start, goal, timeout: float) -> str:
+    """Why there is no plan, in words: the planner's status and the goal atoms that do
+    not hold at the start."""
+    task = abstraction.task(abstraction.read_scene(start.scene),
+                            abstraction.read_scene(goal.scene))
+    missing = ", ".join(a.text() for a in sorted(task.goal - task.init))
+    if plan.status == "unsolvable":
+        why = ("the learned domain cannot reach the goal's symbols from the start's (the "
+               "planner proved it)")
+    elif plan.status == "timeout":
+        why = f"the planner found no plan within --timeout {timeout:g} s"
+    else:
+        why = f"the planner failed: {plan.message}"
+    return f"no plan: {why}; goal atoms to reach: {missing or 'none'}"
 
 
 def panel(result: dict, demo: dict) -> str:
@@ -219,8 +245,6 @@ def panel(result: dict, demo: dict) -> str:
         return "<ol style='padding-left:18px;margin:2px 0'>" + "".join(
             f"<li>{line}</li>" for line in lines) + "</ol>"
 
-    from drake_symplan.agent.inspection import readable_step
-
     errors = "".join(f"<div>{n}: {o['error_cm']} cm</div>" for n, o in result["objects"].items())
     if result.get("symbolic_goal_reached") is not None:
         errors += f"<div><i>{WHY[result['symbolic_goal_reached']]}</i></div>"
@@ -228,7 +252,7 @@ def panel(result: dict, demo: dict) -> str:
                  f"{demo.get('k', '-')} random actions from the start</div>"),
                 ("Plan", items(demo["plan_readable"]) or "<div>none</div>"),
                 (f"Executed ({result['replans']} replan(s))",
-                 items(readable_step(s) for s in result["executed"])),
+                 items(demo["executed_readable"])),
                 (f"Verdict: {result['status']}", errors)]
     return panel_html(f"symplan demo (seed {demo.get('seed', '-')})", sections)
 
@@ -242,7 +266,8 @@ def main(argv=None) -> int:
 
     try:
         bundle, start, goal = check_inputs(args)
-    except (BadInput, ValueError, OSError) as e:
+        config = solve_config(args)
+    except (BadInput, CommandError, ValueError, OSError) as e:
         print(f"run_demo.py: error: {e}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
@@ -253,21 +278,26 @@ def main(argv=None) -> int:
             say(f"from scratch: {e}" + ("; the data set is too small: give more "
                                         "--budget-minutes" if "no operators" in str(e) else ""))
             return 1
+    from drake_symplan.abstraction.abstraction import Abstraction, reliability
+    from drake_symplan.agent.config import GOAL_TOLERANCE
     from drake_symplan.agent.inspection import (
         annotate_html,
         draw_goal_scene,
         look_at,
         readable_step,
     )
-    from drake_symplan.agent.solve import GOAL_TOLERANCE, Agent
+    from drake_symplan.agent.solve import Agent
     from drake_symplan.world.scenes import save_scene
     from drake_symplan.world.visualization import StartMeshcat
 
-    with contextlib.redirect_stdout(sys.stderr):  # Meshcat's URL: not on stdout
-        meshcat = StartMeshcat()
+    meshcat = None
+    if args.meshcat or not args.no_record:  # a recording is Meshcat's page
+        with contextlib.redirect_stdout(sys.stderr):  # Meshcat's URL: not on stdout
+            meshcat = StartMeshcat(announce=args.meshcat)
     agent = Agent("arm", meshcat=meshcat)
-    say(f"model {bundle.path}: {bundle.info['n_unary']} unary symbols, "
-        f"{bundle.info['n_relations']} relations, {len(bundle.operators)} operators")
+    abstraction = Abstraction(bundle)
+    say(f"model {shown(bundle.path)}: {bundle.n_unary} unary symbols, {bundle.n_relations} "
+        f"relations, {len(bundle.operators)} operators")
     demo = {"seed": args.seed}
     if start is None:
         say(f"making a goal: {args.objects} objects, random actions by the UR10 ...")
@@ -279,30 +309,52 @@ def main(argv=None) -> int:
         demo.update(info)
         say(f"goal: {info['k']} random actions away ({'; '.join(info['actions'])}), "
             f"farthest object moved {info['moved_cm']} cm")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    stem = args.out.with_suffix("")
-    files = {"start": f"{stem}_start.yaml", "goal": f"{stem}_goal.yaml"}
-    save_scene(start, files["start"])
-    save_scene(goal, files["goal"])
-    demo["scenes"] = files
-    status, steps = preview_plan(agent, bundle, start, goal, args.planner)
-    demo["plan_readable"] = [readable_step(s) for s in steps]
-    if steps:
-        say(f"plan ({len(steps)} step(s), reliability {bundle.reliability(steps):.0%}):")
-    elif status == "solved":
-        say("plan: empty, the goal's symbols already hold in the start scene")
     else:
-        say(f"no plan ({status})")
-    for i, s in enumerate(steps, 1):
-        say(f"  {i}. {readable_step(s)}    {s}")
-    draw_goal_scene(meshcat, goal)
-    look_at(meshcat, [o.position for o in start.objects + goal.objects])
-    say("executing with the UR10 in full physics, perceiving after each step ...")
-    result = agent.solve(start, goal, bundle, args.planner, record=args.out)
+        info = args.start.parent / "problem.json"  # beside a problem set's start.yaml
+        if info.is_file():
+            demo.update({k: v for k, v in json.loads(info.read_text()).items()
+                         if k in ("k", "seed", "actions", "moved_cm")})
+        demo["problem"] = {"start": shown(args.start), "goal": shown(args.goal)}
+        say(f"problem: {shown(args.start)} -> {shown(args.goal)}"
+            + (f" ({demo['k']} arm actions apart)" if "k" in demo else ""))
+    record = None if args.no_record else args.out
+    if record is not None:
+        record.parent.mkdir(parents=True, exist_ok=True)
+        stem = record.with_suffix("")
+        demo["scenes"] = {"start": f"{stem}_start.yaml", "goal": f"{stem}_goal.yaml"}
+        save_scene(start, demo["scenes"]["start"])
+        save_scene(goal, demo["scenes"]["goal"])
+        draw_goal_scene(meshcat, goal)
+        look_at(meshcat, [o.position for o in start.objects + goal.objects])
+
+    def planned(plan, start_seen, goal_seen):
+        demo["plan_readable"] = [readable_step(s) for s in plan.steps]
+        if not plan.solved:
+            demo["no_plan"] = explain_no_plan(abstraction, plan, start_seen, goal_seen,
+                                              config.timeout)
+            say(demo["no_plan"])
+            return
+        if not plan.steps:
+            say("plan: empty, the goal's symbols already hold in the start scene")
+        else:
+            say(f"plan ({len(plan.steps)} step(s), reliability "
+                f"{reliability(plan.steps):.0%}, {plan.seconds:.1f} s):")
+        for i, step in enumerate(plan.steps, 1):
+            say(f"  {i}. {readable_step(step)}    {step}")
+        say("executing with the UR10 in full physics, perceiving after each step ...")
+
+    result = agent.solve(start, goal, abstraction, config, record=record, on_plan=planned)
     out = result.to_json()
-    if result.executed != steps:
-        say("executed (repositionings and replans included): " + "; ".join(readable_step(s)
-                                                         for s in result.executed))
+    demo["executed_readable"] = [readable_step(s) for s in result.executed]
+    demo["seconds"] = round(time.perf_counter() - t0, 1)
+    out["demo"] = demo
+    if result.status in ("no_plan", "timeout") and not result.executed:
+        if args.json:
+            print(json.dumps(out, indent=2))
+        return 1
+    if result.executed != result.plan:
+        say("executed (repositionings and replans included): "
+            + "; ".join(demo["executed_readable"]))
     for name, o in out["objects"].items():
         say(f"  {name}: {o['error_cm']} cm from its goal")
     say(f"verdict: {result.status} (every object within {GOAL_TOLERANCE * 100:g} cm: "
@@ -311,12 +363,10 @@ def main(argv=None) -> int:
                                        if result.message else ""))
     if result.symbolic_goal_reached is not None:
         say(WHY[result.symbolic_goal_reached])
-    demo["seconds"] = round(time.perf_counter() - t0, 1)
-    if args.out.is_file():
-        args.out.write_text(annotate_html(args.out.read_text(), panel(out, demo)))
-        out["recording"] = str(args.out)
-        say(f"recording written to {args.out} ({demo['seconds']} s)")
-    out["demo"] = demo
+    if record is not None and record.is_file():
+        record.write_text(annotate_html(record.read_text(), panel(out, demo)))
+        out["recording"] = str(record)
+        say(f"recording written to {shown(record)} ({demo['seconds']} s)")
     if args.json:
         print(json.dumps(out, indent=2))
     if args.meshcat:

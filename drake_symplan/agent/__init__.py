@@ -2,7 +2,7 @@
 
 perceive the goal and the start scene (perception) -> read their symbols (a model bundle:
 the trained model, its domain and operators) -> write the problem and plan (planning) ->
-execute each step with the robot on the perceived objects (data.backends: the arm or the
+execute each step with the robot on the perceived objects (robot.backends: the arm or the
 hand) -> after each step perceive again and compare the symbols with what the step's
 operator predicted, replanning on a mismatch -> check every object within 5 cm of its
 perceived goal position.

@@ -1,5 +1,5 @@
 """The planning evaluation (paper IV-C and its planning figure): model bundles solve the
-same problem set, with execution monitoring and without it (open-loop, as the paper).
+same problem set, with execution monitoring and without it (open-loop, as the paper), under one `SolveConfig`.
 
 `evaluate_planning` runs every (run, monitoring, problem) with one station (or, with
 `ray_address`, on Ray worker actors with a station each) and returns per
@@ -22,9 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.abstraction.abstraction import Abstraction
+from drake_symplan.agent.config import DEFAULT_SOLVE, GOAL_TOLERANCE, SolveConfig
 from drake_symplan.agent.problems import load_problems
-from drake_symplan.agent.solve import GOAL_TOLERANCE
+from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
+from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
+from drake_symplan.symbolic.bundle import ModelBundle
+from drake_symplan.world.scenes import load_scene
 
 MODES = {True: "monitor", False: "open_loop"}
 # The issue's targets are set on these bands of (object count, k).
@@ -47,18 +52,18 @@ def true_success(objects: dict, goal_scene) -> bool:
     return True
 
 
-def solve_record(agent, bundle, problem: dict, planner: str, timeout: float, monitor: bool,
-                 max_replans: int) -> dict:
-    """One solve of `problem` (a load_problems entry) as an evaluation record."""
-    from drake_symplan.world.scenes import load_scene
-
+def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
+              config: SolveConfig, tick=None) -> dict:
+    """One evaluation record: run `label`'s abstraction on `problem` (a load_problems
+    entry, with its scenes under "scenes" when the driver read them for a Ray worker)."""
     folder = Path(problem["dir"])
     start, goal = problem.get("scenes") or (load_scene(folder / "start.yaml"),
                                             load_scene(folder / "goal.yaml"))
-    result = agent.solve(start, goal, bundle, planner, timeout, monitor, max_replans)
+    result = agent.solve(start, goal, abstraction, config)
     return {
-        "problem": str(folder), "n_objects": problem["n_objects"], "k": problem["k"],
-        "monitor": monitor, "status": result.status, "failure_cause": result.failure_cause,
+        "run": label, "problem": str(folder), "n_objects": problem["n_objects"],
+        "k": problem["k"], "monitor": config.monitor, "status": result.status,
+        "failure_cause": result.failure_cause,
         "success_true": true_success(result.objects, goal),
         "symbolic_goal_reached": result.symbolic_goal_reached, "plan_length": len(result.plan),
         "executed": len(result.executed), "replans": result.replans,
@@ -67,28 +72,28 @@ def solve_record(agent, bundle, problem: dict, planner: str, timeout: float, mon
     }
 
 
-def evaluate_planning(runs: list, problems_dir, planner: str = "fd", backend: str = "arm",
-                      monitor=(True, False), timeout: float = 10.0, max_replans: int = 2,
-                      limit: int | None = None, records_path=None, agent=None,
-                      load_bundle=None, progress=None, ray_address: str | None = None) -> dict:
+def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SOLVE,
+                      robot: str = "arm", monitor=(True, False), limit: int | None = None,
+                      records_path=None, agent=None, load=None, progress=None,
+                      ray_address: str | None = None) -> dict:
     """Solves every problem under `problems_dir` with each run's bundle (`runs`: bundle
-    directories), with and without monitoring; returns {"settings", "runs": {label: {mode:
-    summary}}, "records": [...]}. `load_bundle(run)` defaults to ModelBundle.load. With
-    `ray_address` ("" for Ray on this machine) the solves are spread over Ray worker actors,
-    one agent (station) each, one per CPU of the cluster (drake_symplan/cluster.py)."""
+    directories) under `config`, in each monitoring mode of `monitor`; returns
+    {"settings", "runs": {label: {mode: summary}}, "records": [...]}. With `ray_address`
+    ("" for Ray on this machine) the solves are spread over Ray worker actors, one agent
+    (robot) each, one per CPU of the cluster (drake_symplan/cluster.py). `load(run)` gives
+    a run's Abstraction (default: of ModelBundle.load(run))."""
     if not runs:
         raise ValueError("give at least one run (a model bundle directory)")
     problems = load_problems(problems_dir)[:limit]
-    if load_bundle is None:
-        from drake_symplan.symbolic.bundle import ModelBundle
-
-        load_bundle = ModelBundle.load
-    bundles = {run_label(run): load_bundle(run) for run in runs}  # bad runs fail up front
+    # Bad runs fail up front.
+    load = load or (lambda run: Abstraction(ModelBundle.load(run)))
+    abstractions = {run_label(run): load(run) for run in runs}
     done, records = _resume(records_path)
     # Monitoring mode by mode, run by run: an unfinished evaluation has whole runs of the
     # first mode (the headline) before any of the second.
-    todo = [(label, bool(mode), problem) for mode in monitor for label in bundles
-            for problem in problems if (label, bool(mode), str(Path(problem["dir"]))) not in done]
+    todo = [(label, config.replace(monitor=bool(mode)), problem) for mode in monitor
+            for label in abstractions for problem in problems
+            if (label, bool(mode), str(Path(problem["dir"]))) not in done]
 
     def finish(record: dict) -> None:
         records.append(record)
@@ -98,53 +103,34 @@ def evaluate_planning(runs: list, problems_dir, planner: str = "fd", backend: st
         if progress:
             progress(record)
 
-    settings = (planner, timeout, max_replans)
     if ray_address is not None:
-        _solve_on_ray(ray_address, backend, bundles, todo, settings, finish)
+        _solve_on_ray(ray_address, robot, abstractions, todo, finish)
     elif todo:
-        if agent is None:
-            from drake_symplan.agent.solve import Agent
-
-            agent = Agent(backend)
-        for label, mode, problem in todo:
-            finish(solve_job(agent, label, bundles[label], problem, mode, *settings))
+        agent = agent or Agent(robot)
+        for label, mode_config, problem in todo:
+            finish(solve_job(agent, label, abstractions[label], problem, mode_config))
     order = {(label, bool(mode), str(Path(p["dir"]))): i for i, (label, mode, p) in enumerate(
-        (label, mode, p) for label in bundles for mode in monitor for p in problems)}
+        (label, mode, p) for label in abstractions for mode in monitor for p in problems)}
     records = sorted((r for r in records if (r["run"], r["monitor"], r["problem"]) in order),
                      key=lambda r: order[(r["run"], r["monitor"], r["problem"])])
     return {"settings": {"problems_dir": str(problems_dir), "problems": len(problems),
-                         "planner": planner, "backend": backend, "timeout": timeout,
-                         "max_replans": max_replans},
+                         "backend": robot, **config.to_dict()},
             "runs": summarise(records), "records": records}
 
 
-def solve_job(agent, label: str, bundle, problem: dict, monitor: bool, planner: str,
-              timeout: float, max_replans: int, tick=None) -> dict:
-    """One evaluation record: run `label`'s bundle on `problem` (a load_problems entry,
-    with its scenes under "scenes" when the driver read them for a Ray worker)."""
-    return {"run": label, **solve_record(agent, bundle, problem, planner, timeout, monitor,
-                                         max_replans)}
-
-
-def _solve_on_ray(address: str, backend: str, bundles: dict, todo: list, settings: tuple,
-                  finish) -> None:
+def _solve_on_ray(address: str, robot: str, abstractions: dict, todo: list, finish) -> None:
     """The solves on Ray worker actors, each with its own Agent; the driver reads the
     scene files and writes the records, so the workers need neither."""
-    from drake_symplan.agent.solve import Agent
-    from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
-    from drake_symplan.world.scenes import load_scene
-
     with ray_session(address) as ray:
         if not todo:
             return
-        refs = {label: ray.put(bundle) for label, bundle in bundles.items()}  # sent once
+        refs = {label: ray.put(a) for label, a in abstractions.items()}  # sent once
         jobs = []
-        for i, (label, mode, problem) in enumerate(todo):
+        for i, (label, config, problem) in enumerate(todo):
             folder = Path(problem["dir"])
             scenes = (load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml"))
-            jobs.append((i, label, refs[label], {**problem, "scenes": scenes}, mode,
-                         *settings))
-        run_jobs(ray, Agent, (backend,), solve_job, jobs,
+            jobs.append((i, label, refs[label], {**problem, "scenes": scenes}, config))
+        run_jobs(ray, Agent, (robot,), solve_job, jobs,
                  min(cluster_cpus(ray), len(jobs)), lambda i, record: finish(record))
 
 

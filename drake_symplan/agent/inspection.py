@@ -19,12 +19,20 @@ a panel added to the recording's HTML (`panel_html`, `annotate_html`) and to the
 
 from __future__ import annotations
 
+import base64
 import html as _html
+import re
 from pathlib import Path
 
 import numpy as np
+from pydrake.geometry import Box, Cylinder, Rgba, Sphere
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
+from drake_symplan.abstraction.abstraction import Abstraction
+from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.solve import Agent
 from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
 PREFIX = "/symplan"
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#edc948", "#76b7b2",
@@ -38,20 +46,12 @@ GRASP = {"center": "at its centre", "left": "at its left end", "right": "at its 
 RELEASE = {"center": "centre", "left": "left", "right": "right"}
 
 
-def readable_step(step: str) -> str:
-    """'(pick_center_place_left_n86_op2 o3 o1)' -> 'pick o3 at its centre, release on
-    o1's left'; a repositioning (agent/refine.py) says so."""
-    from drake_symplan.agent.refine import reposition_action
-    from drake_symplan.symbolic.pddl import plan_step_action
-
-    moved = reposition_action(step)
-    a = moved or plan_step_action(step).action
+def readable_step(step: PlanStep) -> str:
+    """(pick_center_place_left_n86_op2 o3 o1) -> 'pick o3 at its centre, release on o1's
+    left'; a repositioning (agent/refine.py) says so."""
+    a = step.action
     text = f"pick {a.source} {GRASP[a.grasp]}, release on {a.target}'s {RELEASE[a.release]}"
-    return text if moved is None else f"{text} (repositioning)"
-
-
-def atom_text(atom) -> str:
-    return f"{atom[0]}({', '.join(atom[1:])})"
+    return f"{text} (repositioning)" if isinstance(step, Reposition) else text
 
 
 def pattern(bits, uncertain) -> str:
@@ -96,39 +96,29 @@ def symbol_view(named_scene, reading) -> dict:
             "contacts": [list(p) for p in sorted(reading.contacts)], "legend": legend}
 
 
-def plan_view(bundle, steps: list[str]) -> list[dict]:
-    """Each plan step: its readable form, operator, reliability and the grounded
+def plan_view(steps: list[Step]) -> list[dict]:
+    """Each plan step: its readable form, roles, operator, reliability and the grounded
     preconditions and effects."""
-    from drake_symplan.symbolic.effect_operators import ground_slots
-    from drake_symplan.symbolic.pddl import plan_step_action
+    def texts(atoms):
+        return [a.text() for a in sorted(atoms)]
 
-    out = []
-    for step in steps:
-        op = bundle.operator_of(step)
-        args = plan_step_action(step).args
-
-        def ground(atoms, args=args):
-            return [atom_text(a) for a in ground_slots(atoms, args)]
-
-        out.append({"step": step, "readable": readable_step(step), "operator": op.name,
-                    "reliability": round(op.reliability, 3), "preconditions": ground(op.pre),
-                    "add": ground(op.add), "delete": ground(op.delete)})
-    return out
+    return [{"step": str(step), "readable": readable_step(step), "source": step.args[0],
+             "target": step.args[1], "operator": step.operator.name,
+             "reliability": round(step.operator.reliability, 3),
+             "preconditions": texts(step.pre), "add": texts(step.add),
+             "delete": texts(step.delete)} for step in steps]
 
 
 # --- Meshcat ------------------------------------------------------------------------
 
 
 def _rgba(hex_colour: str, alpha: float = 1.0):
-    from pydrake.geometry import Rgba
 
     h = hex_colour.lstrip("#")
     return Rgba(*(int(h[i:i + 2], 16) / 255 for i in (0, 2, 4)), alpha)
 
 
 def _rod(meshcat, path: str, p: np.ndarray, q: np.ndarray, rgba, radius: float = 0.004):
-    from pydrake.geometry import Cylinder
-    from pydrake.math import RigidTransform, RotationMatrix
 
     d = np.asarray(q, float) - np.asarray(p, float)
     length = float(np.linalg.norm(d))
@@ -140,8 +130,6 @@ def _rod(meshcat, path: str, p: np.ndarray, q: np.ndarray, rgba, radius: float =
 
 
 def _ball(meshcat, path: str, p: np.ndarray, rgba, radius: float = 0.009):
-    from pydrake.geometry import Sphere
-    from pydrake.math import RigidTransform
 
     meshcat.SetObject(path, Sphere(radius), rgba)
     meshcat.SetTransform(path, RigidTransform(np.asarray(p, float)))
@@ -162,8 +150,6 @@ def look_at(meshcat, points, distance: float = 0.95, shift: float = 0.12) -> Non
 def draw_view(meshcat, named_scene, view: dict, layer: str = "start", alpha: float = 0.8,
               inflate: float = 0.003) -> None:
     """Draws `view` (symbol_view) under /symplan/<layer>: boxes and relation brackets."""
-    from pydrake.geometry import Box
-    from pydrake.math import RigidTransform, RotationMatrix
 
     meshcat.Delete(f"{PREFIX}/{layer}")
     centres = {}
@@ -195,10 +181,7 @@ def draw_plan(meshcat, start_view: dict, plan: list[dict]) -> None:
     where = {o["name"]: np.asarray(o["position"], float) for o in start_view["objects"]}
     top = max((p[2] for p in where.values()), default=0.0)
     for i, step in enumerate(plan):
-        from drake_symplan.symbolic.pddl import plan_step_action
-
-        a = plan_step_action(step["step"]).action
-        p, q = where[a.source], where[a.target]
+        p, q = where[step["source"]], where[step["target"]]
         peak = top + 0.15 + 0.03 * i
         s = np.linspace(0, 1, 13)
         pts = [(1 - t) * p + t * q + np.array([0, 0, 4 * t * (1 - t) * (peak - max(p[2], q[2]))])
@@ -212,8 +195,6 @@ def draw_plan(meshcat, start_view: dict, plan: list[dict]) -> None:
 def draw_goal_scene(meshcat, goal_scene, alpha: float = 0.3) -> None:
     """The goal scene file's boxes (world.scenes.Scene), translucent green, under
     /symplan/goal/boxes: the demo's goal beside the recorded execution."""
-    from pydrake.geometry import Box
-    from pydrake.math import RigidTransform, RollPitchYaw
 
     meshcat.Delete(f"{PREFIX}/goal")
     for o in goal_scene.objects:
@@ -289,9 +270,6 @@ def annotate_html(page: str, panel: str) -> str:
 def recorded_paths(page: str, prefix: str = PREFIX) -> set[str]:
     """The Meshcat paths under `prefix` that a static page (StaticHtml) sets: its scene
     commands are base64 msgpack blobs, whose path strings are read back here."""
-    import base64
-    import re
-
     data = b"".join(base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]+)", page))
     return {m.decode() for m in re.findall(re.escape(prefix.encode()) + rb"/[A-Za-z0-9_/]+",
                                            data)}
@@ -308,34 +286,29 @@ def write_recording(meshcat, path: str | Path, panel: str) -> Path:
 # --- the command's work -------------------------------------------------------------
 
 
-def inspect(start_scene, bundle, goal_scene=None, meshcat=None, record=None,
-            planner: str = "fd", timeout: float = 10.0, backend: str = "arm",
+def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None, record=None,
+            config: SolveConfig = DEFAULT_SOLVE, robot: str = "arm",
             title: str = "symplan inspect") -> dict:
     """Perceives `start_scene` (and `goal_scene`), reads and draws their symbols, plans
-    from start to goal; returns the JSON result and writes the recording to `record`."""
-    from drake_symplan.agent.solve import Agent
-
-    agent = Agent(backend, meshcat=meshcat)
+    from start to goal (config's planner and timeout); returns the JSON result and writes
+    the recording to `record`."""
+    agent = Agent(robot, meshcat=meshcat)
     goal = agent.look(goal_scene) if goal_scene is not None else None
     start = agent.look(start_scene)  # the table stays in the start scene
     lost = start.lost + (goal.lost if goal is not None else [])
     if lost:
         raise RuntimeError(f"perception lost {', '.join(lost)}")
-
-    def read(named):
-        return bundle.read(named.scene.names, named.scene.features(), named.scene.contacts)
-
-    start_reading = read(start)
-    result = {"model": str(bundle.path), "start": symbol_view(start.scene, start_reading)}
-    result["start"]["atoms"] = sorted(atom_text(a) for a in bundle.atoms(start_reading)[0])
+    start_reading = abstraction.read_scene(start.scene)
+    result = {"model": str(abstraction.bundle.path),
+              "start": symbol_view(start.scene, start_reading)}
+    result["start"]["atoms"] = sorted(a.text() for a in abstraction.atoms(start_reading)[0])
     if goal is not None:
-        goal_reading = read(goal)
+        goal_reading = abstraction.read_scene(goal.scene)
         result["goal"] = symbol_view(goal.scene, goal_reading)
-        result["goal"]["atoms"] = sorted(atom_text(a) for a in bundle.goal_atoms(
-            goal_reading, goal.scene.contacts))
-        found = bundle.plan(start_reading, goal_reading, planner, timeout, goal.scene.contacts)
+        result["goal"]["atoms"] = sorted(a.text() for a in abstraction.goal_atoms(goal_reading))
+        found = abstraction.plan(start_reading, goal_reading, config.planner, config.timeout)
         result["plan_status"] = found.status
-        result["plan"] = plan_view(bundle, list(found.plan)) if found.solved else []
+        result["plan"] = plan_view(found.steps)
     if meshcat is not None:
         draw_view(meshcat, start.scene, result["start"])
         look_at(meshcat, [o["position"] for o in result["start"]["objects"]])

@@ -27,8 +27,21 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from pydrake.math import RollPitchYaw
 
 from drake_symplan.agent import beliefs
+from drake_symplan.agent.solve import Agent
+from drake_symplan.atomic import write_atomic
+from drake_symplan.data.exploration import left_workspace, random_action
+from drake_symplan.world.scenes import (
+    TILT_TOL,
+    ObjectSpec,
+    Scene,
+    SceneError,
+    sample_scene,
+    save_scene,
+    validate_scene,
+)
 
 NONTRIVIAL_DISTANCE = 0.05  # m: a goal is non-trivial if some object moved farther
 GOAL_RERENDER_TOLERANCE = 0.02  # m: the goal file, shown and perceived, vs the end state
@@ -54,10 +67,6 @@ def is_nontrivial(start: dict[str, np.ndarray], end: dict[str, np.ndarray],
 def scene_from_poses(poses: dict, types: dict[str, str]):
     """A scene (world.scenes.Scene) of bodies at `poses` (name -> RigidTransform): upright
     objects with their yaw, tilted ones with their full rpy."""
-    from pydrake.math import RollPitchYaw
-
-    from drake_symplan.world.scenes import TILT_TOL, ObjectSpec, Scene
-
     objects = []
     for name, X in poses.items():
         R = X.rotation()
@@ -75,9 +84,6 @@ def problem_seed(seed: int, attempt: int) -> int:
 
 def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float = 0.5):
     """(start, goal, info) for one random problem, or the reason it was dropped (a string)."""
-    from drake_symplan.data.exploration import left_workspace, random_action
-    from drake_symplan.world.scenes import SceneError, sample_scene, validate_scene
-
     rng = np.random.default_rng(seed)
     start = sample_scene(rng, n_objects, long_fraction=long_fraction)
     seen = agent.look(start)
@@ -87,7 +93,7 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
     actions, infeasible = [], 0
     while len(actions) < k:
         action = random_action(rng, now.names)
-        execution = agent.backend.execute(action, now)
+        execution = agent.robot.execute(action, now)
         if execution.status == "infeasible":
             infeasible += 1
             if infeasible >= MAX_INFEASIBLE:
@@ -98,7 +104,7 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
         infeasible = 0
         actions.append(str(action))
         seen = beliefs.follow(now, execution.after, action)
-        if left_workspace(agent.backend.ground_truth_states()):
+        if left_workspace(agent.robot.ground_truth_states()):
             return "left_table"
         if seen.lost:
             return "perception_lost"
@@ -107,7 +113,7 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
     moved = displacement(beliefs.positions(first), end)
     if moved <= NONTRIVIAL_DISTANCE:
         return "trivial"
-    goal = scene_from_poses(agent.station.object_poses(), agent.station.types)
+    goal = scene_from_poses(*agent.robot.ground_truth_poses())
     try:
         validate_scene(goal)
     except SceneError:
@@ -125,9 +131,6 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     `k`: actions per problem, an int or a list taken in turn. A re-run with the same
     arguments resumes (existing problems are kept; attempts go on from the last one).
     Returns the summary written to `out_dir`/problems.json."""
-    from drake_symplan.atomic import write_atomic
-    from drake_symplan.world.scenes import save_scene
-
     ks = [int(k)] if np.isscalar(k) else [int(v) for v in k]
     if not ks or min(ks) < 1:
         raise ValueError(f"k must be at least 1, got {k}")
@@ -146,8 +149,6 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     rejected = Counter(summary.get("rejected", {}))
     max_attempts = max_attempts if max_attempts is not None else 20 * count
     if agent is None and kept < count:
-        from drake_symplan.agent.solve import Agent
-
         agent = Agent(backend)
     while kept < count and attempt < max_attempts:
         kk = ks[kept % len(ks)]

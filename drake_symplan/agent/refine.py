@@ -26,70 +26,37 @@ afterwards that the rest of the plan still applies.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.structs import OFFSET_METRES, OFFSETS, Action
-from drake_symplan.symbolic.effect_operators import ground_slots
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
 MIN_GAIN = 0.01  # m: a change of offsets must bring the source this much nearer its goal
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
 CLEARANCE = 0.01  # m: free table between a repositioned box and every other box
 RESTS_ON = 0.03  # m: a box in contact with another and this much higher rests on it
 REPOSITIONS_PER_OBJECT = 2  # a solve's repositionings at most, per object
-_REPOSITION = re.compile(r"^\(reposition_(?P<grasp>[a-z]+)_(?P<release>[a-z]+) (\S+) (\S+)\)$")
 
 
-def _ground(atoms, args) -> set:
-    return set(ground_slots(atoms, args))
-
-
-def _successor(op, args, state: set) -> set:
-    return (state - _ground(op.delete, args)) | _ground(op.add, args)
-
-
-def advance(bundle, step: str, state: set) -> set:
-    """The state the step's operator predicts from `state`."""
-    from drake_symplan.symbolic.pddl import plan_step_action
-
-    return _successor(bundle.operator_of(step), plan_step_action(step).args, state)
-
-
-def reaches(bundle, steps: list[str], state: set, goal: set) -> bool:
-    """Do `steps` apply one after the other from `state` and end in a state holding `goal`?"""
-    from drake_symplan.symbolic.pddl import plan_step_action
-
-    for step in steps:
-        if not _ground(bundle.operator_of(step).pre, plan_step_action(step).args) <= state:
-            return False
-        state = advance(bundle, step, state)
-    return goal <= state
-
-
-def equivalents(bundle, step: str, rest: list[str], state: set, goal: set) -> list[str]:
-    """`step`, then the steps with the same arguments whose operators apply in `state` (a
-    set of ground atoms) and after which `rest` still reaches `goal`."""
-    from drake_symplan.symbolic.pddl import plan_step_action
-
-    args = plan_step_action(step).args
-    op = bundle.operator_of(step)
+def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
+    """`step`, then the steps of `operators` with the same arguments that apply in `state`
+    (a set of ground atoms) and after which `rest` still reaches `goal`."""
     out = [step]
-    for other in bundle.operators:
-        if other.n_params != op.n_params or other is op:
+    for other in operators:
+        if other.n_params != step.operator.n_params or other is step.operator:
             continue
-        if _ground(other.pre, args) <= state and \
-                reaches(bundle, rest, _successor(other, args, state), goal):
-            out.append(f"({other.name} {' '.join(args)})")
+        option = step.with_operator(other)
+        if option.applicable(state) and reaches(rest, option.apply(state), goal):
+            out.append(option)
     return out
 
 
-def landing_error(step: str, bundle, now: dict[str, np.ndarray], goal: dict[str, np.ndarray],
+def landing_error(step: PlanStep, now: dict[str, np.ndarray], goal: dict[str, np.ndarray],
                   goal_contacts) -> float:
     """How far (m, along world y, the offsets' axis) the step's source would land from its
     goal position, with the source's grasp point released over the target's release point."""
-    action = bundle.action_of(step)
+    action = step.action
     shift = OFFSET_METRES[action.release] - OFFSET_METRES[action.grasp]
     src, tgt = action.source, action.target
     if tuple(sorted((src, tgt))) in goal_contacts:
@@ -99,23 +66,17 @@ def landing_error(step: str, bundle, now: dict[str, np.ndarray], goal: dict[str,
     return abs(shift - want)
 
 
-def refine_step(bundle, step: str, rest: list[str], state: set, goal_atoms: set,
-                now: dict[str, np.ndarray], goal: dict[str, np.ndarray], goal_contacts) -> str:
+def refine_step(operators, step: Step, rest: list[PlanStep], state, goal_atoms,
+                now: dict[str, np.ndarray], goal: dict[str, np.ndarray], goal_contacts) -> Step:
     """`step`, or the interchangeable step (see `equivalents`) that lands its source at
     least MIN_GAIN nearer its goal; `now` and `goal` are perceived positions by name."""
-    options = equivalents(bundle, step, rest, state, goal_atoms)
+    options = equivalents(operators, step, rest, state, goal_atoms)
     if len(options) == 1:
         return step
     contacts = {tuple(sorted(p)) for p in goal_contacts}
-    errors = [landing_error(s, bundle, now, goal, contacts) for s in options]
+    errors = [landing_error(s, now, goal, contacts) for s in options]
     best = int(np.argmin(errors))
     return options[best] if errors[0] - errors[best] >= MIN_GAIN else step
-
-
-def reposition_action(step: str) -> Action | None:
-    """`(reposition_center_right o1 o0)` -> its Action; None for an operator's step."""
-    m = _REPOSITION.match(step.strip())
-    return None if m is None else Action(m[3], m["grasp"], m[4], m["release"])
 
 
 def footprint(obj) -> np.ndarray:
@@ -144,14 +105,12 @@ def carried(scene, name: str) -> set[str]:
     return load
 
 
-def reposition_step(rest: list[str], now, goal, tolerance: float) -> str | None:
+def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposition | None:
     """A step that puts a box resting on nothing in the goal, with what rests on it, within
     `tolerance` of its goal position, beside another box, or None. `now`, `goal`: perceived
     scenes by the same names; `rest`: the plan's remaining steps (their sources are left to
     them)."""
-    from drake_symplan.symbolic.pddl import plan_step_action
-
-    movers = {plan_step_action(s).action.source for s in rest}
+    movers = {s.action.source for s in rest}
     boxes = {o.name: o for o in now.objects}
     wanted = {n: goal.object(n).position for n in boxes}
 
@@ -177,7 +136,7 @@ def reposition_step(rest: list[str], now, goal, tolerance: float) -> str | None:
                 continue
             if all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
                    for n, o in boxes.items() if n != src and n not in load):
-                best = (miss, f"(reposition_{grasp}_{release} {src} {tgt})")
+                best = (miss, Reposition(Action(src, grasp, tgt, release)))
         if best is not None:
             return best[1]
     return None

@@ -1,8 +1,9 @@
 """Solving one goal in full physics: perceive, read symbols, plan, execute, monitor, check.
 
-`solve(start_scene, goal_scene, bundle)` builds one station (cameras and the robot of the
-chosen back-end, data/backends.py) and runs `Agent.solve` on it; `Agent` keeps the station
-for many solves (the evaluation).
+`solve(start_scene, goal_scene, bundle, config)` builds one robot (cameras and the arm or
+the hand, robot/backends.py) and runs `Agent.solve` on it; `Agent` keeps the robot for many
+solves (the evaluation). How it solves is a `SolveConfig` (agent/config.py); what it knows
+is an `Abstraction` of a model bundle (abstraction/abstraction.py).
 
 1. The goal scene is put on the table and perceived; the file only names the boxes
    (agent/beliefs.py). The start scene likewise, then the robot stays in it.
@@ -13,8 +14,8 @@ for many solves (the evaluation).
    pick/place in full physics); the scene perceived after it keeps the names through
    perception's association. Before it runs, its offsets may be swapped for an
    interchangeable operator's that land the source nearer its goal, and a box that the
-   symbols leave off its goal position on the table may be put down beside another first
-   (agent/refine.py; both with `refine`).
+   symbols leave off its goal position on the table may be put down beside another first,
+   a `Reposition` step (agent/refine.py; both with `refine`).
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
    step's operator predicted; on a mismatch the agent replans from the perceived state
    (if that replan fails, the current plan runs on).
@@ -32,33 +33,29 @@ import dataclasses as dc
 import time
 from contextlib import contextmanager
 
+from drake_symplan.abstraction.abstraction import Abstraction, Plan
 from drake_symplan.agent import beliefs
-from drake_symplan.agent.refine import (
-    REPOSITIONS_PER_OBJECT,
-    advance,
-    reaches,
-    refine_step,
-    reposition_action,
-    reposition_step,
-)
+from drake_symplan.agent.config import DEFAULT_SOLVE, GOAL_TOLERANCE, SolveConfig
+from drake_symplan.agent.refine import REPOSITIONS_PER_OBJECT, refine_step, reposition_step
+from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
+from drake_symplan.world.visualization import StartMeshcat
 
-GOAL_TOLERANCE = 0.05  # m
 STATUSES = ("success", "failure", "no_plan", "timeout", "infeasible", "error")
 FAILURE_CAUSES = ("no_plan", "timeout", "execution", "perception", "infeasible", "error")
 PHASES = ("perceive", "symbols", "plan", "execute", "total")
-RESET_SETTLE = 0.1  # s of physics after putting a scene on the table (as data/backends.py)
 # Planner statuses -> the agent's status (= failure cause) when the plan cannot be had.
-_PLANNER_STATUS = {"unsolvable": "no_plan", "timeout": "timeout", "error": "error"}
+PLANNER_STATUS = {"unsolvable": "no_plan", "timeout": "timeout", "error": "error"}
 
 
 @dc.dataclass
 class SolveResult:
     """What `solve` returns; `to_json` is the documented JSON. `plan` is the first plan,
-    `executed` every step executed (replans included)."""
+    `executed` every step executed (repositionings and replans included)."""
 
     status: str
-    plan: list[str] = dc.field(default_factory=list)
-    executed: list[str] = dc.field(default_factory=list)
+    plan: list[PlanStep] = dc.field(default_factory=list)
+    executed: list[PlanStep] = dc.field(default_factory=list)
     replans: int = 0
     objects: dict[str, dict] = dc.field(default_factory=dict)
     seconds: dict[str, float] = dc.field(default_factory=dict)
@@ -78,8 +75,9 @@ class SolveResult:
         return self.status == "success"
 
     def to_json(self) -> dict:
-        out = {"status": self.status, "plan": list(self.plan), "executed": list(self.executed),
-               "replans": self.replans, "objects": self.objects,
+        out = {"status": self.status, "plan": [str(s) for s in self.plan],
+               "executed": [str(s) for s in self.executed], "replans": self.replans,
+               "objects": self.objects,
                "seconds": {k: round(v, 4) for k, v in self.seconds.items()}}
         if not self.success:
             out["failure_cause"] = self.failure_cause
@@ -91,49 +89,33 @@ class SolveResult:
 class _Clock:
     """Wall time per phase; perception inside other phases is moved to "perceive"."""
 
-    def __init__(self, backend):
-        self.backend = backend
+    def __init__(self, robot: Backend):
+        self.robot = robot
         self.seconds = dict.fromkeys(PHASES, 0.0)
 
     @contextmanager
     def __call__(self, phase: str):
-        start, seen = time.perf_counter(), self.backend.perception_seconds
+        start, seen = time.perf_counter(), self.robot.perception_seconds
         try:
             yield
         finally:
-            perceived = self.backend.perception_seconds - seen
+            perceived = self.robot.perception_seconds - seen
             self.seconds[phase] += time.perf_counter() - start - perceived
             self.seconds["perceive"] += perceived
 
 
 class Agent:
-    """One station with cameras and a robot that solves goals. `backend`: "arm" (the UR10
-    in full physics), "hand" (the fast hand), or a data.backends.Backend to use as it is."""
+    """A robot with cameras that solves goals. `robot`: "arm" (the UR10 in full physics),
+    "hand" (the fast hand), or a robot.backends.Backend to use as it is; `meshcat` shows
+    a robot built here live."""
 
-    def __init__(self, backend="arm", meshcat=None):
-        from drake_symplan.data.backends import make_backend
-
-        self.backend = make_backend(backend) if isinstance(backend, str) else backend
-        if meshcat is not None:
-            # Backends build their station without a viewer: rebuild it with one.
-            from drake_symplan.world.station import Station
-
-            self.backend.station = Station(self.backend.station.config, meshcat=meshcat)
-
-    @property
-    def station(self):
-        return self.backend.station
-
-    def show(self, scene) -> None:
-        """Puts `scene` on the table (tilted objects at their full `rpy`), robot home, and
-        lets physics settle it."""
-        self.station.reset(scene)
-        self.station.settle(RESET_SETTLE)
+    def __init__(self, robot: str | Backend = "arm", meshcat=None):
+        self.robot = make_backend(robot, meshcat=meshcat) if isinstance(robot, str) else robot
 
     def look(self, scene, clock: _Clock | None = None) -> beliefs.Named:
-        """Shows `scene` and perceives it, the boxes named after the file's objects; the
-        perception (not the showing) counts on `clock` as "perceive"."""
-        self.show(scene)
+        """Puts `scene` on the table (robot home, physics settled) and perceives it, the
+        boxes named after the file's objects; the perception counts on `clock`."""
+        self.robot.reset(scene)
         if clock is None:
             return self.see(scene)
         with clock("perceive"):
@@ -141,23 +123,21 @@ class Agent:
 
     def see(self, scene) -> beliefs.Named:
         """Perceives the table as it is now, the boxes named after `scene`'s objects."""
-        return beliefs.name_by_file(self.backend.perceive(), scene)
+        return beliefs.name_by_file(self.robot.perceive(), scene)
 
-    def solve(self, start_scene, goal_scene, bundle, planner: str = "fd", timeout: float = 10.0,
-              monitor: bool = True, max_replans: int = 2, record=None,
-              refine: bool = True) -> SolveResult:
-        """Solves `goal_scene` from `start_scene` (world.scenes.Scene) with `bundle`; with
-        `refine`, each step's offsets are chosen among its equivalents (agent/refine.py)."""
-        from drake_symplan.data.backends import PerceptionFailure
-        from drake_symplan.world.visualization import recording
-
+    def solve(self, start_scene, goal_scene, abstraction: Abstraction,
+              config: SolveConfig = DEFAULT_SOLVE, record=None, on_plan=None) -> SolveResult:
+        """Solves `goal_scene` from `start_scene` (world.scenes.Scene); `record`: an HTML
+        file for the Meshcat recording of the execution (with a Meshcat); `on_plan(plan,
+        start, goal)` is told the first plan (abstraction.Plan, solved or not) and the
+        perceived scenes (beliefs.Named) before anything moves."""
         beliefs.check_scene_pair(start_scene, goal_scene)
-        clock = _Clock(self.backend)
+        clock = _Clock(self.robot)
         t0 = time.perf_counter()
-        run = _Run(self, bundle, clock, planner, timeout, monitor, max_replans, refine)
+        run = _Run(self, abstraction, clock, config, on_plan)
         try:
             goal = self.look(goal_scene, clock)
-            with recording(self.station, record):  # from the start scene on
+            with self.robot.recording(record):  # from the start scene on
                 start = self.look(start_scene, clock)
                 result = run.go(start, goal)
         except PerceptionFailure as e:  # perception raised: the loop cannot go on
@@ -167,148 +147,176 @@ class Agent:
         return result
 
 
-class _Run:
-    """The loop of one solve; `go` returns the SolveResult without its seconds."""
+class _Stop(Exception):
+    """Ends a solve: the last perceived scene, the failure cause, a message."""
 
-    def __init__(self, agent: Agent, bundle, clock: _Clock, planner: str, timeout: float,
-                 monitor: bool, max_replans: int, refine: bool = True):
-        self.agent, self.bundle, self.clock = agent, bundle, clock
-        self.planner, self.timeout = planner, timeout
-        self.monitor, self.max_replans, self.refine = monitor, max_replans, refine
+    def __init__(self, scene, cause: str, message: str = ""):
+        super().__init__(message)
+        self.scene, self.cause, self.message = scene, cause, message
+
+
+class _Run:
+    """The loop of one solve (module docstring): `go` plans, then executes the plan step
+    by step (`_execute`), monitoring each (`_monitor`) and the end (`_goal_seen`)."""
+
+    def __init__(self, agent: Agent, abstraction: Abstraction, clock: _Clock,
+                 config: SolveConfig, on_plan=None):
+        self.agent, self.abs, self.clock, self.config = agent, abstraction, clock, config
+        self.on_plan = on_plan
         self.result = SolveResult("failure")
-        self.goal, self.goal_reading, self.goal_atoms = None, None, set()
+        self.goal = self.goal_reading = None
+        self.goal_atoms = frozenset()
+        self.now = self.reading = None
+        self.believed = frozenset()
+        self.steps: list[PlanStep] = []
         self.repositions = 0
 
     def go(self, start: beliefs.Named, goal: beliefs.Named) -> SolveResult:
-        self.goal = goal
+        self.goal = goal.scene
         if goal.lost or start.lost:
             lost = [f"{n} (goal)" for n in goal.lost] + [f"{n} (start)" for n in start.lost]
             return self._end(start.scene, "perception", f"perception lost {', '.join(lost)}")
-        now = start.scene
-        with self.clock("symbols"):
-            self.goal_reading = self._read(goal.scene)
-            reading = self._read(now)
-            believed = self._believe(reading)
-            self.goal_atoms = self.bundle.goal_atoms(self.goal_reading,
-                                                     self.goal.scene.contacts)
-        steps, stop = self._plan(reading)
-        if stop:
-            return self._end(now, *stop)
-        self.result.plan = list(steps)
-        while True:
-            while True:
-                if self.refine and self.repositions < REPOSITIONS_PER_OBJECT * len(now.names):
-                    extra = reposition_step(steps, now, self.goal.scene, GOAL_TOLERANCE)
-                    if extra is not None:
-                        steps.insert(0, extra)
-                        self.repositions += 1
-                if not steps:
-                    break
-                step = steps.pop(0)
-                moving = reposition_action(step)
-                if self.refine and moving is None:
-                    with self.clock("symbols"):
-                        step = refine_step(self.bundle, step, steps, believed,
-                                           self.goal_atoms,
-                                           beliefs.positions(now),
-                                           beliefs.positions(self.goal.scene),
-                                           self.goal.scene.contacts)
-                with self.clock("execute"):
-                    action = moving or self.bundle.action_of(step)
-                    execution = self.agent.backend.execute(action, now)
-                self.result.executed.append(step)
-                if execution.status == "infeasible":
-                    return self._end(now, "infeasible", f"{step}: {execution.message}")
-                if execution.status != "ok":
-                    return self._end(now, "error", f"{step}: {execution.message}")
-                seen = self._follow(now, execution.after, action)
-                if seen.lost:
-                    return self._end(seen.scene, "perception",
-                                     f"after {step} perception lost {', '.join(seen.lost)}")
-                before, now = reading, seen.scene
-                if not self.monitor:  # open loop: the state is what the operator predicted
-                    if self.refine and moving is None:
-                        believed = advance(self.bundle, step, believed)
-                    continue
-                with self.clock("symbols"):
-                    reading = self._read(now)
-                    believed = self._believe(reading)
-                    # A repositioning predicts no symbolic change: the rest must still apply.
-                    wrong = not reaches(self.bundle, steps, believed, self.goal_atoms) \
-                        if moving else self.bundle.mismatches(reading, step, before)
-                if wrong and self.result.replans < self.max_replans:
-                    replanned, stop = self._replan(reading)
-                    if not stop:
-                        steps = replanned
-                    elif not steps:
-                        return self._end(now, *stop)
-                    # else the planner found nothing from here (timeout, no plan): the
-                    # current plan runs on, as it would open loop.
-            # The plan has run out. The monitor checks that the goal's atoms are seen too:
-            # a step can pass its own check and still disturb another object.
-            if not self.monitor or self.result.replans >= self.max_replans:
-                break
+        try:
             with self.clock("symbols"):
-                reached = self._goal_holds(reading)
-            if reached:
-                break
-            steps, stop = self._replan(reading)
-            if stop:
-                return self._end(now, *stop)
-            if not steps:
-                break
-        return self._end(now, "execution", "")
+                self.goal_reading = self.abs.read_scene(self.goal)
+                self.goal_atoms = self.abs.goal_atoms(self.goal_reading)
+                self._perceived(start.scene)
+            first = self._search()
+            if self.on_plan is not None:
+                self.on_plan(first, start, goal)
+            self.steps = self._steps(first)
+            self.result.plan = list(self.steps)
+            while True:
+                while self._next():
+                    self._execute(self.steps.pop(0))
+                if not self._goal_seen():
+                    break
+        except _Stop as stop:
+            return self._end(stop.scene, stop.cause, stop.message)
+        return self._end(self.now, "execution", "")
 
-    def _replan(self, reading) -> tuple[list[str], tuple[str, str] | None]:
-        self.result.replans += 1
-        return self._plan(reading)
+    # --- plan -----------------------------------------------------------------------
 
-    def _goal_holds(self, reading) -> bool:
-        """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""
-        return self.goal_atoms <= self.bundle.atoms(reading)[0]
-
-    def _believe(self, reading) -> set:
-        """The state the planner starts from (uncertain bits read as the problem reads
-        them), for choosing offsets; not needed without `refine`."""
-        return self.bundle.atoms(reading, guess=True)[0] if self.refine else set()
-
-    def _read(self, scene):
-        return self.bundle.read(scene.names, scene.features(), scene.contacts)
-
-    def _plan(self, reading) -> tuple[list[str], tuple[str, str] | None]:
-        """(steps, None), or ([], (cause, message)) when the planner found no plan."""
+    def _search(self) -> Plan:
+        """Plans from the scene perceived now."""
         with self.clock("plan"):
-            found = self.bundle.plan(reading, self.goal_reading, self.planner, self.timeout,
-                                     self.goal.scene.contacts)
-        if found.solved:
-            return list(found.plan), None
-        return [], (_PLANNER_STATUS.get(found.status, "error"),
-                    f"planner {self.planner}: {found.status}: {found.message}".strip())
+            return self.abs.plan(self.reading, self.goal_reading, self.config.planner,
+                                 self.config.timeout)
+
+    def _steps(self, found: Plan) -> list[PlanStep]:
+        """The steps of a plan found; _Stop when the planner found none."""
+        if not found.solved:
+            cause = PLANNER_STATUS.get(found.status, "error")
+            raise _Stop(self.now, cause, f"planner {self.config.planner}: {found.status}: "
+                                         f"{found.message}".strip())
+        return list(found.steps)
+
+    def _replan(self) -> list[PlanStep]:
+        self.result.replans += 1
+        return self._steps(self._search())
+
+    # --- execute --------------------------------------------------------------------
+
+    def _next(self) -> bool:
+        """Is there a step to run? With `refine`, a repositioning goes first where a box
+        the rest of the plan leaves alone is off its goal spot."""
+        limit = REPOSITIONS_PER_OBJECT * len(self.now.names)
+        if self.config.refine and self.repositions < limit:
+            extra = reposition_step(self.steps, self.now, self.goal, GOAL_TOLERANCE)
+            if extra is not None:
+                self.steps.insert(0, extra)
+                self.repositions += 1
+        return bool(self.steps)
+
+    def _execute(self, step: PlanStep) -> None:
+        """Runs `step` with the robot (its offsets refined first), perceives the result."""
+        if self.config.refine and isinstance(step, Step):
+            with self.clock("symbols"):
+                step = refine_step(self.abs.bundle.operators, step, self.steps, self.believed,
+                                   self.goal_atoms, beliefs.positions(self.now),
+                                   beliefs.positions(self.goal), self.goal.contacts)
+        with self.clock("execute"):
+            execution = self.agent.robot.execute(step.action, self.now)
+        self.result.executed.append(step)
+        if execution.status == "infeasible":
+            raise _Stop(self.now, "infeasible", f"{step}: {execution.message}")
+        if execution.status != "ok":
+            raise _Stop(self.now, "error", f"{step}: {execution.message}")
+        seen = self._follow(self.now, execution.after, step.action)
+        if seen.lost:
+            raise _Stop(seen.scene, "perception",
+                        f"after {step} perception lost {', '.join(seen.lost)}")
+        self.now = seen.scene
+        if self.config.monitor:
+            self._monitor(step)
+        else:  # open loop: the state is what the step predicts
+            self.believed = step.apply(self.believed)
 
     def _follow(self, before, after, action) -> beliefs.Named:
         """`after` named by association; an object lost with the prior is looked for once
         more from scratch (no prior) before it counts as lost."""
         seen = beliefs.follow(before, after, action)
         if seen.lost:
-            again = beliefs.follow(before, self.agent.backend.perceive(), action)
+            again = beliefs.follow(before, self.agent.robot.perceive(), action)
             if len(again.lost) < len(seen.lost):
                 seen = again
         return seen
+
+    # --- monitor --------------------------------------------------------------------
+
+    def _perceived(self, scene) -> None:
+        self.now = scene
+        self.reading = self.abs.read_scene(scene)
+        self.believed = self.abs.believed(self.reading)
+
+    def _monitor(self, step: PlanStep) -> None:
+        """Reads the symbols now; if they depart from the step's prediction (for a
+        repositioning: if the rest of the plan no longer applies), replans."""
+        with self.clock("symbols"):
+            self._perceived(self.now)
+            if isinstance(step, Reposition):
+                wrong = not reaches(self.steps, self.believed, self.goal_atoms)
+            else:
+                wrong = bool(self.abs.mismatches(self.reading, step))
+        if wrong and self.result.replans < self.config.max_replans:
+            try:
+                self.steps = self._replan()
+            except _Stop:
+                if not self.steps:
+                    raise
+                # The planner found nothing from here (timeout, no plan): the current
+                # plan runs on, as it would open loop.
+
+    def _goal_seen(self) -> bool:
+        """The plan has run out. The monitor checks that the goal's atoms are seen too (a
+        step can pass its own check and still disturb another object): True when it
+        replanned and there are steps to run."""
+        if not self.config.monitor or self.result.replans >= self.config.max_replans:
+            return False
+        with self.clock("symbols"):
+            reached = self.abs.goal_holds(self.reading, self.goal_atoms)
+        if reached:
+            return False
+        self.steps = self._replan()
+        return bool(self.steps)
+
+    # --- check ----------------------------------------------------------------------
 
     def _end(self, final, cause: str, message: str) -> SolveResult:
         """The check on the last perceived scene `final`: success if every goal object is
         within GOAL_TOLERANCE, else the status for `cause`."""
         result = self.result
-        truth = {n: s.position for n, s in self.agent.station.object_states().items()}
-        result.objects = beliefs.goal_errors(beliefs.positions(self.goal.scene),
+        truth = {n: s.position for n, s in self.agent.robot.ground_truth_states().items()}
+        result.objects = beliefs.goal_errors(beliefs.positions(self.goal),
                                              beliefs.positions(final), truth)
         errors = [o["error_cm"] for o in result.objects.values()]
         if errors and all(e is not None and e <= GOAL_TOLERANCE * 100 for e in errors) \
                 and cause != "perception":
             result.status = "success"
             return result
-        if self.goal_reading is not None and set(self.goal.scene.names) <= set(final.names):
-            result.symbolic_goal_reached = self._goal_holds(self._read(final))
+        if self.goal_reading is not None and set(self.goal.names) <= set(final.names):
+            result.symbolic_goal_reached = self.abs.goal_holds(self.abs.read_scene(final),
+                                                               self.goal_atoms)
         if cause == "execution":
             far = {n: o["error_cm"] for n, o in result.objects.items()
                    if o["error_cm"] is not None and o["error_cm"] > GOAL_TOLERANCE * 100}
@@ -320,19 +328,16 @@ class _Run:
         return result
 
 
-def solve(start_scene, goal_scene, bundle, planner: str = "fd", timeout: float = 10.0,
-          monitor: bool = True, max_replans: int = 2, meshcat=None, record=None,
-          backend: str = "arm", refine: bool = True) -> SolveResult:
-    """Solves one goal on a new station; `record`: write a Meshcat HTML recording there
+def solve(start_scene, goal_scene, abstraction: Abstraction,
+          config: SolveConfig = DEFAULT_SOLVE, meshcat=None, record=None,
+          robot: str = "arm") -> SolveResult:
+    """Solves one goal with a new robot; `record`: write a Meshcat HTML recording there
     (a `meshcat` is started for it if none is given). seconds["setup"] is the station build."""
     t0 = time.perf_counter()
     if record is not None and meshcat is None:
-        from drake_symplan.world.visualization import StartMeshcat
-
         meshcat = StartMeshcat()
-    agent = Agent(backend, meshcat=meshcat)
+    agent = Agent(robot, meshcat=meshcat)
     setup = time.perf_counter() - t0
-    result = agent.solve(start_scene, goal_scene, bundle, planner, timeout, monitor,
-                         max_replans, record, refine)
+    result = agent.solve(start_scene, goal_scene, abstraction, config, record)
     result.seconds["setup"] = setup
     return result

@@ -18,9 +18,7 @@ from pathlib import Path
 
 from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
-
-PLANNERS = ("fd", "pyperplan")
-BACKENDS = ("arm", "hand")
+from drake_symplan.cli.options import add_robot_argument, add_solve_arguments, solve_config
 
 
 def register(subparsers) -> None:
@@ -34,16 +32,8 @@ def register(subparsers) -> None:
                    help="goal scene YAML (only perceived; the file names the objects)")
     p.add_argument("--model", type=Path, default=None,
                    help="model bundle directory (default: the shipped models/learned/)")
-    p.add_argument("--planner", choices=PLANNERS, default="fd")
-    p.add_argument("--timeout", type=float, default=10.0, help="planner seconds (default 10)")
-    p.add_argument("--no-monitor", action="store_true",
-                   help="run the first plan open-loop (no replanning on a mismatch)")
-    p.add_argument("--max-replans", type=int, default=2)
-    p.add_argument("--no-refine", action="store_true",
-                   help="execute each step with the offsets the planner chose (default: "
-                   "an interchangeable operator's that land the box nearer its goal)")
-    p.add_argument("--backend", choices=BACKENDS, default="arm",
-                   help="arm: the UR10 in full physics (default); hand: the fast hand")
+    add_solve_arguments(p)
+    add_robot_argument(p)
     p.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
     p.add_argument("--record", type=Path, help="write a self-contained HTML recording here")
     p.add_argument("--json", action="store_true")
@@ -60,7 +50,7 @@ def register(subparsers) -> None:
                    help="actions per problem; several values are taken in turn")
     p.add_argument("--count", required=True, type=positive_int, help="problems to keep")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--backend", choices=BACKENDS, default="arm")
+    add_robot_argument(p)
     p.add_argument("--max-attempts", type=positive_int, default=None,
                    help="give up after this many attempts (default 20 x count)")
     p.add_argument("--json", action="store_true")
@@ -73,12 +63,10 @@ def register(subparsers) -> None:
                    help="model bundle directories")
     p.add_argument("--problems", required=True, type=Path,
                    help="problem set directory (problems at any depth)")
-    p.add_argument("--planner", choices=PLANNERS, default="fd")
-    p.add_argument("--backend", choices=BACKENDS, default="arm",
-                   help="arm: the headline; hand: for large sweeps, reported as such")
-    p.add_argument("--timeout", type=float, default=10.0)
-    p.add_argument("--monitor", choices=("both", "on", "off"), default="both")
-    p.add_argument("--max-replans", type=int, default=2)
+    add_solve_arguments(p, monitor_flag=False)
+    add_robot_argument(p)
+    p.add_argument("--monitor", choices=("both", "on", "off"), default="both",
+                   help="solve each problem monitored, open loop, or both (default both)")
     p.add_argument("--limit", type=positive_int, default=None, help="first N problems only")
     p.add_argument("--records", type=Path, default=None,
                    help="append one JSON line per solve here; a re-run resumes from it")
@@ -99,23 +87,17 @@ def load_bundle(path: Path | None):
     return ModelBundle.load(path)
 
 
-def _check_planning(args) -> None:
-    if not args.timeout > 0:
-        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
-    if args.max_replans < 0:
-        raise CommandError(f"--max-replans must be 0 or more, got {args.max_replans}")
-
-
 def cmd_solve(args: argparse.Namespace) -> dict:
     from drake_symplan.agent.beliefs import check_scene_pair
     from drake_symplan.cli.world_cmds import load_scene_file
 
     # Inputs first, so that bad ones are told before Drake is loaded.
-    _check_planning(args)
+    config = solve_config(args)
     start, goal = load_scene_file(args.start), load_scene_file(args.goal)
     check_scene_pair(start, goal)
     bundle = load_bundle(args.model)
 
+    from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.solve import solve
     from drake_symplan.world.visualization import StartMeshcat
 
@@ -123,9 +105,8 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     if args.meshcat or args.record:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
             meshcat = StartMeshcat()
-    result = solve(start, goal, bundle, args.planner, args.timeout, not args.no_monitor,
-                   args.max_replans, meshcat=meshcat, record=args.record, backend=args.backend,
-                   refine=not args.no_refine)
+    result = solve(start, goal, Abstraction(bundle), config, meshcat=meshcat,
+                   record=args.record, robot=args.backend)
     out = result.to_json()
     if args.record:
         out["recording"] = str(args.record)
@@ -158,16 +139,18 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
 
 
 def cmd_eval_planning(args: argparse.Namespace) -> dict:
+    from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.evaluation import evaluate_planning, plot_planning
 
-    _check_planning(args)
+    config = solve_config(args)
     for run in args.runs:
         if not run.is_dir():
             raise CommandError(f"no model directory {run}")
     monitor = {"both": (True, False), "on": (True,), "off": (False,)}[args.monitor]
-    result = evaluate_planning(args.runs, args.problems, args.planner, args.backend, monitor,
-                               args.timeout, args.max_replans, args.limit, args.records,
-                               load_bundle=load_bundle, ray_address=args.ray)
+    result = evaluate_planning(args.runs, args.problems, config, args.backend, monitor,
+                               args.limit, args.records,
+                               load=lambda run: Abstraction(load_bundle(run)),
+                               ray_address=args.ray)
     out = {"settings": result["settings"], "runs": result["runs"]}
     if args.plot:
         plot_planning(result["runs"], args.plot)

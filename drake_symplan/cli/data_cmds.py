@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 
 from drake_symplan.cli.main import positive_int
+from drake_symplan.cli.options import add_robot_argument
 
 
 def register(subparsers) -> None:
     collect = subparsers.add_parser(
         "collect", help="collect random-exploration transitions (resumable, parallel)")
-    collect.add_argument("--backend", choices=("hand", "arm"), default="hand",
-                         help="hand: fast weld-constraint hand; arm: UR10 in full physics")
+    add_robot_argument(collect, default="hand")
     collect.add_argument("--transitions", type=int, required=True, help="how many in all (exactly); rerun with a larger N to extend a collection")
     collect.add_argument("--workers", type=positive_int, default=None,
                          help="worker processes (default: one per CPU; with --ray, one per "

@@ -21,8 +21,7 @@ import sys
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer
-
-PLANNERS = ("fd", "pyperplan")
+from drake_symplan.cli.options import add_planner_arguments, solve_config
 
 
 def register(subparsers) -> None:
@@ -41,8 +40,7 @@ def register(subparsers) -> None:
                    help="write a self-contained HTML page of the drawing here")
     p.add_argument("--meshcat", action="store_true",
                    help="keep serving the live scene on localhost until Enter is pressed")
-    p.add_argument("--planner", choices=PLANNERS, default="fd")
-    p.add_argument("--timeout", type=float, default=10.0, help="planner seconds (default 10)")
+    add_planner_arguments(p)
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_inspect)
 
@@ -82,8 +80,7 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     from drake_symplan.cli.world_cmds import load_scene_file
 
     # Inputs first, so that bad ones are told before Drake is loaded.
-    if not args.timeout > 0:
-        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
+    config = solve_config(args)
     start = load_scene_file(args.scene)
     goal = load_scene_file(args.goal) if args.goal is not None else None
     if goal is not None:
@@ -92,6 +89,7 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
 
     bundle = ModelBundle.load(_model_dir(args.model))
 
+    from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.inspection import inspect, inspection_sections
     from drake_symplan.world.visualization import StartMeshcat
 
@@ -99,10 +97,10 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     if args.meshcat or args.record:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
             meshcat = StartMeshcat()
-    from drake_symplan.data.backends import PerceptionFailure
+    from drake_symplan.robot.backends import PerceptionFailure
 
     try:
-        result = inspect(start, bundle, goal, meshcat, args.record, args.planner, args.timeout,
+        result = inspect(start, Abstraction(bundle), goal, meshcat, args.record, config,
                          title=f"symplan inspect {args.scene.name}")
     except (RuntimeError, PerceptionFailure) as e:  # the scene file cannot be perceived
         raise CommandError(f"{args.scene}: {e}") from e

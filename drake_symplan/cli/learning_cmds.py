@@ -10,8 +10,7 @@ import argparse
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, positive_int
-
-MODEL_NAMES = ("relational", "attentive", "deepsym", "reference")
+from drake_symplan.cli.options import MODELS
 
 
 def register(subparsers) -> None:
@@ -23,7 +22,7 @@ def register(subparsers) -> None:
     p.add_argument("--config", type=Path, metavar="FILE",
                    help="YAML file of TrainConfig settings, e.g. configs/table1.yaml; "
                    "flags given on the command line override it")
-    p.add_argument("--model", choices=MODEL_NAMES,
+    p.add_argument("--model", choices=MODELS,
                    help="required, here or in --config; reference: no symbols, the data "
                    "set's error floor (models.py)")
     p.add_argument("--data", help="data set directory (shards + manifest.json); required, "

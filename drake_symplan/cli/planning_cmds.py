@@ -13,6 +13,7 @@ from pathlib import Path
 
 from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
+from drake_symplan.cli.options import LEARNERS, add_planner_arguments, planner_settings
 
 
 def register(subparsers) -> None:
@@ -48,7 +49,9 @@ def register(subparsers) -> None:
     b.add_argument("--data", type=Path, required=True,
                    help="data set collected with whole scenes (the run's training set)")
     b.add_argument("--out", type=Path, required=True, help="bundle directory to write")
-    b.add_argument("--learner", choices=("effect", "paper"), default="effect")
+    b.add_argument("--learner", choices=LEARNERS, default="effect",
+                   help="effect: effect-first operators with reliabilities; paper: the "
+                   "paper's method as implemented (default effect)")
     b.add_argument("--min-count", type=positive_int, default=10,
                    help="transitions an operator needs (default 10)")
     b.add_argument("--support", type=float, default=0.95,
@@ -70,8 +73,7 @@ def register(subparsers) -> None:
     e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3])
     e.add_argument("--max-problems", type=positive_int, default=50,
                    help="problems per k and object count (default 50)")
-    e.add_argument("--planner", choices=("fd", "pyperplan"), default="fd")
-    e.add_argument("--timeout", type=float, default=10.0)
+    add_planner_arguments(e)
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--out", type=Path, help="also write the report as JSON here")
     e.add_argument("--plot", type=Path, help="write a plot (PNG) here")
@@ -85,8 +87,7 @@ def register(subparsers) -> None:
     )
     q.add_argument("--domain", type=Path, required=True)
     q.add_argument("--problem", type=Path, required=True)
-    q.add_argument("--planner", choices=("fd", "pyperplan"), default="fd")
-    q.add_argument("--timeout", type=float, default=10.0, help="seconds (default 10)")
+    add_planner_arguments(q)
     q.add_argument("--search", default=None,
                    help="FD --search string, or a pyperplan search name (default: optimal A*)")
     q.add_argument("--heuristic", default=None, help="pyperplan heuristic (default lmcut)")
@@ -139,8 +140,7 @@ def cmd_plan(args) -> dict:
         if args.planner != "pyperplan":
             raise ValueError("--heuristic is for --planner pyperplan; give FD's in --search")
         options["heuristic"] = args.heuristic
-    if not args.timeout > 0:
-        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
+    planner_settings(args)
     for path in (args.domain, args.problem):
         check_pddl_file(path)
     result = plan(args.domain, args.problem, args.planner, args.timeout, **options)
@@ -182,11 +182,10 @@ def cmd_bundle(args) -> dict:
 def cmd_eval_operators(args) -> dict:
     import json
 
-    from drake_symplan.planning.operator_eval import EvalConfig, evaluate_bundle, plot_report
+    from drake_symplan.abstraction.operator_eval import EvalConfig, evaluate_bundle, plot_report
     from drake_symplan.symbolic.bundle import ModelBundle
 
-    if not args.timeout > 0:
-        raise CommandError(f"--timeout must be positive, got {args.timeout:g}")
+    planner_settings(args)
     bundle = ModelBundle.load(args.model)
     config = EvalConfig(ks=tuple(args.k), planner=args.planner, timeout=args.timeout,
                         max_problems=args.max_problems, seed=args.seed)

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
+from drake_symplan.cli.options import add_solve_arguments, solve_config
 
 
 def register(subparsers) -> None:
@@ -30,6 +31,7 @@ def register(subparsers) -> None:
                    help="training runs at a time, and local collection workers (default 2)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="collect and solve the arm problems on Ray (no address: this machine)")
+    add_solve_arguments(p, monitor_flag=False)
     p.add_argument("--report", action="store_true",
                    help="run nothing: write results.md from the stages done so far")
     p.add_argument("--json", action="store_true")
@@ -43,7 +45,8 @@ def run_reproduce(args):
     if out.exists() and not out.is_dir():
         raise CommandError(f"--out {out} is a file, not a directory")
     rep = Reproduction(args.scale, out, jobs=args.jobs, ray=args.ray,
-                       say=lambda text: print(text, file=sys.stderr, flush=True))
+                       say=lambda text: print(text, file=sys.stderr, flush=True),
+                       solve=solve_config(args))
     if args.report:
         if not (rep.results / "effects.json").exists():
             raise CommandError(f"nothing to report in {out}: its effects stage has not run")

@@ -38,8 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.data import storage
-from drake_symplan.data.backends import BACKENDS
 from drake_symplan.data.exploration import OUTCOMES, EpisodeConfig, run_episode
+from drake_symplan.robot.backends import BACKENDS
 from drake_symplan.structs import TransitionArrays
 
 EPISODE_STRIDE = 100_000  # episode ids of chunk c are c * EPISODE_STRIDE + k
@@ -190,7 +190,7 @@ _worker: dict = {}
 
 
 def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
-    from drake_symplan.data.backends import make_backend
+    from drake_symplan.robot.backends import make_backend
 
     config = CollectConfig(**config_dict)
     _worker.update(config=config, progress=progress, parent=parent_pid,
@@ -249,7 +249,7 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
         elif ray is not None:
             started = _run_ray(ray, out_dir, config, todo, min(workers, len(todo)), bar)
         elif workers == 1:
-            from drake_symplan.data.backends import make_backend
+            from drake_symplan.robot.backends import make_backend
 
             backend = make_backend(config.backend)
             started = time.perf_counter()
@@ -354,7 +354,7 @@ def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers
     it comes. The bar counts, per chunk, the most transitions any attempt reached, so a
     retried chunk is not counted twice. Returns when the workers had all started."""
     from drake_symplan.cluster import run_jobs
-    from drake_symplan.data.backends import make_backend
+    from drake_symplan.robot.backends import make_backend
 
     seen = dict.fromkeys(todo, 0)
     written: set[int] = set()

@@ -214,7 +214,7 @@ def run_episode(
 
     Perception raising on a scene (PerceptionFailure) ends the episode as dropped
     ("perception_error"); the transitions recorded before it are kept."""
-    from drake_symplan.data.backends import PerceptionFailure
+    from drake_symplan.robot.backends import PerceptionFailure
 
     log = EpisodeLog()
     try:

@@ -72,7 +72,7 @@ def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
 def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
                    scenes_actions: list | None = None, progress: bool = False) -> dict:
     """Runs `pairs` random pairs (or the given (scene, action) list); the parity report."""
-    from drake_symplan.data.backends import make_backend
+    from drake_symplan.robot.backends import make_backend
 
     hand, arm = make_backend("hand"), make_backend("arm")
     rng = np.random.default_rng(seed)

@@ -23,7 +23,6 @@ not written to the domain but stay alternatives in the reliabilities of the othe
 from __future__ import annotations
 
 import itertools
-import math
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -31,13 +30,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.structs import OFFSETS, SymbolDataset
-from drake_symplan.symbolic.operators import (
-    action_roles,
-    distinct_parameters,
-    operator_name,
-    parameter_names,
-)
-from drake_symplan.symbolic.states import Atom
+from drake_symplan.symbolic.operators import action_roles
+from drake_symplan.symbolic.structs import LiftedOperator
+from drake_symplan.symbolic.structs import bit_key as key
 
 MAX_DEGREE = 3  # contact degrees above this read as this
 
@@ -65,59 +60,8 @@ class EffectLearnConfig:
 
 
 @dataclass
-class EffectOperator:
-    """A lifted operator with preconditions, add and delete lists over ?o0..?o{n-1}."""
-
-    index: int
-    grasp: str
-    release: str
-    n_params: int
-    pre: tuple[SlotAtom, ...]
-    add: tuple[SlotAtom, ...]
-    delete: tuple[SlotAtom, ...]
-    count: int  # transitions in the group
-    applicable: int = 0  # training transitions where the preconditions held for its action
-    succeeded: int = 0  # of those, where its effect followed
-    cost_scale: float = 10.0
-
-    @property
-    def reliability(self) -> float:
-        return self.succeeded / self.applicable if self.applicable else 0.0
-
-    @property
-    def cost(self) -> int:
-        return 1 + round(self.cost_scale * -math.log(max(self.reliability, 1e-3)))
-
-    name = property(lambda self: operator_name(self.grasp, self.release, self.count,
-                                               self.index))
-    params = property(lambda self: parameter_names(self.n_params))
-
-    def preconditions(self) -> list[Atom]:
-        return distinct_parameters(self.n_params) + [_lift(a) for a in self.pre]
-
-    def effects(self) -> tuple[list[Atom], list[Atom]]:
-        return [_lift(a) for a in self.add], [_lift(a) for a in self.delete]
-
-    def describe(self, n_transitions: int | None = None) -> str:
-        of = f" of {n_transitions}" if n_transitions else ""
-        return (f"rank {self.index}: {self.count}{of} transitions; reliability "
-                f"{self.reliability:.2f} ({self.succeeded}/{self.applicable}), cost {self.cost}")
-
-    def to_dict(self) -> dict:
-        add, delete = self.effects()
-        return {
-            "index": self.index, "name": self.name, "grasp": self.grasp,
-            "release": self.release, "count": self.count, "params": list(self.params),
-            "preconditions": [" ".join(a) for a in self.preconditions()],
-            "add": [" ".join(a) for a in add], "delete": [" ".join(a) for a in delete],
-            "reliability": self.reliability, "applicable": self.applicable,
-            "succeeded": self.succeeded, "cost": self.cost,
-        }
-
-
-@dataclass
 class EffectOperatorSet:
-    operators: list[EffectOperator]  # the domain's: non-empty effect, most frequent first
+    operators: list[LiftedOperator]  # the domain's: non-empty effect, most frequent first
     n_unary: int
     n_relations: int
     n_transitions: int
@@ -137,10 +81,6 @@ class EffectOperatorSet:
         }
 
 
-def _lift(a: SlotAtom) -> Atom:
-    return (a[0], *(f"?o{i}" for i in a[1:]))
-
-
 # ---------------------------------------------------------------- states as atom sets
 
 
@@ -151,11 +91,6 @@ def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real, degree=None) -> 
     contacts [N, N] bool (None: every pair); real [N] bool; degree [N]: how many objects
     of the whole scene each one touches (None: no contact-degree atoms)."""
     return atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree)[0]
-
-
-def ground_slots(atoms, args) -> list[Atom]:
-    """Slot atoms (name, slot, ...) of an operator with its slots bound to `args`."""
-    return [(a[0], *(args[i] for i in a[1:])) for a in atoms]
 
 
 def degree_atom(n: int) -> str:
@@ -188,11 +123,6 @@ def atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree=Non
                 else:
                     unknown.append((f"r{k}", int(i), int(j)))
     return frozenset(out), frozenset(unknown)
-
-
-def key(atom: SlotAtom) -> tuple:
-    """The bit an atom speaks of: (symbol, slots), polarity dropped."""
-    return (atom[0].removeprefix("not_"), *atom[1:])
 
 
 def changes(before: frozenset, after: frozenset, unknown_before: frozenset,
@@ -252,6 +182,22 @@ class Semantics:
     # Whether an operator applies (and a problem's initial state) reads an uncertain bit
     # by its sign, its most likely value; preconditions, effects and goals stay certain.
     guess_uncertain: bool = True
+
+
+    def read(self, unary, unary_unc, rel, rel_unc, contacts, real=None, guess: bool = False,
+             contacts_only: bool | None = None) -> tuple[frozenset, frozenset]:
+        """(atoms, unknown keys) of one scene's symbols over slots under these semantics:
+        unary [N, P], rel [K, N, N] and their uncertainty flags, contacts [N, N] bool (the
+        whole scene's: the degrees count them), real [N] (None: all). With `guess` (a
+        problem's initial state) uncertain bits are read by their sign where
+        `guess_uncertain` says so; `contacts_only` overrides the relation rule (goals:
+        only pairs in contact)."""
+        certain = self.certain_only and not (guess and self.guess_uncertain)
+        only = self.contacts_only if contacts_only is None else contacts_only
+        real = np.ones(len(unary), bool) if real is None else real
+        return atoms_and_unknown(unary, unary_unc if certain else None, rel,
+                                 rel_unc if certain else None, contacts if only else None,
+                                 real, contacts.sum(-1) if self.degree else None)
 
 
 EFFECT = Semantics()
@@ -369,7 +315,7 @@ def learn_effect_operators(data: SymbolDataset, config: EffectLearnConfig | None
         # An atom's support counts the members that could read its bit.
         pre = _sorted(a for a, c in counts.items() if c >= config.support * sum(
             key(a) not in unknown for _, unknown in members))
-        candidates.append(EffectOperator(0, OFFSETS[g], OFFSETS[r], n, pre, add, delete,
+        candidates.append(LiftedOperator(0, OFFSETS[g], OFFSETS[r], n, pre, add, delete,
                                          len(members), cost_scale=config.cost_scale))
     measure_reliability(candidates, lifted)
     t3 = time.perf_counter()
@@ -383,7 +329,7 @@ def learn_effect_operators(data: SymbolDataset, config: EffectLearnConfig | None
                  "reliability": round(t3 - t2, 3)})
 
 
-def measure_reliability(operators: list[EffectOperator], lifted: list[Lifted]) -> None:
+def measure_reliability(operators: list[LiftedOperator], lifted: list[Lifted]) -> None:
     """Sets each operator's `applicable` and `succeeded` counts on the transitions."""
     by_action: dict[tuple, list[Lifted]] = defaultdict(list)
     for tr in lifted:
@@ -398,7 +344,7 @@ def measure_reliability(operators: list[EffectOperator], lifted: list[Lifted]) -
                 op.succeeded += verdict
 
 
-def _grounded(op: EffectOperator, tr: Lifted):
+def _grounded(op: LiftedOperator, tr: Lifted):
     """For each binding of the operator's parameters to the transition's objects under
     which its preconditions hold: the lifted (after, unknown after) sets."""
     pre = frozenset(op.pre)
@@ -410,7 +356,7 @@ def _grounded(op: EffectOperator, tr: Lifted):
             yield after, unknown
 
 
-def follows(op: EffectOperator, tr: Lifted) -> bool | None:
+def follows(op: LiftedOperator, tr: Lifted) -> bool | None:
     """None if the operator does not apply to the transition (action or preconditions);
     else whether its effect followed for some binding: every add holds after (or its bit
     is uncertain there) and no delete does."""
@@ -425,7 +371,7 @@ def follows(op: EffectOperator, tr: Lifted) -> bool | None:
     return False if applied else None
 
 
-def predicts(op: EffectOperator, tr: Lifted) -> bool | None:
+def predicts(op: LiftedOperator, tr: Lifted) -> bool | None:
     """None if the operator does not apply; else whether its predicted next state holds
     every atom observed after (the goal's atoms) for some binding."""
     if (OFFSETS.index(op.grasp), OFFSETS.index(op.release)) != (tr.grasp, tr.release):
@@ -443,18 +389,6 @@ def predicts(op: EffectOperator, tr: Lifted) -> bool | None:
         if (_rename(tr.after, everyone) - add) <= (_rename(tr.read_before, everyone) - delete):
             return True
     return False if applied else None
-
-
-def from_paper(op, cost_scale: float = 10.0) -> EffectOperator:
-    """The paper's operator (symbolic/operators.py, bit arrays) as atom lists, so that both
-    are measured the same way (reliability, coverage, precision)."""
-    def slots(atoms):
-        return tuple((a[0], *(int(x[2:]) for x in a[1:])) for a in atoms if a[0] != "different")
-
-    add, delete = op.effects()
-    return EffectOperator(op.index, op.grasp, op.release, op.n_params,
-                          slots(op.preconditions()), slots(add), slots(delete), op.count,
-                          cost_scale=cost_scale)
 
 
 def _slots(tr: Lifted) -> set[int]:

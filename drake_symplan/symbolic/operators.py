@@ -20,7 +20,7 @@ import numpy as np
 
 from drake_symplan.structs import IS_SOURCE, IS_TARGET, OFFSETS, Action, SymbolDataset
 from drake_symplan.symbolic.canonical import canonical_orders, encode, permute
-from drake_symplan.symbolic.states import Atom, SymbolicState
+from drake_symplan.symbolic.structs import Atom, LiftedOperator
 
 # Relative thresholds reported next to the absolute one (fractions of the data size).
 # The paper's 50 of 160k training samples is about 3.1e-4.
@@ -49,98 +49,38 @@ class LearnConfig:
         return self.min_count
 
 
-@dataclass
-class Operator:
-    """One lifted operator: parameters ?o0 (source), ?o1 (target), ?o2, ...
-
-    pre_* hold the precondition bits, post_* the bits after the most frequent effect,
-    both in parameter order ([n, P] and [K, n, n]).
-    """
-
-    index: int  # rank by frequency, 0 = most frequent
-    grasp: str
-    release: str
-    count: int  # transitions in the group
-    effect_count: int  # transitions of the group that had the chosen effect
-    n_effects: int  # distinct effects seen in the group
-    pre_unary: np.ndarray
-    pre_relational: np.ndarray
-    post_unary: np.ndarray
-    post_relational: np.ndarray
-    self_relations: bool = False
-    example: int = -1  # index of one transition with the chosen effect
-    example_slots: tuple[int, ...] = ()  # that transition's object slot per parameter
-
-    @property
-    def n_params(self) -> int:
-        return self.pre_unary.shape[0]
-
-    name = property(lambda self: operator_name(self.grasp, self.release, self.count,
-                                               self.index))
-    params = property(lambda self: parameter_names(self.n_params))
-
-    def _state(self, unary, relational) -> SymbolicState:
-        return SymbolicState(tuple(p[1:] for p in self.params), unary, relational)
-
-    def _lift(self, atoms: list[Atom]) -> list[Atom]:
-        return [(a[0],) + tuple("?" + x for x in a[1:]) for a in atoms]
-
-    def preconditions(self) -> list[Atom]:
-        """`(different ?oi ?oj)` for i < j, then every symbol literal over the params."""
-        facts = self._state(self.pre_unary, self.pre_relational).facts(self.self_relations)
-        return distinct_parameters(self.n_params) + self._lift(facts)
-
-    def effects(self) -> tuple[list[Atom], list[Atom]]:
-        """(add list, delete list) in positive-STRIPS form: a bit that turns on adds
-        `(pJ ..)` and deletes `(not_pJ ..)`, and the other way round."""
-        pre = self._lift(self._state(self.pre_unary, self.pre_relational).facts(self.self_relations))
-        post = self._lift(
-            self._state(self.post_unary, self.post_relational).facts(self.self_relations)
-        )
-        add = [b for a, b in zip(pre, post, strict=True) if a != b]
-        delete = [a for a, b in zip(pre, post, strict=True) if a != b]
-        return add, delete
-
-    def to_dict(self) -> dict:
-        add, delete = self.effects()
-        return {
-            "index": self.index,
-            "name": self.name,
-            "grasp": self.grasp,
-            "release": self.release,
-            "count": self.count,
-            "effect_count": self.effect_count,
-            "n_effects": self.n_effects,
-            "params": list(self.params),
-            "preconditions": [" ".join(a) for a in self.preconditions()],
-            "add": [" ".join(a) for a in add],
-            "delete": [" ".join(a) for a in delete],
-            "example": self.example,
-            "example_slots": list(self.example_slots),
-        }
+def slot_facts(unary: np.ndarray, relational: np.ndarray, self_relations: bool = False
+               ) -> list[Atom]:
+    """The closed-world atoms of one canonical state over parameter slots: one per unary
+    bit ([n, P]) and one per relation bit ([K, n, n]) of every ordered pair (and of each
+    slot with itself with `self_relations`)."""
+    n = unary.shape[0]
+    out = [Atom(f"p{j}" if unary[i, j] else f"not_p{j}", i)
+           for i in range(n) for j in range(unary.shape[1])]
+    out += [Atom(f"r{k}" if relational[k, i, j] else f"not_r{k}", i, j)
+            for i in range(n) for j in range(n) if self_relations or i != j
+            for k in range(relational.shape[0])]
+    return out
 
 
-def parameter_names(n: int) -> tuple[str, ...]:
-    """?o0 (the source), ?o1 (the target), ?o2, ..."""
-    return tuple(f"?o{i}" for i in range(n))
-
-
-def distinct_parameters(n: int) -> list[Atom]:
-    """`(different ?oi ?oj)` for i < j: positive STRIPS keeps the parameters distinct."""
-    return [("different", f"?o{i}", f"?o{j}") for i in range(n) for j in range(i + 1, n)]
-
-
-def operator_name(grasp: str, release: str, count: int, index: int) -> str:
-    """Action schema name: offsets, group count and frequency rank, e.g.
-    `pick_center_place_right_n736_op19` (see pddl.parse_plan_step)."""
-    return f"pick_{grasp}_place_{release}_n{count}_op{index}"
+def paper_operator(index: int, grasp: str, release: str, count: int, pre: tuple,
+                   post: tuple, self_relations: bool = False, **stats) -> LiftedOperator:
+    """The operator of a group whose canonical state before is `pre` and whose most
+    frequent state after is `post` ((unary, relational) each): the bits that differ
+    become its effects, in positive-STRIPS form (a bit turning on adds `(pJ ..)` and
+    deletes `(not_pJ ..)`)."""
+    before = slot_facts(*pre, self_relations)
+    after = slot_facts(*post, self_relations)
+    changed = [(a, b) for a, b in zip(before, after, strict=True) if a != b]
+    return LiftedOperator(index, grasp, release, pre[0].shape[0], before,
+                          [b for _, b in changed], [a for a, _ in changed], count, **stats)
 
 
 @dataclass
 class OperatorSet:
     """The result of operator learning."""
 
-    operators: list[Operator]  # kept groups, most frequent first
+    operators: list[LiftedOperator]  # kept groups, most frequent first
     n_unary: int
     n_relations: int
     self_relations: bool
@@ -321,21 +261,11 @@ def learn_operators(data: SymbolDataset, config: LearnConfig | None = None) -> O
     for rank, g in enumerate(kept_groups):
         e = int(example[g])
         m = int(n_obj[e])
-        operators.append(Operator(
-            index=rank,
-            grasp=OFFSETS[grasp[e]],
-            release=OFFSETS[release[e]],
-            count=int(group_counts[g]),
-            effect_count=int(best_count[g]),
-            n_effects=int(n_effects[g]),
-            pre_unary=u[e, :m].copy(),
-            pre_relational=r[e, :, :m, :m].copy(),
-            post_unary=nu[e, :m].copy(),
-            post_relational=nr[e, :, :m, :m].copy(),
-            self_relations=config.self_relations,
-            example=int(keep[e]),
-            example_slots=tuple(int(x) for x in order[e, :m]),
-        ))
+        operators.append(paper_operator(
+            rank, OFFSETS[grasp[e]], OFFSETS[release[e]], int(group_counts[g]),
+            (u[e, :m], r[e, :, :m, :m]), (nu[e, :m], nr[e, :, :m, :m]), config.self_relations,
+            effect_count=int(best_count[g]), outcomes=int(n_effects[g]), example=int(keep[e]),
+            example_slots=tuple(int(x) for x in order[e, :m])))
     t4 = time.perf_counter()
     return OperatorSet(
         operators=operators,
@@ -354,7 +284,7 @@ def learn_operators(data: SymbolDataset, config: LearnConfig | None = None) -> O
     )
 
 
-def example_action(op: Operator) -> Action:
+def example_action(op: LiftedOperator) -> Action:
     """The operator's action on its example transition's object slots (o<slot>)."""
     s, t = op.example_slots[:2]
     return Action(f"o{s}", op.grasp, f"o{t}", op.release)

@@ -9,8 +9,8 @@ problems list for every ordered pair of distinct objects.
 
 Action names carry the offsets, the group's count and its frequency rank,
 `pick_<grasp>_place_<release>_n<count>_op<rank>`; the first two parameters are always
-the source and the target, so `plan_step_action` maps a plan step to a pick/place by
-role, never by position in a name.
+the source and the target, so a plan step maps to a pick/place by
+role, never by position in a name (symbolic/structs.py: parse_step).
 
 As in the paper, preconditions speak only about an operator's parameters (the objects
 that were relevant when it was learned). Positive STRIPS cannot say "and nothing else
@@ -25,26 +25,15 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from drake_symplan.structs import OFFSETS, Action
 from drake_symplan.symbolic.effect_operators import MAX_DEGREE, degree_atom
-from drake_symplan.symbolic.operators import Operator
-from drake_symplan.symbolic.states import (
-    Atom,
-    SymbolicState,
-    difference_facts,
-    predicate_names,
-)
+from drake_symplan.symbolic.states import SymbolicState, difference_facts, predicate_names
+from drake_symplan.symbolic.structs import Atom, LiftedOperator, apply
 
 TYPE = "obj"
 DOMAIN_NAME = "symplan"
 
-_STEP = re.compile(
-    r"^pick_(?P<grasp>[a-z]+)_place_(?P<release>[a-z]+)_n(?P<count>\d+)_op(?P<index>\d+)$"
-)
-
-
-def _atom(a: Atom) -> str:
-    return "(" + " ".join(a) + ")"
+def _atom(a: tuple) -> str:
+    return Atom.of(a).pddl()
 
 
 def _wrap(atoms: list[str], indent: str) -> str:
@@ -54,7 +43,7 @@ def _wrap(atoms: list[str], indent: str) -> str:
 
 
 def domain_pddl(
-    operators: Iterable[Operator],
+    operators: Iterable[LiftedOperator],
     n_unary: int,
     n_relations: int,
     name: str = DOMAIN_NAME,
@@ -97,7 +86,7 @@ def domain_pddl(
         if costs:
             effect.append(f"(increase (total-cost) {op.cost})")
         lines += [
-            f"  ; {_describe(op, n_transitions)}",
+            f"  ; {op.describe(n_transitions)}",
             f"  (:action {op.name}",
             "    :parameters (" + " ".join(f"{p} - {TYPE}" for p in op.params) + ")",
             "    :precondition " + _wrap([_atom(a) for a in op.preconditions()], "    "),
@@ -106,14 +95,6 @@ def domain_pddl(
         ]
     lines.append(")")
     return "\n".join(lines) + "\n"
-
-
-def _describe(op, n_transitions: int | None) -> str:
-    if hasattr(op, "describe"):
-        return op.describe(n_transitions)
-    of = f" of {n_transitions}" if n_transitions else ""
-    return (f"rank {op.index}: {op.count}{of} transitions; this effect in "
-            f"{op.effect_count} ({op.n_effects} distinct effect(s))")
 
 
 def problem_pddl(
@@ -161,33 +142,6 @@ def problem_from_atoms(objects, init: Iterable[Atom], goal: Iterable[Atom],
         ")",
     ]
     return "\n".join(lines) + "\n"
-
-
-# ---------------------------------------------------------------- plan steps
-
-
-@dataclass(frozen=True)
-class PlanStep:
-    action: Action
-    count: int  # transitions behind the operator
-    index: int  # the operator's frequency rank
-    args: tuple[str, ...]  # all parameters, source and target first
-
-
-def plan_step_action(step: str) -> PlanStep:
-    """`(pick_center_place_right_n736_op19 o3 o1 o2)` -> pick(o3:center) place(o1:right).
-
-    Source and target are the first two arguments (by role); the rest are the objects
-    in contact that the operator's preconditions talk about.
-    """
-    tokens = step.strip().strip("()").split()
-    if len(tokens) < 3:
-        raise ValueError(f"plan step {step!r} has no source and target arguments")
-    m = _STEP.match(tokens[0].lower())
-    if not m or m["grasp"] not in OFFSETS or m["release"] not in OFFSETS:
-        raise ValueError(f"{tokens[0]!r} is not a learned pick/place operator name")
-    action = Action(tokens[1], m["grasp"], tokens[2], m["release"])
-    return PlanStep(action, int(m["count"]), int(m["index"]), tuple(tokens[1:]))
 
 
 # ---------------------------------------------------------------- reading back
@@ -312,7 +266,7 @@ def check_plan(domain_text: str, problem_text: str, plan: list[str]) -> str | No
         missing = [ground(a) for a in schema.pre if ground(a) not in state]
         if missing:
             return f"step {i}: {step!r} is not applicable, missing {missing[:3]}"
-        state = (state - {ground(a) for a in schema.delete}) | {ground(a) for a in schema.add}
+        state = apply(state, map(ground, schema.add), map(ground, schema.delete))
     unmet = [g for g in goal if g not in state]
     if unmet:
         return f"goal not reached after {len(plan)} steps, missing {unmet[:3]}"

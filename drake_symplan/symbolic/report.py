@@ -11,6 +11,8 @@ from pathlib import Path
 
 from drake_symplan.atomic import write_atomic
 from drake_symplan.structs import SymbolDataset
+from drake_symplan.symbolic.bundle import operators_json
+from drake_symplan.symbolic.effect_operators import PAPER
 from drake_symplan.symbolic.operators import OperatorSet, example_action
 from drake_symplan.symbolic.pddl import domain_pddl
 from drake_symplan.symbolic.states import SymbolicState
@@ -39,7 +41,7 @@ def write_operators(ops: OperatorSet, data: SymbolDataset, source: str, out_dir:
         **ops.summary(),
         "thresholds": ops.threshold_report(),
     }
-    full = dict(result, operators=[op.to_dict() for op in ops.operators])
+    full = operators_json(ops.operators, PAPER, result)
     write_atomic(out_dir / OPERATORS, json.dumps(full, indent=2))
     write_atomic(out_dir / REPORT, report_markdown(ops, data, source))
     return result
@@ -74,14 +76,14 @@ def report_markdown(ops: OperatorSet, data: SymbolDataset, source: str) -> str:
             f"### {op.index}. `{op.name}`",
             "",
             f"pick(?o0:{op.grasp}) place(?o1:{op.release}); {op.count} transitions, this "
-            f"effect in {op.effect_count} of them ({op.n_effects} distinct effect(s)); "
+            f"effect in {op.effect_count} of them ({op.outcomes} distinct effect(s)); "
             f"parameters: ?o0 source, ?o1 target"
             + (f", {' '.join(op.params[2:])} in contact" if op.n_params > 2 else "") + ".",
             "",
-            "- preconditions: " + " ".join(f"({' '.join(a)})" for a in op.preconditions()
+            "- preconditions: " + " ".join(a.pddl() for a in op.preconditions()
                                           if a[0] != "different"),
-            "- add: " + (" ".join(f"({' '.join(a)})" for a in add) or "(none)"),
-            "- delete: " + (" ".join(f"({' '.join(a)})" for a in delete) or "(none)"),
+            "- add: " + (" ".join(a.pddl() for a in add) or "(none)"),
+            "- delete: " + (" ".join(a.pddl() for a in delete) or "(none)"),
         ]
         if op.example >= 0:
             t, slots = op.example, list(op.example_slots)
@@ -95,7 +97,7 @@ def report_markdown(ops: OperatorSet, data: SymbolDataset, source: str) -> str:
             lines.append(
                 f"- example: transition {t}, {example_action(op)} (objects named by slot: "
                 + ", ".join(f"?o{i}={n}" for i, n in enumerate(names)) + "); became "
-                + (" ".join(f"({' '.join(a)})" for a in changed) or "nothing new")
+                + (" ".join(a.pddl() for a in changed) or "nothing new")
             )
         lines.append("")
     return "\n".join(lines)

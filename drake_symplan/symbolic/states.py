@@ -11,8 +11,7 @@ Self-relations r_k(o, o) exist in the read-out but are left out by default every
 object with itself, and a noisy self-bit would only split operator groups. Pass
 `self_relations=True` to keep them as `(rK o o)` literals.
 
-Atoms are tuples of strings, `("p0", "o1")`, `("not_r2", "o1", "o3")`; parameters of
-lifted atoms are written `?o0`, `?o1`, ... by the operator layer.
+Atoms are `symbolic.structs.Atom`s, `Atom("p0", "o1")`, `Atom("not_r2", "o1", "o3")`.
 """
 
 from __future__ import annotations
@@ -22,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-Atom = tuple[str, ...]
+from drake_symplan.symbolic.structs import Atom
 
 # PDDL names: a letter, then letters, digits, '-' or '_'. Fast Downward lowercases
 # everything it reads, so object names are required to be lowercase already; then a
@@ -42,12 +41,12 @@ def check_name(name: str) -> str:
 
 def unary_atom(j: int, value: bool, x: str) -> Atom:
     """`(pJ x)` for a true bit, `(not_pJ x)` for a false one."""
-    return (f"p{j}" if value else f"not_p{j}", x)
+    return Atom(f"p{j}" if value else f"not_p{j}", x)
 
 
 def relation_atom(k: int, value: bool, x: str, y: str) -> Atom:
     """`(rK x y)` for a true bit, `(not_rK x y)` for a false one."""
-    return (f"r{k}" if value else f"not_r{k}", x, y)
+    return Atom(f"r{k}" if value else f"not_r{k}", x, y)
 
 
 def predicate_names(n_unary: int, n_relations: int) -> tuple[list[str], list[str]]:
@@ -175,4 +174,4 @@ def difference_facts(objects: tuple[str, ...] | list[str]) -> list[Atom]:
     Positive STRIPS has no `(not (= ?a ?b))`; these static facts keep the parameters
     of an action bound to distinct objects instead.
     """
-    return [("different", a, b) for a in objects for b in objects if a != b]
+    return [Atom("different", a, b) for a in objects for b in objects if a != b]

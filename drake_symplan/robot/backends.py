@@ -1,4 +1,6 @@
-"""Execution back-ends for data collection: one interface, two simulators of the action.
+"""The robot: one interface to act on the table and see it, two simulators of the action.
+
+The agent executes plans with it and data collection explores with it.
 
 - `arm`: the UR10 executes the IK-planned pick/place in full physics (skills/pick_place).
 - `hand`: the collision-free simulated hand (world/hand.py, skills/hand_place.py) holds the
@@ -9,8 +11,10 @@ Both see the world only through the same perception: `reset` puts a scene on the
 `perceive` returns a `PerceivedScene`, and `execute(action, before)` plans from the
 perceived `before` (the beliefs) and returns the scenes perceived at the end of the lift
 and after the action. Simulator state is used by the simulators themselves only (the
-hand's grasp rule, settling) and by `ground_truth_states`, which is for bookkeeping and
-tests.
+hand's grasp rule, settling) and by `ground_truth_states` / `ground_truth_poses`, which
+are for bookkeeping (a problem's goal file, the evaluation's simulator check) and tests.
+
+Drake is imported at the top: this layer is the simulator's.
 """
 
 from __future__ import annotations
@@ -21,9 +25,14 @@ import time
 import numpy as np
 from scipy.spatial import QhullError
 
+from drake_symplan.perception.perceive import Perceiver
+from drake_symplan.skills.hand_place import hand_pick_place
+from drake_symplan.skills.pick_place import InfeasibleAction, PickPlacePlanner, run_motion
 from drake_symplan.structs import Action
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import Scene
+from drake_symplan.world.station import Station, StationConfig
+from drake_symplan.world.visualization import recording
 
 # SAP's linear contact model with the boxes' 0.05 s relaxation time launches a box that
 # drops a few cm onto the table (both robots); Hunt-Crossley ("similar", still the SAP
@@ -49,22 +58,20 @@ class Execution:
 
 
 class Backend:
-    """A station with cameras, a perceiver and a way to execute the action."""
+    """A station with cameras, a perceiver and a way to execute the action; `meshcat`
+    shows the station live (and lets `recording` write it)."""
 
     name = ""
     robot = ""
     perception_seconds = 0.0  # wall time spent in perceive, for the benchmarks
 
     def __init__(self, noise: DepthNoise | None = None, rng: np.random.Generator | None = None,
-                 time_step: float | None = None):
-        from drake_symplan.perception.perceive import Perceiver
-        from drake_symplan.world.station import Station, StationConfig
-
+                 time_step: float | None = None, meshcat=None):
         config = StationConfig(cameras=default_cameras(), robot=self.robot,
                                discrete_contact_approximation=CONTACT_APPROXIMATION)
         if time_step is not None:
             config.time_step = time_step
-        self.station = Station(config)
+        self.station = Station(config, meshcat=meshcat)
         self.perceiver = Perceiver()
         self.noise = noise if noise is not None and noise.active else None
         self.rng = rng or np.random.default_rng(0)
@@ -96,6 +103,16 @@ class Backend:
         """Simulator truth (tests and bookkeeping only; never a learning input)."""
         return self.station.object_states()
 
+    def ground_truth_poses(self) -> tuple[dict, dict[str, str]]:
+        """(pose by object, type by object) as simulated: what a problem's goal file
+        records (a world description, never a belief)."""
+        return self.station.object_poses(), dict(self.station.types)
+
+    def recording(self, path):
+        """A context that records the station's Meshcat to the HTML file `path` (None:
+        nothing; also nothing without a Meshcat)."""
+        return recording(self.station, path)
+
 
 class HandBackend(Backend):
     """The fast back-end: weld-constraint hand; carries are kinematic or rigid (hand_place)."""
@@ -108,8 +125,6 @@ class HandBackend(Backend):
         self.allow_kinematic = allow_kinematic
 
     def execute(self, action: Action, before) -> Execution:
-        from drake_symplan.skills.hand_place import hand_pick_place
-
         try:
             motion, lift = hand_pick_place(
                 self.station, action, before.object_states(),
@@ -139,14 +154,10 @@ class ArmBackend(Backend):
     robot = "ur10"
 
     def __init__(self, *args, **kwargs):
-        from drake_symplan.skills.pick_place import PickPlacePlanner
-
         super().__init__(*args, **kwargs)
         self.planner = PickPlacePlanner()
 
     def execute(self, action: Action, before) -> Execution:
-        from drake_symplan.skills.pick_place import InfeasibleAction, run_motion
-
         try:
             motion = self.planner.plan(action, before.object_states(),
                                        self.station.robot_positions())

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.planning.operator_eval import EvalConfig, make_problems
+from drake_symplan.abstraction.operator_eval import EvalConfig, make_problems
 from drake_symplan.structs import SceneSymbols
 from drake_symplan.symbolic.effect_operators import EFFECT
 
@@ -41,9 +41,9 @@ def test_problems_from_chains_skip_trivial_goals_and_use_contact_relations():
         by_k.setdefault(p.k, []).append(p)
     assert [len(by_k[k]) for k in (1, 2, 3)] == [2, 2, 1]  # k=1 from step 0 is trivial
     first = by_k[1][0]
-    assert ("r0", "o0", "o1") in first.goal and ("not_r0", "o1", "o0") in first.goal
-    assert not any(a[0].endswith("r0") for a in first.init)  # apart: no relation atoms
-    assert ("p0", "o0") in by_k[3][0].goal and ("not_p0", "o1") in by_k[3][0].goal
+    assert ("r0", "o0", "o1") in first.task.goal and ("not_r0", "o1", "o0") in first.task.goal
+    assert not any(a[0].endswith("r0") for a in first.task.init)  # apart: no relation atoms
+    assert ("p0", "o0") in by_k[3][0].task.goal and ("not_p0", "o1") in by_k[3][0].task.goal
 
 
 def test_problems_never_span_two_chains():

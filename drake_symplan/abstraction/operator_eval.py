@@ -15,7 +15,6 @@ applicable operators predicts every atom observed after), and a symbol-stability
 
 from __future__ import annotations
 
-import math
 import time
 from collections import Counter, defaultdict
 from concurrent.futures import ThreadPoolExecutor
@@ -23,26 +22,28 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from drake_symplan.abstraction.abstraction import plan_task, reliability
 from drake_symplan.atomic import save_figure
-from drake_symplan.planning.planners import plan_pddl
+from drake_symplan.learning.readout import readout_scenes
+from drake_symplan.planning.planners import DEFAULT_TIMEOUT
+from drake_symplan.shards import fingerprint, load_extra
 from drake_symplan.structs import OFFSETS, SceneSymbols, SymbolDataset
 from drake_symplan.symbolic.effect_operators import (
     EFFECT,
-    EffectOperator,
     Semantics,
-    atoms_and_unknown,
     changes,
     lift_transitions,
     predicts,
 )
-from drake_symplan.symbolic.pddl import domain_pddl, problem_from_atoms
+from drake_symplan.symbolic.pddl import domain_pddl
+from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task, parse_step
 
 
 @dataclass(frozen=True)
 class EvalConfig:
     ks: tuple[int, ...] = (1, 2, 3)
     planner: str = "fd"
-    timeout: float = 10.0
+    timeout: float = DEFAULT_TIMEOUT
     max_problems: int = 50  # per (k, object count), sampled with `seed`
     seed: int = 0
     workers: int = 2  # planner calls in parallel
@@ -52,9 +53,7 @@ class EvalConfig:
 class Problem:
     k: int
     n_objects: int
-    objects: tuple[str, ...]
-    init: list
-    goal: list
+    task: Task
 
 
 def scene_atoms(scenes: SceneSymbols, row: int, after: bool, semantics: Semantics,
@@ -63,16 +62,12 @@ def scene_atoms(scenes: SceneSymbols, row: int, after: bool, semantics: Semantic
     """Named atoms of a whole scene (before or after the action of `row`); with `guess`,
     uncertain bits read by their sign (a problem's initial state)."""
     p = "next_" if after else ""
-    certain = semantics.certain_only and not (guess and semantics.guess_uncertain)
-    unc = (lambda a: a[row]) if certain else (lambda a: None)
-    use_contacts = semantics.contacts_only if contacts_only is None else contacts_only
     whole = getattr(scenes, f"{p}contacts")[row]
-    atoms, _ = atoms_and_unknown(
-        getattr(scenes, f"{p}unary")[row], unc(getattr(scenes, f"{p}unary_uncertain")),
-        getattr(scenes, f"{p}relational")[row],
-        unc(getattr(scenes, f"{p}relational_uncertain")), whole if use_contacts else None,
-        scenes.mask[row], whole.sum(-1) if semantics.degree else None)
-    return sorted((a[0], *(names[s] for s in a[1:])) for a in atoms)
+    atoms, _ = semantics.read(
+        getattr(scenes, f"{p}unary")[row], getattr(scenes, f"{p}unary_uncertain")[row],
+        getattr(scenes, f"{p}relational")[row], getattr(scenes, f"{p}relational_uncertain")[row],
+        whole, scenes.mask[row], guess=guess, contacts_only=contacts_only)
+    return sorted(Atom(a[0], *(names[s] for s in a[1:])) for a in atoms)
 
 
 def make_problems(scenes: SceneSymbols, semantics: Semantics, config: EvalConfig
@@ -96,33 +91,31 @@ def make_problems(scenes: SceneSymbols, semantics: Semantics, config: EvalConfig
             goal = scene_atoms(scenes, j, True, semantics, names, contacts_only=True)
             if set(goal) <= set(init):
                 continue
-            cells[len(slots)].append(Problem(k, len(slots), tuple(names.values()), init, goal))
+            task = Task(tuple(names.values()), frozenset(init), frozenset(goal))
+            cells[len(slots)].append(Problem(k, len(slots), task))
         for n in sorted(cells):
             chosen = rng.permutation(len(cells[n]))[:config.max_problems]
             problems += [cells[n][i] for i in sorted(chosen)]
     return problems
 
 
-def solve_problems(operators: list[EffectOperator], n_unary: int, n_relations: int,
+def solve_problems(operators: list[LiftedOperator], n_unary: int, n_relations: int,
                    problems: list[Problem], config: EvalConfig) -> list[dict]:
     """Plans every problem with the domain of `operators`; one result dict per problem."""
-    costs = config.planner == "fd"
-    domain = domain_pddl(operators, n_unary, n_relations, costs=costs)
+    domain = domain_pddl(operators, n_unary, n_relations, costs=config.planner == "fd")
     by_name = {op.name: op for op in operators}
 
     def one(p: Problem) -> dict:
-        text = problem_from_atoms(p.objects, p.init, p.goal, costs=costs)
-        r = plan_pddl(domain, text, config.planner, config.timeout)
-        reliability = math.prod(by_name[s.strip("()").split()[0]].reliability
-                                for s in r.plan) if r.solved else 0.0
+        r = plan_task(domain, p.task, config.planner, config.timeout)
+        steps = [parse_step(s, by_name) for s in r.plan]
         return {"k": p.k, "objects": p.n_objects, "status": r.status, "length": len(r.plan),
-                "seconds": r.seconds, "reliability": reliability}
+                "seconds": r.seconds, "reliability": reliability(steps) if r.solved else 0.0}
 
     with ThreadPoolExecutor(max(1, config.workers)) as pool:
         return list(pool.map(one, problems))
 
 
-def prediction_scores(operators: list[EffectOperator], data: SymbolDataset,
+def prediction_scores(operators: list[LiftedOperator], data: SymbolDataset,
                       semantics: Semantics = EFFECT) -> dict:
     """Coverage and precision on the transitions whose symbols change (module doc)."""
     lifted = lift_transitions(data, semantics)
@@ -202,7 +195,7 @@ def _cell(rs: list[dict]) -> dict:
             "statuses": dict(Counter(r["status"] for r in rs))}
 
 
-def evaluate_operators(operators: list[EffectOperator], n_unary: int, n_relations: int,
+def evaluate_operators(operators: list[LiftedOperator], n_unary: int, n_relations: int,
                        heldout: SymbolDataset, scenes: SceneSymbols,
                        outcome: np.ndarray | None, semantics: Semantics,
                        config: EvalConfig) -> dict:
@@ -222,9 +215,6 @@ def evaluate_operators(operators: list[EffectOperator], n_unary: int, n_relation
 
 def evaluate_bundle(bundle, data_dir, config: EvalConfig) -> dict:
     """`evaluate_operators` for a loaded ModelBundle on a held-out data set directory."""
-    from drake_symplan.learning.readout import readout_scenes
-    from drake_symplan.shards import fingerprint, load_extra
-
     heldout, scenes = readout_scenes(bundle.model, data_dir, bundle.margin)
     report = evaluate_operators(bundle.operators, bundle.info["n_unary"],
                                 bundle.info["n_relations"], heldout, scenes,

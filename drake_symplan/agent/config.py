@@ -1,0 +1,48 @@
+"""How the agent solves: one `SolveConfig`, from the command line through `eval planning`
+and `reproduce` to the solve loop. No Drake here, so the CLI can check it first."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PLANNERS
+
+GOAL_TOLERANCE = 0.05  # m: every object must end this near its perceived goal position
+
+
+@dc.dataclass(frozen=True)
+class SolveConfig:
+    """planner: a planning.planners.PLANNERS back-end; timeout: its seconds per call;
+    monitor: perceive after each step and replan on a mismatch (False: open loop, as the
+    paper); max_replans: replans per solve; refine: choose each step's offsets among
+    interchangeable operators and put boxes down at their goal spot (agent/refine.py)."""
+
+    planner: str = "fd"
+    timeout: float = DEFAULT_TIMEOUT
+    monitor: bool = True
+    max_replans: int = 2
+    refine: bool = True
+
+    def __post_init__(self):
+        if self.planner not in PLANNERS:
+            raise ValueError(f"unknown planner {self.planner!r}; one of {sorted(PLANNERS)}")
+        if not self.timeout > 0:
+            raise ValueError(f"the planner timeout must be positive, got {self.timeout:g}")
+        if self.max_replans < 0:
+            raise ValueError(f"max_replans must be 0 or more, got {self.max_replans}")
+
+    def to_dict(self) -> dict:
+        return dc.asdict(self)
+
+    def replace(self, **changes) -> SolveConfig:
+        return dc.replace(self, **changes)
+
+    def flags(self) -> list[str]:
+        """The `symplan solve` / `eval planning` flags (cli/options.py) that give this
+        config, less the monitoring (eval planning runs both modes): for child processes."""
+        flags = ["--planner", self.planner, "--timeout", f"{self.timeout:g}",
+                 "--max-replans", str(self.max_replans)]
+        return flags + ([] if self.refine else ["--no-refine"])
+
+
+DEFAULT_SOLVE = SolveConfig()

@@ -1,0 +1,80 @@
+"""Options several commands share: choices read from the registries, and the solve settings
+(`SolveConfig`) as flags, so `solve`, `inspect`, `eval planning` and `reproduce` spell them
+alike."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.cli.main import CommandError
+
+
+class RegistryChoices:
+    """argparse `choices` that are the keys of a registry dict, read when first needed:
+    importing the registry's module loads torch (models) or Drake (robots), which a
+    command that does not need them should not pay for."""
+
+    def __init__(self, module: str, name: str):
+        self.module, self.name = module, name
+
+    def keys(self) -> tuple[str, ...]:
+        return tuple(getattr(importlib.import_module(self.module), self.name))
+
+    def __contains__(self, value) -> bool:
+        return value in self.keys()
+
+    def __iter__(self):
+        return iter(self.keys())
+
+
+PLANNERS = RegistryChoices("drake_symplan.planning.planners", "PLANNERS")
+MODELS = RegistryChoices("drake_symplan.learning.models", "MODELS")
+ROBOTS = RegistryChoices("drake_symplan.robot.backends", "BACKENDS")
+LEARNERS = RegistryChoices("drake_symplan.symbolic.bundle", "LEARNERS")
+
+
+def add_planner_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--planner", choices=PLANNERS, default=DEFAULT_SOLVE.planner,
+                   help="planner back-end: fd (Fast Downward, A* with LM-cut) or pyperplan "
+                   f"(default {DEFAULT_SOLVE.planner})")
+    p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.timeout,
+                   help=f"planner seconds per call (default {DEFAULT_SOLVE.timeout:g})")
+
+
+def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None:
+    p.add_argument("--backend", choices=ROBOTS, default=default,
+                   help="arm: the UR10 in full physics; hand: the fast collision-free hand "
+                   f"(default {default})")
+
+
+def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True) -> None:
+    """The SolveConfig flags; `monitor_flag`: --no-monitor (eval planning has --monitor)."""
+    add_planner_arguments(p)
+    if monitor_flag:
+        p.add_argument("--no-monitor", action="store_true",
+                       help="run the first plan open loop (no replanning on a mismatch)")
+    p.add_argument("--max-replans", type=int, default=DEFAULT_SOLVE.max_replans,
+                   help=f"replans per solve at most (default {DEFAULT_SOLVE.max_replans})")
+    p.add_argument("--no-refine", action="store_true",
+                   help="execute each step with the offsets the planner chose and put no box "
+                   "down at its goal spot (default: an interchangeable operator's offsets that "
+                   "land the box nearer its goal, and such repositionings)")
+
+
+def solve_config(args: argparse.Namespace) -> SolveConfig:
+    """The SolveConfig of parsed flags; bad values are bad input."""
+    try:
+        return SolveConfig(args.planner, args.timeout, not getattr(args, "no_monitor", False),
+                           getattr(args, "max_replans", DEFAULT_SOLVE.max_replans),
+                           not getattr(args, "no_refine", False))
+    except ValueError as e:
+        raise CommandError(str(e).replace("max_replans", "--max-replans")
+                           .replace("the planner timeout", "--timeout")) from e
+
+
+def planner_settings(args: argparse.Namespace) -> tuple[str, float]:
+    """(--planner, --timeout), checked as a SolveConfig checks them."""
+    config = solve_config(args)
+    return config.planner, config.timeout
