@@ -23,8 +23,11 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+# `symplan` imports this module to build its parser, so the stages' code (results tables,
+# collection: Drake and torch) is imported inside the functions that need it.
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.atomic import write_atomic
+from drake_symplan.shards import fingerprint
 
 
 @dc.dataclass(frozen=True)
@@ -193,7 +196,7 @@ class Reproduction:
 
     def run(self) -> Path:
         """Runs every stage not done yet; writes results.md and provenance.json."""
-        from drake_symplan.results_tables import write_results
+        from drake_symplan.results_tables import write_results  # Drake, torch: see top
 
         t0 = time.perf_counter()
         self.results.mkdir(parents=True, exist_ok=True)
@@ -214,7 +217,7 @@ class Reproduction:
     def report(self) -> Path:
         """results.md from the stages done so far (an unfinished planning evaluation:
         the runs and modes it has finished), without running anything."""
-        from drake_symplan.results_tables import write_results
+        from drake_symplan.results_tables import write_results  # Drake, torch: see top
 
         return write_results(self)
 
@@ -253,8 +256,6 @@ class Reproduction:
         self.log.append({**entry, "seconds": round(time.perf_counter() - t0, 1)})
 
     def _write_provenance(self, seconds: float) -> None:
-        from drake_symplan.shards import fingerprint
-
         path = self.out / "provenance.json"
         earlier = json.loads(path.read_text()) if path.exists() else {}
         sittings = earlier.get("sittings", []) + [{
@@ -275,7 +276,7 @@ class Reproduction:
 
 
 def _versions() -> dict:
-    from drake_symplan.data.collect import code_version
+    from drake_symplan.data.collect import code_version  # Drake: see the imports at the top
 
     return code_version(("drake_symplan", "drake", "torch", "numpy", "up-fast-downward",
                          "pyperplan", "ray"))

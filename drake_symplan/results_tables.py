@@ -10,6 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.agent.evaluation import MODES, plot_planning, read_records, run_label, summarise
+from drake_symplan.agent.problems import load_problems
+from drake_symplan.atomic import write_atomic
+
 
 def stat(values) -> dict:
     return {"mean": float(np.mean(values)), "std": float(np.std(values)), "n": len(values)}
@@ -156,15 +160,6 @@ def finished_planning(rep) -> tuple[dict, str]:
     """The planning evaluation's result for results.md and a note: the stage's own
     output once it has finished; before that, the (run, mode) pairs whose every problem is
     in its records so far, summarised the same way."""
-    from drake_symplan.agent.evaluation import (
-        MODES,
-        plot_planning,
-        read_records,
-        run_label,
-        summarise,
-    )
-    from drake_symplan.agent.problems import load_problems
-
     res = rep.results
     if (res / "planning.json").exists():
         return json.loads((res / "planning.json").read_text()), ""
@@ -192,8 +187,6 @@ def finished_planning(rep) -> tuple[dict, str]:
 
 def write_results(rep) -> Path:
     """results.md (and operators.json, planning_table.json) of a reproduce.Reproduction."""
-    from drake_symplan.atomic import write_atomic
-
     res = rep.results
     effects = json.loads((res / "effects.json").read_text())
     operators = summarise_operators(collect_operator_reports(rep.out / "runs"))

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.atomic import write_atomic
+
 # The paper's single action has four discrete parameters: pick `source` at a grasp
 # offset, release it above `target` at a release offset. Offsets run along world y,
 # the long blocks' long axis, as in the authors' setup.
@@ -229,8 +231,6 @@ class SymbolDataset:
 
     def save(self, path: str | Path) -> Path:
         """Writes the arrays to `path` (compressed .npz, exactly that name) atomically."""
-        from drake_symplan.atomic import write_atomic
-
         arrays = self.arrays()
         return write_atomic(path, lambda f: np.savez_compressed(f, **arrays))
 

@@ -1,7 +1,56 @@
-"""learning, symbolic and planning import without pydrake and without the collection code."""
+"""The package's layers: no module imports a layer above its own, and learning, symbolic,
+planning and abstraction import without pydrake and without the collection code."""
 
+import ast
 import subprocess
 import sys
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "drake_symplan"
+
+# Lowest first (docs/layout.md). A module may import its own layer and the ones before it.
+LAYERS = (
+    ("drake_symplan", "structs", "boxes", "atomic", "typed_yaml", "shards", "cluster"),
+    ("world",), ("perception",), ("skills",), ("robot",), ("data",), ("learning",),
+    ("symbolic",), ("planning",), ("abstraction",), ("agent",),
+    ("results_tables", "reproduce"), ("cli",),
+)
+RANK = {name: i for i, names in enumerate(LAYERS) for name in names}
+
+
+def layer_of(module: str) -> str:
+    """drake_symplan.symbolic.bundle -> symbolic; drake_symplan -> drake_symplan."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def imports(path: Path) -> set[str]:
+    """The drake_symplan modules `path` imports anywhere (function-local imports too)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("drake_symplan"):
+            out.add(node.module)
+        elif isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.startswith("drake_symplan")}
+    return out
+
+
+def test_no_module_imports_a_layer_above_its_own():
+    upward = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        module = ".".join(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        own = layer_of(module.removesuffix(".__init__"))
+        assert own in RANK, f"{module}: layer {own!r} is not in LAYERS"
+        upward += [f"{module} imports {m}" for m in imports(path)
+                   if RANK[layer_of(m)] > RANK[own]]
+    assert upward == []
+
+
+def test_the_layer_check_sees_an_upward_import(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text("def f():\n    from drake_symplan.agent.solve import Agent\n")
+    assert imports(bad) == {"drake_symplan.agent.solve"}
+    assert RANK[layer_of("drake_symplan.agent.solve")] > RANK["symbolic"]
 
 # Runs in a fresh interpreter where `import pydrake` fails (a meta-path finder refuses
 # it), so a module that needs Drake at import time fails loudly instead of passing
@@ -17,7 +66,7 @@ class NoDrake:
 sys.meta_path.insert(0, NoDrake())
 names = ["drake_symplan.structs", "drake_symplan.shards", "drake_symplan.atomic",
          "drake_symplan.typed_yaml"]
-for package in ("learning", "symbolic", "planning"):
+for package in ("learning", "symbolic", "planning", "abstraction"):
     pkg = importlib.import_module(f"drake_symplan.{package}")
     names += [f"drake_symplan.{package}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]
 for name in names:
@@ -31,7 +80,7 @@ print(len(names))
 """
 
 
-def test_learning_symbolic_planning_import_without_drake():
+def test_learning_symbolic_planning_abstraction_import_without_drake():
     proc = subprocess.run([sys.executable, "-c", CHECK], capture_output=True, text=True,
                           timeout=300)
     assert proc.returncode == 0, proc.stderr

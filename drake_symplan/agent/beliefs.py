@@ -22,6 +22,7 @@ import dataclasses as dc
 import numpy as np
 
 from drake_symplan.perception.matching import match_by_position
+from drake_symplan.perception.perceive import associate
 from drake_symplan.symbolic.states import check_name
 
 MATCH_RADIUS = 0.10  # m: a perceived box this far from every scene-file object is unnamed
@@ -62,8 +63,6 @@ def name_by_file(perceived, spec) -> Named:
 
 def follow(before, after, action) -> Named:
     """`after` (seen after `action`, perceiver's names) under `before`'s names."""
-    from drake_symplan.perception.perceive import associate
-
     mapping = {new: old for old, new in associate(before, after, action).items()}
     return Named(rename(after, mapping), [n for n in before.names if n not in mapping.values()],
                  [n for n in after.names if n not in mapping])

@@ -17,6 +17,13 @@ from drake_symplan.cli.options import LEARNERS, add_planner_arguments, planner_s
 
 
 def register(subparsers) -> None:
+    _register_operators(subparsers)
+    _register_bundle(subparsers)
+    _register_eval_operators(subparsers)
+    _register_plan(subparsers)
+
+
+def _register_operators(subparsers) -> None:
     p = subparsers.add_parser(
         "operators",
         help="learn lifted operators from symbolic transitions and write domain.pddl",
@@ -38,6 +45,8 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_operators)
 
+
+def _register_bundle(subparsers) -> None:
     b = subparsers.add_parser(
         "bundle",
         help="make a model bundle: a trained run and its learned operators in one directory",
@@ -61,6 +70,8 @@ def register(subparsers) -> None:
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bundle)
 
+
+def _register_eval_operators(subparsers) -> None:
     e = eval_subparsers(subparsers).add_parser(
         "operators", help="a learned domain on held-out episodes at the symbolic level",
         description="Problems from held-out episodes (start: symbols at step t, goal: at t+k, "
@@ -80,6 +91,8 @@ def register(subparsers) -> None:
     e.add_argument("--json", action="store_true")
     e.set_defaults(func=cmd_eval_operators)
 
+
+def _register_plan(subparsers) -> None:
     q = subparsers.add_parser(
         "plan",
         help="plan on positive-STRIPS PDDL with Fast Downward or pyperplan",

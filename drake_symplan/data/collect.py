@@ -33,14 +33,19 @@ import queue as queue_lib
 import subprocess
 import time
 from collections import Counter
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
+from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
 from drake_symplan.data import storage
 from drake_symplan.data.exploration import OUTCOMES, EpisodeConfig, run_episode
-from drake_symplan.robot.backends import BACKENDS
+from drake_symplan.data.stats import dataset_stats
+from drake_symplan.robot.backends import BACKENDS, make_backend
 from drake_symplan.structs import TransitionArrays
+from drake_symplan.world.cameras import DepthNoise
 
 EPISODE_STRIDE = 100_000  # episode ids of chunk c are c * EPISODE_STRIDE + k
 MAX_EPISODES_PER_CHUNK = 20_000
@@ -84,8 +89,6 @@ class CollectConfig:
 
 def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
     """Installed versions of `packages` (None: not installed) and the git commit."""
-    from importlib.metadata import PackageNotFoundError, version
-
     out = {}
     for pkg in packages:
         try:
@@ -107,8 +110,6 @@ def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
 
 def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
     """Produces chunk c: (TransitionArrays, extra arrays, bookkeeping dict)."""
-    from drake_symplan.world.cameras import DepthNoise
-
     target = config.chunk_count(c)
     rng = np.random.default_rng([config.seed, c])
     backend.rng = np.random.default_rng([config.seed, c, 1])  # perception noise
@@ -190,8 +191,6 @@ _worker: dict = {}
 
 
 def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
-    from drake_symplan.robot.backends import make_backend
-
     config = CollectConfig(**config_dict)
     _worker.update(config=config, progress=progress, parent=parent_pid,
                    backend=make_backend(config.backend))
@@ -229,15 +228,11 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
     """Collects (or finishes collecting) `config.transitions` into `out_dir`; the summary.
     `workers` None: one per CPU (of the Ray cluster with `ray_address`). `ray_address`
     None: local worker processes; "" Ray on this machine; else the Ray cluster there."""
-    from drake_symplan.data.stats import dataset_stats
-
     out_dir = Path(out_dir)
     t0 = time.perf_counter()
     with contextlib.ExitStack() as stack:
         ray = None
         if ray_address is not None:  # joined first: a bad address writes nothing
-            from drake_symplan.cluster import cluster_cpus, ray_session
-
             ray = stack.enter_context(ray_session(ray_address))
             workers = min(workers or cluster_cpus(ray), cluster_cpus(ray))
         workers = max(1, int(workers or os.cpu_count() or 1))
@@ -249,8 +244,6 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
         elif ray is not None:
             started = _run_ray(ray, out_dir, config, todo, min(workers, len(todo)), bar)
         elif workers == 1:
-            from drake_symplan.robot.backends import make_backend
-
             backend = make_backend(config.backend)
             started = time.perf_counter()
             for c in todo:
@@ -353,9 +346,6 @@ def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers
     """The chunks on Ray worker actors (cluster.run_jobs); the driver writes each shard as
     it comes. The bar counts, per chunk, the most transitions any attempt reached, so a
     retried chunk is not counted twice. Returns when the workers had all started."""
-    from drake_symplan.cluster import run_jobs
-    from drake_symplan.robot.backends import make_backend
-
     seen = dict.fromkeys(todo, 0)
     written: set[int] = set()
 
@@ -384,7 +374,5 @@ class _NoBar:
 def _progress_bar(total: int, initial: int, enabled: bool):
     if not enabled:
         return _NoBar()
-    from tqdm import tqdm
-
     return tqdm(total=total, initial=initial, unit="tr", desc="collect", smoothing=0.05,
                 dynamic_ncols=True)

@@ -47,6 +47,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from drake_symplan.perception.perceive import associate
+from drake_symplan.perception.segmentation import CROP_X, CROP_Y
+from drake_symplan.robot.backends import PerceptionFailure
+from drake_symplan.skills.pick_place import action_geometry
 from drake_symplan.structs import EFFECT_DIM, OFFSETS, Action, encode_action
 from drake_symplan.world.scenes import sample_scene
 
@@ -191,8 +195,6 @@ def classify(before, lift, after, lift_map, after_map, left_table: bool = False)
 
 def left_workspace(truth: dict) -> bool:
     """Ground truth (bookkeeping): has an object left the table or the cameras' workspace?"""
-    from drake_symplan.perception.segmentation import CROP_X, CROP_Y
-
     for s in truth.values():
         x, y, z = s.position
         if z < -0.01 or not (TABLE_X[0] < x < TABLE_X[1] and TABLE_Y[0] < y < TABLE_Y[1]):
@@ -214,8 +216,6 @@ def run_episode(
 
     Perception raising on a scene (PerceptionFailure) ends the episode as dropped
     ("perception_error"); the transitions recorded before it are kept."""
-    from drake_symplan.robot.backends import PerceptionFailure
-
     log = EpisodeLog()
     try:
         _act(backend, rng, config, episode, budget, on_transition, log)
@@ -227,9 +227,6 @@ def run_episode(
 def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_transition,
          log: EpisodeLog) -> None:
     """run_episode's actions: records into `log` and sets how the episode ended."""
-    from drake_symplan.perception.perceive import associate
-    from drake_symplan.skills.pick_place import action_geometry
-
     n = int(rng.integers(config.min_objects, config.max_objects + 1))
     backend.reset(sample_scene(rng, n, long_fraction=config.long_fraction))
     before = backend.perceive()

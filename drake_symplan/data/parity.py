@@ -13,9 +13,13 @@ from __future__ import annotations
 from collections import Counter
 
 import numpy as np
+from tqdm import tqdm
 
 from drake_symplan.data.exploration import classify, effects, random_action, relevant_objects
 from drake_symplan.perception.matching import match_by_position
+from drake_symplan.perception.perceive import associate
+from drake_symplan.robot.backends import make_backend
+from drake_symplan.skills.pick_place import action_geometry
 from drake_symplan.structs import Action
 from drake_symplan.world.scenes import sample_scene
 
@@ -27,9 +31,6 @@ def _map_names(src_scene, dst_scene) -> dict[str, str]:
 
 def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
     """One pair: {'status', 'hand', 'arm', 'effect_diff'} (classes and per-object diffs)."""
-    from drake_symplan.perception.perceive import associate
-    from drake_symplan.skills.pick_place import action_geometry
-
     out, results = {}, {}
     hand.reset(scene)
     hb = hand.perceive()
@@ -72,8 +73,6 @@ def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
 def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
                    scenes_actions: list | None = None, progress: bool = False) -> dict:
     """Runs `pairs` random pairs (or the given (scene, action) list); the parity report."""
-    from drake_symplan.robot.backends import make_backend
-
     hand, arm = make_backend("hand"), make_backend("arm")
     rng = np.random.default_rng(seed)
     if scenes_actions is None:
@@ -81,8 +80,6 @@ def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
                           for _ in range(pairs)]
     iterator = scenes_actions
     if progress:
-        from tqdm import tqdm
-
         iterator = tqdm(scenes_actions, desc="parity", unit="pair")
     rows, skipped, confusion = [], Counter(), Counter()
     for scene, action in iterator:

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import drake_symplan
 from drake_symplan.atomic import write_atomic
 from drake_symplan.learning.models import EffectModel, build_model
 
@@ -30,8 +31,6 @@ METRICS = "metrics.json"
 
 
 def versions() -> dict:
-    import drake_symplan
-
     return {
         "python": platform.python_version(),
         "torch": torch.__version__,

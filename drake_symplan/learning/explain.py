@@ -28,6 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.atomic import save_figure
+from drake_symplan.learning.checkpoint import load_run, model_from_checkpoint, read_checkpoint
+from drake_symplan.learning.readout import readout_scenes
+from drake_symplan.shards import load_extra
 
 X, Y, Z, COS_TILT, LONG_UP, COS_KYAW, SIN_KYAW, IS_CUBE, IS_LONG = range(9)
 UPRIGHT_COS = float(np.cos(np.radians(10)))  # cos(tilt) above this: resting on a face
@@ -226,9 +229,6 @@ def explanation_line(e: dict) -> str:
 def load_scene_arrays(data_dir: str | Path, model, margin: float) -> dict:
     """Whole scenes before and after each transition of a data set, with the model's
     symbols: the keyword arguments of `explain_scenes`."""
-    from drake_symplan.learning.readout import readout_scenes
-    from drake_symplan.shards import load_extra
-
     _, s = readout_scenes(model, data_dir, margin=margin)
     feats = [load_extra(data_dir, k) for k in ("scene_state", "scene_next_state")]
 
@@ -245,8 +245,6 @@ def load_scene_arrays(data_dir: str | Path, model, margin: float) -> dict:
 
 def load_model(model_dir: str | Path):
     """The effect model of a bundle directory (model.pt) or a run directory (best.pt)."""
-    from drake_symplan.learning.checkpoint import load_run, model_from_checkpoint, read_checkpoint
-
     path = Path(model_dir)
     if (path / "model.pt").is_file():
         return model_from_checkpoint(read_checkpoint(path / "model.pt")).eval()

@@ -205,6 +205,22 @@ def _clean(data: SymbolDataset, config: LearnConfig):
     return out, keep
 
 
+def _group_effects(group: np.ndarray, effect: np.ndarray, n_groups: int):
+    """Per group: its most frequent effect id (the smallest encoding among equally
+    frequent ones), how many transitions had it, and how many distinct effects it has."""
+    n_effect_ids = int(effect.max()) + 1
+    pair_ids, pair_counts = np.unique(group * n_effect_ids + effect, return_counts=True)
+    pair_group, pair_effect = pair_ids // n_effect_ids, pair_ids % n_effect_ids
+    by = np.lexsort((pair_effect, -pair_counts, pair_group))
+    first = np.ones(len(by), dtype=bool)
+    first[1:] = pair_group[by][1:] != pair_group[by][:-1]
+    best_effect = np.empty(n_groups, dtype=np.int64)
+    best_count = np.empty(n_groups, dtype=np.int64)
+    best_effect[pair_group[by][first]] = pair_effect[by][first]
+    best_count[pair_group[by][first]] = pair_counts[by][first]
+    return best_effect, best_count, np.bincount(pair_group, minlength=n_groups)
+
+
 def learn_operators(data: SymbolDataset, config: LearnConfig | None = None) -> OperatorSet:
     """Groups the transitions of a symbolic data set into lifted operators."""
     if not isinstance(data, SymbolDataset):
@@ -234,18 +250,7 @@ def learn_operators(data: SymbolDataset, config: LearnConfig | None = None) -> O
     post_bits = np.packbits(encode(nu, nr), axis=1)
     group, group_counts = _byte_ids(np.concatenate([head, pre_bits], axis=1))
     effect, _ = _byte_ids(post_bits)
-    n_effect_ids = int(effect.max()) + 1
-    pair_ids, pair_counts = np.unique(group * n_effect_ids + effect, return_counts=True)
-    pair_group, pair_effect = pair_ids // n_effect_ids, pair_ids % n_effect_ids
-    # Per group: most frequent effect, then the smallest encoding among equals.
-    by = np.lexsort((pair_effect, -pair_counts, pair_group))
-    first = np.ones(len(by), dtype=bool)
-    first[1:] = pair_group[by][1:] != pair_group[by][:-1]
-    best_effect = np.empty(len(group_counts), dtype=np.int64)
-    best_count = np.empty(len(group_counts), dtype=np.int64)
-    best_effect[pair_group[by][first]] = pair_effect[by][first]
-    best_count[pair_group[by][first]] = pair_counts[by][first]
-    n_effects = np.bincount(pair_group, minlength=len(group_counts))
+    best_effect, best_count, n_effects = _group_effects(group, effect, len(group_counts))
     t3 = time.perf_counter()
 
     threshold = config.threshold(t)
@@ -268,20 +273,12 @@ def learn_operators(data: SymbolDataset, config: LearnConfig | None = None) -> O
             example_slots=tuple(int(x) for x in order[e, :m])))
     t4 = time.perf_counter()
     return OperatorSet(
-        operators=operators,
-        n_unary=n_unary,
-        n_relations=n_rel,
-        self_relations=config.self_relations,
-        n_transitions=t,
-        n_dropped_uncertain=len(data) - t,
-        threshold=threshold,
-        group_counts=np.sort(group_counts)[::-1],
-        seconds=t4 - t0,
-        timings={
-            "check": t1 - t0, "canonical": t2 - t1, "group": t3 - t2, "build": t4 - t3,
-            "permuted_transitions": n_permuted,
-        },
-    )
+        operators=operators, n_unary=n_unary, n_relations=n_rel,
+        self_relations=config.self_relations, n_transitions=t,
+        n_dropped_uncertain=len(data) - t, threshold=threshold,
+        group_counts=np.sort(group_counts)[::-1], seconds=t4 - t0,
+        timings={"check": t1 - t0, "canonical": t2 - t1, "group": t3 - t2,
+                 "build": t4 - t3, "permuted_transitions": n_permuted})
 
 
 def example_action(op: LiftedOperator) -> Action:

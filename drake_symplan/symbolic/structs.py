@@ -15,6 +15,7 @@ import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 from drake_symplan.structs import OFFSETS, Action
 
@@ -44,7 +45,7 @@ class Atom(tuple):
 
     def ground(self, args: Sequence[str]) -> Atom:
         """A lifted atom (slot indices) with its slots bound to `args`."""
-        return Atom(self[0], *(args[i] for i in self[1:]))
+        return tuple.__new__(Atom, (self[0], *(args[i] for i in self[1:])))
 
     def lifted(self) -> Atom:
         """A slot atom as PDDL parameters: ("r0", 0, 1) -> ("r0", "?o0", "?o1")."""
@@ -189,15 +190,16 @@ class Step:
     def action(self) -> Action:
         return Action(self.args[0], self.operator.grasp, self.args[1], self.operator.release)
 
-    @property
+    # Ground once per step: the offset choice checks a plan's rest many times.
+    @cached_property
     def pre(self) -> frozenset:
         return frozenset(a.ground(self.args) for a in self.operator.pre)
 
-    @property
+    @cached_property
     def add(self) -> frozenset:
         return frozenset(a.ground(self.args) for a in self.operator.add)
 
-    @property
+    @cached_property
     def delete(self) -> frozenset:
         return frozenset(a.ground(self.args) for a in self.operator.delete)
 

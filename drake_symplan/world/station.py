@@ -152,7 +152,7 @@ class Station:
                     name.replace("_joint", "_motor")).set_controller_gains(
                     PdControllerGains(p=cfg.finger_kp, d=cfg.finger_kd))
         else:
-            from drake_symplan.world.hand import AddHand
+            from drake_symplan.world.hand import AddHand  # hand.py imports this module
 
             self.hand = AddHand(plant, [b for bodies in self.pool.values() for b in bodies])
         plant.Finalize()
