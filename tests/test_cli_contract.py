@@ -3,6 +3,7 @@ line on stderr naming the file or flag, and nothing written."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 import types
@@ -137,15 +138,46 @@ def test_help_says_what_the_tool_does_and_lists_the_pipeline_in_order(capsys):
     assert out.split("\n\n")[1].startswith("A UR10 in Drake explores pick/place actions")
     assert "COMMAND_MODULES" not in out and "dispatches" not in out
     lines = out.split("The pipeline, in order:\n")[1].split("\n\n")[0].splitlines()
-    names = [line[:16].strip() for line in lines]
+    names = [line.split("  ")[1].strip() for line in lines]  # two spaces, then the summary
     core = ["scene sample", "act", "perceive", "collect", "data stats", "train",
             "eval effects", "symbols", "operators", "bundle", "plan", "solve"]
     assert [n for n in names if n in core] == core  # the pipeline's order
+    assert "eval operators  a model's domain" in out  # the longest name keeps its gap
     for name in names:  # every one is a command
         assert run([*name.split(), "--help"], capsys)[0] == 0
 
 
-def test_symbols_explain_is_the_explain_command(tmp_path, capsys):
-    assert cli_main.main(["symbols", "explain", "--data", str(tmp_path / "none")]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("symplan explain: error:")
+def subcommands(parser, prefix=()):
+    """(words, parser) of every command of `parser`, depth first."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from subcommands(sub, (*prefix, name))
+    if prefix:
+        yield prefix, parser
+
+
+def test_every_option_has_help_that_tells_its_default_and_the_exit_codes(capsys):
+    parser = cli_main.build_parser()
+    for words, sub in subcommands(parser):
+        if any(isinstance(a, argparse._SubParsersAction) for a in sub._actions):
+            continue  # a group such as `eval`: its commands are checked
+        page = sub.format_help()
+        assert "Exit status: 0 done, 1 a negative answer" in page, words
+        for action in sub._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            name = "/".join(action.option_strings) or action.dest
+            assert action.help, f"symplan {' '.join(words)} {name} has no help"
+            default = action.default
+            if action.option_strings and not action.required and default not in (
+                    None, False, [], argparse.SUPPRESS):
+                assert "default" in sub._get_formatter()._expand_help(action), (words, name)
+    code, out, _ = run(["solve", "--help"], capsys)
+    assert code == 0 and "symplan problems make" in out and "(default: fd)" not in out
+    assert "--timeout TIMEOUT     planner seconds per call (default 10)" in out
+
+
+def test_one_spelling_per_command(capsys):
+    code, out, _ = run(["explain", "--help"], capsys)
+    assert code == 0 and out.startswith("usage: symplan explain ")

@@ -18,7 +18,12 @@ from pathlib import Path
 
 from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
-from drake_symplan.cli.options import add_robot_argument, add_solve_arguments, solve_config
+from drake_symplan.cli.options import (
+    add_json_argument,
+    add_robot_argument,
+    add_solve_arguments,
+    solve_config,
+)
 
 
 def register(subparsers) -> None:
@@ -26,17 +31,21 @@ def register(subparsers) -> None:
         "solve", help="solve a goal scene from a start scene in full physics",
         description="Perceives both scenes, plans with a model bundle's symbols and domain, "
         "executes the plan with the robot and checks every object within 5 cm of the "
-        "perceived goal.")
-    p.add_argument("--start", required=True, type=Path, help="start scene YAML")
+        "perceived goal. Scene files come from `symplan scene sample` (a start) or a "
+        "problem set of `symplan problems make` (PROBLEM/start.yaml, PROBLEM/goal.yaml); "
+        "models/demo/ holds the demo's.")
+    p.add_argument("--start", required=True, type=Path,
+                   help="start scene YAML (world/scenes.py format)")
     p.add_argument("--goal", required=True, type=Path,
-                   help="goal scene YAML (only perceived; the file names the objects)")
+                   help="goal scene YAML with the start's objects (only perceived; the file "
+                   "names the objects)")
     p.add_argument("--model", type=Path, default=None,
                    help="model bundle directory (default: the shipped models/learned/)")
     add_solve_arguments(p)
     add_robot_argument(p)
     p.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
     p.add_argument("--record", type=Path, help="write a self-contained HTML recording here")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_solve)
 
     problems = subparsers.add_parser("problems", help="planning problem sets")
@@ -49,11 +58,12 @@ def register(subparsers) -> None:
     p.add_argument("--k", required=True, type=positive_int, nargs="+",
                    help="actions per problem; several values are taken in turn")
     p.add_argument("--count", required=True, type=positive_int, help="problems to keep")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the set: attempt i samples from (seed, i)")
     add_robot_argument(p)
     p.add_argument("--max-attempts", type=positive_int, default=None,
                    help="give up after this many attempts (default 20 x count)")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)
 
     p = eval_subparsers(subparsers).add_parser(
@@ -74,7 +84,7 @@ def register(subparsers) -> None:
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="solve on Ray workers, one per CPU: on this machine (no ADDRESS) or "
                    "the cluster whose head is at ADDRESS (HOST:PORT); needs .[ray]")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_eval_planning)
 
 

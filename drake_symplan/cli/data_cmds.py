@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from drake_symplan.cli.main import positive_int
-from drake_symplan.cli.options import add_robot_argument
+from drake_symplan.cli.options import add_json_argument, add_robot_argument
 
 
 def register(subparsers) -> None:
@@ -20,23 +20,26 @@ def register(subparsers) -> None:
                          help="run the workers on Ray: on this machine (no ADDRESS) or on "
                          "the cluster whose head is at ADDRESS (HOST:PORT); needs .[ray]")
     collect.add_argument("--out", required=True, help="data set directory")
-    collect.add_argument("--seed", type=int, default=0)
+    collect.add_argument("--seed", type=int, default=0,
+                         help="seed of scenes and actions (chunk c draws from seed and c)")
     collect.add_argument("--objects", default="2-4", help="objects per scene: N or MIN-MAX")
     collect.add_argument("--episode-length", type=int, default=10,
                          help="actions per episode before a new scene")
-    collect.add_argument("--long-fraction", type=float, default=0.5)
+    collect.add_argument("--long-fraction", type=float, default=0.5,
+                         help="chance that an object is a long block rather than a cube")
     collect.add_argument("--chunk-size", type=int, default=100, help="transitions per shard")
     collect.add_argument("--noise-sigma", type=float, default=0.0, help="depth noise (m)")
-    collect.add_argument("--noise-dropout", type=float, default=0.0)
-    collect.add_argument("--no-progress", action="store_true")
-    collect.add_argument("--json", action="store_true")
+    collect.add_argument("--noise-dropout", type=float, default=0.0,
+                         help="fraction of depth pixels lost")
+    collect.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_json_argument(collect)
     collect.set_defaults(func=cmd_collect)
 
     data = subparsers.add_parser("data", help="data set tools")
     data_sub = data.add_subparsers(dest="data_command", required=True)
     stats = data_sub.add_parser("stats", help="summary of a collected data set")
-    stats.add_argument("dir")
-    stats.add_argument("--json", action="store_true")
+    stats.add_argument("dir", help="data set directory (shards + manifest.json)")
+    add_json_argument(stats)
     stats.set_defaults(func=cmd_data_stats)
 
 

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer
-from drake_symplan.cli.options import add_planner_arguments, solve_config
+from drake_symplan.cli.options import add_json_argument, add_planner_arguments, solve_config
 
 
 def register(subparsers) -> None:
@@ -41,7 +41,7 @@ def register(subparsers) -> None:
     p.add_argument("--meshcat", action="store_true",
                    help="keep serving the live scene on localhost until Enter is pressed")
     add_planner_arguments(p)
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_inspect)
 
     p = subparsers.add_parser(
@@ -59,7 +59,7 @@ def register(subparsers) -> None:
                    help="a bit is uncertain when |logit| < margin (default 3.0)")
     p.add_argument("--plot", type=Path, default=None,
                    help="write a PNG of the best descriptions and example scenes")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_explain)
 
 

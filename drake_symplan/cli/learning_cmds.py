@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, positive_int
-from drake_symplan.cli.options import MODELS
+from drake_symplan.cli.options import MODELS, add_json_argument
 
 
 def register(subparsers) -> None:
@@ -30,7 +30,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", help="run directory to create (or resume); required, here or "
                    "in --config")
     p.add_argument("--epochs", type=int, help="at most this many epochs")
-    p.add_argument("--batch-size", type=int)
+    p.add_argument("--batch-size", type=int, help="transitions per Adam step")
     p.add_argument("--lr", type=float, help="Adam learning rate")
     p.add_argument("--seed", type=int, help="model initialisation, shuffling and the split")
     p.add_argument("--patience", type=int,
@@ -46,7 +46,7 @@ def register(subparsers) -> None:
     p.add_argument("--resume", action="store_true", help="continue the run in --out")
     p.add_argument("--no-progress", dest="progress", action="store_const", const=False,
                    help="no progress bar")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_train)
 
     p = eval_subparsers(subparsers).add_parser(
@@ -56,7 +56,7 @@ def register(subparsers) -> None:
     p.add_argument("--data", default=None,
                    help="data set directory if it moved (must have the run's fingerprint)")
     p.add_argument("--plot", default=None, help="write a bar chart to this PNG")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_eval_effects)
 
     p = subparsers.add_parser("symbols", help="read unary and relational symbols of a data set")
@@ -65,7 +65,7 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="output .npz file")
     p.add_argument("--margin", type=float, default=None,
                    help="a bit is uncertain when |logit| < margin (default 3.0)")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=cmd_symbols)
 
 

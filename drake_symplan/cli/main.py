@@ -59,12 +59,14 @@ DESCRIPTION = "\n\n".join([
     textwrap.fill("A UR10 in Drake explores pick/place actions on blocks it perceives with "
                   "depth cameras; models learn unary and relational symbols from the effects, "
                   "and lifted operators over those symbols make a PDDL domain to plan with.", 88),
-    "The pipeline, in order:\n" + "\n".join(f"  {name:<14}{summary}"
-                                             for name, summary in PIPELINE),
-    textwrap.fill("`symplan COMMAND --help` tells a command's options. Exit status: 0 done, 1 "
-                  "a negative answer (no plan, unsolvable, timeout, infeasible action), 2 bad "
-                  "input.", 88),
+    "The pipeline, in order:\n" + "\n".join(
+        f"  {name:<{max(len(n) for n, _ in PIPELINE) + 2}}{summary}" for name, summary in PIPELINE),
+    textwrap.fill("`symplan COMMAND --help` tells a command's options. Scene files (YAML) come "
+                  "from `symplan scene sample` or a problem set of `symplan problems make` "
+                  "(PROBLEM/start.yaml, PROBLEM/goal.yaml).", 88),
 ])
+EXIT_STATUS = ("Exit status: 0 done, 1 a negative answer (no plan, unsolvable, timeout, "
+               "infeasible action, a failed verdict), 2 bad input (one line on stderr).")
 
 
 class CommandError(Exception):
@@ -81,8 +83,25 @@ BAD_INPUT = (CommandError, ValueError, FileNotFoundError, NotADirectoryError,
              IsADirectoryError, PermissionError)
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """Says each option's default where its help does not already."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if "default" in text or action.required or action.default in (
+                None, False, [], argparse.SUPPRESS) or not action.option_strings:
+            return text
+        return f"{text} (default: %(default)s)"
+
+
 class Parser(argparse.ArgumentParser):
-    """Usage errors in one line (`symplan CMD: error: ...`), exit status 2."""
+    """Usage errors in one line (`symplan CMD: error: ...`), exit status 2; every
+    command's help ends with the exit statuses and says its options' defaults."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        kwargs.setdefault("epilog", EXIT_STATUS)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
@@ -118,16 +137,8 @@ def one_line(error: BaseException) -> str:
     return re.sub(r"\s*\n\s*", " ", str(error)).strip()
 
 
-# Other spellings of a command: `symplan symbols explain` is `symplan explain` (the
-# `symbols` command's first argument is a run directory, so it cannot take a sub-command).
-ALIASES = {("symbols", "explain"): ["explain"]}
-
-
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    for spelling, command in ALIASES.items():
-        if tuple(argv[:len(spelling)]) == spelling:
-            argv = command + argv[len(spelling):]
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as e:  # --help (0) or a usage error (2), already printed

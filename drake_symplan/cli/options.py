@@ -35,6 +35,11 @@ ROBOTS = RegistryChoices("drake_symplan.robot.backends", "BACKENDS")
 LEARNERS = RegistryChoices("drake_symplan.symbolic.bundle", "LEARNERS")
 
 
+def add_json_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true",
+                   help="print the result as JSON on stdout (messages go to stderr)")
+
+
 def add_planner_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--planner", choices=PLANNERS, default=DEFAULT_SOLVE.planner,
                    help="planner back-end: fd (Fast Downward, A* with LM-cut) or pyperplan "

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from drake_symplan.cli.options import add_json_argument
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("perceive", help="perceive a scene with the depth cameras")
@@ -11,8 +13,8 @@ def register(subparsers) -> None:
     p.add_argument("--noise", type=float, default=0.0, help="depth noise sigma (m)")
     p.add_argument("--dropout", type=float, default=0.0, help="fraction of pixels lost")
     p.add_argument("--settle", type=float, default=0.5, help="physics seconds before looking")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--seed", type=int, default=0, help="seed of the depth noise")
+    add_json_argument(p)
     p.set_defaults(func=cmd_perceive)
 
 

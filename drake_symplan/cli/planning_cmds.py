@@ -13,7 +13,12 @@ from pathlib import Path
 
 from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
-from drake_symplan.cli.options import LEARNERS, add_planner_arguments, planner_settings
+from drake_symplan.cli.options import (
+    LEARNERS,
+    add_json_argument,
+    add_planner_arguments,
+    planner_settings,
+)
 
 
 def register(subparsers) -> None:
@@ -42,7 +47,7 @@ def _register_operators(subparsers) -> None:
                    help="keep r_k(o, o) bits as (rK ?x ?x) literals (default: ignored)")
     p.add_argument("--drop-uncertain", action="store_true",
                    help="leave out transitions with an uncertain symbol bit")
-    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    add_json_argument(p)
     p.set_defaults(func=cmd_operators)
 
 
@@ -67,7 +72,7 @@ def _register_bundle(subparsers) -> None:
                    help="effect learner: share of a group a precondition holds in (0.95)")
     b.add_argument("--margin", type=float, default=3.0,
                    help="a bit is uncertain when |logit| < margin (default 3)")
-    b.add_argument("--json", action="store_true")
+    add_json_argument(b)
     b.set_defaults(func=cmd_bundle)
 
 
@@ -81,14 +86,16 @@ def _register_eval_operators(subparsers) -> None:
                    help="bundle directory (default: the shipped models/learned)")
     e.add_argument("--data", type=Path, required=True,
                    help="held-out data set with whole scenes (a seed the model never saw)")
-    e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3])
+    e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3],
+                   help="steps between start and goal, one problem set each")
     e.add_argument("--max-problems", type=positive_int, default=50,
                    help="problems per k and object count (default 50)")
     add_planner_arguments(e)
-    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--seed", type=int, default=0,
+                   help="seed of the choice of problems among the held-out chains")
     e.add_argument("--out", type=Path, help="also write the report as JSON here")
     e.add_argument("--plot", type=Path, help="write a plot (PNG) here")
-    e.add_argument("--json", action="store_true")
+    add_json_argument(e)
     e.set_defaults(func=cmd_eval_operators)
 
 
@@ -98,13 +105,13 @@ def _register_plan(subparsers) -> None:
         help="plan on positive-STRIPS PDDL with Fast Downward or pyperplan",
         description="Runs a planner on any positive-STRIPS domain and problem.",
     )
-    q.add_argument("--domain", type=Path, required=True)
-    q.add_argument("--problem", type=Path, required=True)
+    q.add_argument("--domain", type=Path, required=True, help="PDDL domain file")
+    q.add_argument("--problem", type=Path, required=True, help="PDDL problem file")
     add_planner_arguments(q)
     q.add_argument("--search", default=None,
                    help="FD --search string, or a pyperplan search name (default: optimal A*)")
     q.add_argument("--heuristic", default=None, help="pyperplan heuristic (default lmcut)")
-    q.add_argument("--json", action="store_true", help="print the result as JSON")
+    add_json_argument(q)
     q.set_defaults(func=cmd_plan)
 
 

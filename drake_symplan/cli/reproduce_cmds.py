@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
-from drake_symplan.cli.options import add_solve_arguments, solve_config
+from drake_symplan.cli.options import add_json_argument, add_solve_arguments, solve_config
 
 
 def register(subparsers) -> None:
@@ -34,7 +34,7 @@ def register(subparsers) -> None:
     add_solve_arguments(p, monitor_flag=False)
     p.add_argument("--report", action="store_true",
                    help="run nothing: write results.md from the stages done so far")
-    p.add_argument("--json", action="store_true")
+    add_json_argument(p)
     p.set_defaults(func=run_reproduce)
 
 

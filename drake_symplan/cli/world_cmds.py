@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer
+from drake_symplan.cli.options import add_json_argument
 
 
 def register(subparsers) -> None:
@@ -12,11 +13,13 @@ def register(subparsers) -> None:
     scene_sub = scene.add_subparsers(dest="scene_command", required=True)
     sample = scene_sub.add_parser("sample", help="write a random valid scene")
     sample.add_argument("--objects", type=int, required=True, help="number of objects (1-8)")
-    sample.add_argument("--seed", type=int, default=0)
-    sample.add_argument("--long-fraction", type=float, default=0.5)
-    sample.add_argument("--yaw-jitter-deg", type=float, default=0.0)
+    sample.add_argument("--seed", type=int, default=0, help="seed of the scene sampler")
+    sample.add_argument("--long-fraction", type=float, default=0.5,
+                        help="chance that an object is a long block rather than a cube")
+    sample.add_argument("--yaw-jitter-deg", type=float, default=0.0,
+                        help="random yaw of each object, uniform in +-this many degrees")
     sample.add_argument("--out", required=True, help="scene YAML to write")
-    sample.add_argument("--json", action="store_true")
+    add_json_argument(sample)
     sample.set_defaults(func=cmd_scene_sample)
 
     act = subparsers.add_parser("act", help="execute one pick/place in full physics")
@@ -25,7 +28,7 @@ def register(subparsers) -> None:
     act.add_argument("--place", required=True, help="TARGET:left|center|right")
     act.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
     act.add_argument("--record", help="write a self-contained HTML recording here")
-    act.add_argument("--json", action="store_true")
+    add_json_argument(act)
     act.set_defaults(func=cmd_act)
 
 

@@ -233,7 +233,7 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
     if len(before.objects) != n:
         log.end = "perception_initial_count"
         return
-    step, infeasible_run, lost = 0, 0, False
+    step, lost = 0, False
     ids, chain = None, -1  # perceived name -> identity slot; None: renumber at next record
     while step < config.length:
         if len(log.transitions) >= budget:
@@ -242,19 +242,10 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
         if len(before.objects) < 2:  # lost track, and no action to try on what is seen
             log.end = "perception_unrecovered"
             return
-        action = random_action(rng, before.names)
-        result = backend.execute(action, before)
-        if result.status == "infeasible":
-            log.infeasible += 1
-            infeasible_run += 1
-            if infeasible_run >= config.max_infeasible:
-                log.end = "too_many_infeasible"
-                return
-            continue
-        infeasible_run = 0
-        if result.status != "ok":
-            log.end = "sim_failure"
+        executed = _execute_random_action(backend, rng, config, before, log)
+        if executed is None:
             return
+        action, result = executed
         step += 1
         lift, after = result.lift, result.after
         if lost:
@@ -274,27 +265,55 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
         after_map = associate(before, after, action)
         if ids is None:
             ids, chain = {k: i for i, k in enumerate(before.names)}, chain + 1
-        lift_map = associate(before, lift, action) if lift is not before else \
-            {k: k for k in before.names}
-        outcome = classify(before, lift, after, lift_map, after_map)
-        log.outcomes[outcome] += 1
-        names = relevant_objects(before, action)
-        if any(k not in lift_map for k in names):
-            log.skipped["lift_unobserved"] += 1
-        else:
-            carry_xy = action_geometry(action, before.object_states()).carry_xy
-            log.transitions.append(Transition(
-                names=names,
-                state=np.stack([before.object(k).features for k in names]),
-                action=encode_action(action, names),
-                effect=effects(before, lift, after, lift_map, after_map, names, carry_xy),
-                next_state=np.stack([after.object(after_map[k]).features for k in names]),
-                outcome=outcome, episode=episode, step=step - 1,
-                scene=scene_record(before, after, after_map, ids, names, chain),
-            ))
-            if on_transition:
-                on_transition()
+        _record(log, action, before, lift, after, after_map, ids=ids, chain=chain,
+                episode=episode, step=step - 1, on_transition=on_transition)
         ids = {after_map[k]: i for k, i in ids.items()}
         before = after
     if lost:
         log.end = "length_unrecovered"
+
+
+def _execute_random_action(backend, rng, config: EpisodeConfig, before, log: EpisodeLog):
+    """Executes random actions on the `before` scene until one is feasible; returns it and its
+    result, or None when the episode ends (too many infeasible in a row, or a sim failure)."""
+    infeasible_run = 0
+    while True:
+        action = random_action(rng, before.names)
+        result = backend.execute(action, before)
+        if result.status != "infeasible":
+            break
+        log.infeasible += 1
+        infeasible_run += 1
+        if infeasible_run >= config.max_infeasible:
+            log.end = "too_many_infeasible"
+            return None
+    if result.status != "ok":
+        log.end = "sim_failure"
+        return None
+    return action, result
+
+
+def _record(log: EpisodeLog, action: Action, before, lift, after, after_map: dict, *,
+            ids: dict[str, int], chain: int, episode: int, step: int, on_transition) -> None:
+    """Counts the action's outcome and records its transition (unless the lift scene lost
+    one of the relevant objects)."""
+    lift_map = associate(before, lift, action) if lift is not before else \
+        {k: k for k in before.names}
+    outcome = classify(before, lift, after, lift_map, after_map)
+    log.outcomes[outcome] += 1
+    names = relevant_objects(before, action)
+    if any(k not in lift_map for k in names):
+        log.skipped["lift_unobserved"] += 1
+        return
+    carry_xy = action_geometry(action, before.object_states()).carry_xy
+    log.transitions.append(Transition(
+        names=names,
+        state=np.stack([before.object(k).features for k in names]),
+        action=encode_action(action, names),
+        effect=effects(before, lift, after, lift_map, after_map, names, carry_xy),
+        next_state=np.stack([after.object(after_map[k]).features for k in names]),
+        outcome=outcome, episode=episode, step=step,
+        scene=scene_record(before, after, after_map, ids, names, chain),
+    ))
+    if on_transition:
+        on_transition()

@@ -129,108 +129,164 @@ def _trim_log(path: Path, epoch: int) -> None:
             csv.writer(f).writerows(kept)
 
 
-def train(cfg: TrainConfig, resume: bool = False) -> dict:
-    """Train `cfg.model` on `cfg.data` into run directory `cfg.out`; returns the metrics."""
-    if cfg.threads is not None:
-        torch.set_num_threads(cfg.threads)
-    out = Path(cfg.out)
-    last_path, best_path = out / ckpt_io.LAST, out / ckpt_io.BEST
+@dataclass
+class _Run:
+    """A run in progress: what its checkpoints save, and resuming restores."""
+
+    cfg: TrainConfig
+    out: Path
+    data_fp: str
+    model: torch.nn.Module
+    optimizer: torch.optim.Optimizer
+    shuffle: torch.Generator  # orders the training mini-batches
+    progress: dict
+
+    def restore_last(self) -> None:
+        """Continue from last.pt: its model, optimizer, progress and random streams."""
+        saved = ckpt_io.read_checkpoint(self.out / ckpt_io.LAST)
+        _check_resumable(saved, self.cfg, self.data_fp, self.out)
+        self.model.load_state_dict(saved["model_state"])
+        self.optimizer.load_state_dict(saved["optimizer_state"])
+        self.progress = saved["progress"]
+        torch.set_rng_state(saved["rng"]["torch"])
+        self.shuffle.set_state(saved["rng"]["shuffle"])
+        _trim_log(self.out / ckpt_io.LOG, self.progress["epoch"])
+
+    def payload(self, metrics: dict) -> dict:
+        """What a checkpoint saves now."""
+        return {
+            "model": self.cfg.model, "model_config": self.model.config(),
+            "model_state": self.model.state_dict(), "optimizer_state": self.optimizer.state_dict(),
+            "epoch": self.progress["epoch"], "train_config": dataclasses.asdict(self.cfg),
+            "data_fingerprint": self.data_fp, "metrics": metrics, "progress": dict(self.progress),
+            "rng": {"torch": torch.get_rng_state(), "shuffle": self.shuffle.get_state()},
+        }
+
+
+def _check_run_dir(out: Path, resume: bool) -> None:
+    last_path = out / ckpt_io.LAST
     if last_path.exists() and not resume:
         raise ValueError(f"{out} already holds a run; resume it or choose another output")
     if resume and not last_path.exists():
         raise FileNotFoundError(f"nothing to resume: {last_path} does not exist")
 
-    data_path = Path(cfg.data).resolve()
+
+def _load_data(data_path: Path, seed: int):
+    """The transitions in `data_path`, their fingerprint, episode split and split TensorSets."""
     arrays = load_transitions(data_path)
     data_fp = fingerprint(data_path)
-    splits = split_by_episode(arrays.episode, cfg.seed)
+    splits = split_by_episode(arrays.episode, seed)
     sets = {name: TensorSet.from_arrays(arrays, idx) for name, idx in splits.items()}
     if len(sets["train"]) == 0 or len(sets["val"]) == 0:
         raise ValueError(f"{data_path}: the train or validation split is empty")
+    return arrays, data_fp, splits, sets
+
+
+def _start_log(out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ckpt_io.LOG, "w", newline="") as f:
+        csv.writer(f).writerow(LOG_FIELDS)
+
+
+def _train_epoch(run: _Run, train_set: TensorSet) -> float:
+    """One pass over the shuffled training set; returns its mean mini-batch loss."""
+    run.model.train()
+    total, n_batches = torch.zeros(()), 0
+    for batch in train_set.batches(run.cfg.batch_size, run.shuffle):
+        total += train_step(run.model, run.optimizer, batch, run.cfg.grad_clip)
+        n_batches += 1
+    return float(total) / max(1, n_batches)
+
+
+def _count_epoch(progress: dict, val_loss: float) -> bool:
+    """Records a finished epoch in `progress`; returns whether the validation loss improved."""
+    progress["epoch"] += 1
+    improved = val_loss < progress["best_val_loss"]
+    if improved:
+        progress.update(best_val_loss=val_loss, best_epoch=progress["epoch"], bad_epochs=0)
+    else:
+        progress["bad_epochs"] += 1
+    return improved
+
+
+def _append_log_row(path: Path, progress: dict, train_loss: float, val: dict,
+                    seconds: float) -> None:
+    with open(path, "a", newline="") as f:  # before last.pt: see _trim_log
+        csv.writer(f).writerow([progress["epoch"], f"{train_loss:.6g}", f"{val['loss']:.6g}",
+                                f"{val['error_cm']:.4f}", f"{progress['best_val_loss']:.6g}",
+                                f"{seconds:.3f}"])
+
+
+def _fit(run: _Run, sets: dict) -> bool:
+    """Runs epochs until `epochs` are done or `patience` runs out; returns whether it did."""
+    cfg, last_path = run.cfg, run.out / ckpt_io.LAST
+    stopped_early = run.progress["bad_epochs"] >= cfg.patience
+    bar = tqdm(total=cfg.epochs, initial=min(run.progress["epoch"], cfg.epochs), unit="epoch",
+               desc=f"train {cfg.model}", disable=not cfg.progress)
+    while run.progress["epoch"] < cfg.epochs and not stopped_early:
+        start = time.perf_counter()
+        train_loss = _train_epoch(run, sets["train"])
+        if not math.isfinite(train_loss):
+            raise ValueError(f"training diverged in epoch {run.progress['epoch'] + 1} "
+                             f"(loss {train_loss}); {last_path} holds the previous epoch")
+        val = effect_metrics(run.model, sets["val"])
+        improved = _count_epoch(run.progress, val["loss"])
+        metrics = {"train_loss": train_loss, "val_loss": val["loss"],
+                   "val_error_cm": val["error_cm"]}
+        _append_log_row(run.out / ckpt_io.LOG, run.progress, train_loss, val,
+                        time.perf_counter() - start)
+        if improved:
+            ckpt_io.save_checkpoint(run.out / ckpt_io.BEST, run.payload(metrics))
+        ckpt_io.save_checkpoint(last_path, run.payload(metrics))
+        bar.update(1)
+        bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val['loss']:.3g}",
+                        val_cm=f"{val['error_cm']:.2f}")
+        stopped_early = run.progress["bad_epochs"] >= cfg.patience
+    bar.close()
+    return stopped_early
+
+
+def _final_metrics(run: _Run, sets: dict, stopped_early: bool) -> dict:
+    """Evaluates best.pt on every split into metrics.json; returns what it wrote."""
+    best_model = ckpt_io.model_from_checkpoint(ckpt_io.read_checkpoint(run.out / ckpt_io.BEST))
+    progress = run.progress
+    result = {
+        "run": str(run.out), "model": run.cfg.model, "epochs": progress["epoch"],
+        "best_epoch": progress["best_epoch"], "best_val_loss": progress["best_val_loss"],
+        "stopped_early": stopped_early, "data_fingerprint": run.data_fp,
+        "val": effect_metrics(best_model, sets["val"]),
+        "test": effect_metrics(best_model, sets["test"]) if len(sets["test"]) else None,
+        "train_loss_eval": evaluate_loss(best_model, sets["train"]),
+        "parameters": int(sum(p.numel() for p in best_model.parameters())),
+    }
+    ckpt_io.write_json(run.out / ckpt_io.METRICS, result)
+    return result
+
+
+def train(cfg: TrainConfig, resume: bool = False) -> dict:
+    """Train `cfg.model` on `cfg.data` into run directory `cfg.out`; returns the metrics."""
+    if cfg.threads is not None:
+        torch.set_num_threads(cfg.threads)
+    out = Path(cfg.out)
+    _check_run_dir(out, resume)
+    data_path = Path(cfg.data).resolve()
+    arrays, data_fp, splits, sets = _load_data(data_path, cfg.seed)
 
     torch.manual_seed(cfg.seed)
     model = make_model(cfg, arrays.state.shape[2], int(arrays.mask.sum(axis=1).max()))
     model.set_normalization(**normalization_stats(arrays.subset(splits["train"])))
-    optimizer = make_optimizer(model, cfg.lr)
-    shuffle = torch.Generator().manual_seed(cfg.seed)
-    progress = {"epoch": 0, "best_val_loss": math.inf, "best_epoch": 0, "bad_epochs": 0}
-
+    run = _Run(cfg, out, data_fp, model, make_optimizer(model, cfg.lr),
+               shuffle=torch.Generator().manual_seed(cfg.seed),
+               progress={"epoch": 0, "best_val_loss": math.inf, "best_epoch": 0, "bad_epochs": 0})
     if resume:
-        saved = ckpt_io.read_checkpoint(last_path)
-        _check_resumable(saved, cfg, data_fp, out)
-        model.load_state_dict(saved["model_state"])
-        optimizer.load_state_dict(saved["optimizer_state"])
-        progress = saved["progress"]
-        torch.set_rng_state(saved["rng"]["torch"])
-        shuffle.set_state(saved["rng"]["shuffle"])
-        _trim_log(out / ckpt_io.LOG, progress["epoch"])
+        run.restore_last()
     else:
-        out.mkdir(parents=True, exist_ok=True)
-        with open(out / ckpt_io.LOG, "w", newline="") as f:
-            csv.writer(f).writerow(LOG_FIELDS)
+        _start_log(out)
     ckpt_io.write_json(out / ckpt_io.CONFIG, {
         "train_config": dataclasses.asdict(cfg), "model": cfg.model,
         "model_config": model.config(), "data": str(data_path), "data_fingerprint": data_fp,
         "split_sizes": {k: int(len(v)) for k, v in splits.items()},
         "versions": ckpt_io.versions(),
     })
-
-    def payload(metrics: dict) -> dict:
-        return {
-            "model": cfg.model, "model_config": model.config(),
-            "model_state": model.state_dict(), "optimizer_state": optimizer.state_dict(),
-            "epoch": progress["epoch"], "train_config": dataclasses.asdict(cfg),
-            "data_fingerprint": data_fp, "metrics": metrics, "progress": dict(progress),
-            "rng": {"torch": torch.get_rng_state(), "shuffle": shuffle.get_state()},
-        }
-
-    stopped_early = progress["bad_epochs"] >= cfg.patience
-    bar = tqdm(total=cfg.epochs, initial=min(progress["epoch"], cfg.epochs), unit="epoch",
-               desc=f"train {cfg.model}", disable=not cfg.progress)
-    while progress["epoch"] < cfg.epochs and not stopped_early:
-        start = time.perf_counter()
-        model.train()
-        total, n_batches = torch.zeros(()), 0
-        for batch in sets["train"].batches(cfg.batch_size, shuffle):
-            total += train_step(model, optimizer, batch, cfg.grad_clip)
-            n_batches += 1
-        train_loss = float(total) / max(1, n_batches)
-        if not math.isfinite(train_loss):
-            raise ValueError(f"training diverged in epoch {progress['epoch'] + 1} "
-                             f"(loss {train_loss}); {last_path} holds the previous epoch")
-        val = effect_metrics(model, sets["val"])
-        progress["epoch"] += 1
-        improved = val["loss"] < progress["best_val_loss"]
-        if improved:
-            progress.update(best_val_loss=val["loss"], best_epoch=progress["epoch"], bad_epochs=0)
-        else:
-            progress["bad_epochs"] += 1
-        metrics = {"train_loss": train_loss, "val_loss": val["loss"],
-                   "val_error_cm": val["error_cm"]}
-        seconds = time.perf_counter() - start
-        with open(out / ckpt_io.LOG, "a", newline="") as f:  # before last.pt: see _trim_log
-            csv.writer(f).writerow([progress["epoch"], f"{train_loss:.6g}", f"{val['loss']:.6g}",
-                                    f"{val['error_cm']:.4f}", f"{progress['best_val_loss']:.6g}",
-                                    f"{seconds:.3f}"])
-        if improved:
-            ckpt_io.save_checkpoint(best_path, payload(metrics))
-        ckpt_io.save_checkpoint(last_path, payload(metrics))
-        bar.update(1)
-        bar.set_postfix(train=f"{train_loss:.3g}", val=f"{val['loss']:.3g}",
-                        val_cm=f"{val['error_cm']:.2f}")
-        stopped_early = progress["bad_epochs"] >= cfg.patience
-    bar.close()
-
-    best_model = ckpt_io.model_from_checkpoint(ckpt_io.read_checkpoint(best_path))
-    result = {
-        "run": str(out), "model": cfg.model, "epochs": progress["epoch"],
-        "best_epoch": progress["best_epoch"], "best_val_loss": progress["best_val_loss"],
-        "stopped_early": stopped_early, "data_fingerprint": data_fp,
-        "val": effect_metrics(best_model, sets["val"]),
-        "test": effect_metrics(best_model, sets["test"]) if len(sets["test"]) else None,
-        "train_loss_eval": evaluate_loss(best_model, sets["train"]),
-        "parameters": int(sum(p.numel() for p in best_model.parameters())),
-    }
-    ckpt_io.write_json(out / ckpt_io.METRICS, result)
-    return result
-
+    stopped_early = _fit(run, sets)
+    return _final_metrics(run, sets, stopped_early)

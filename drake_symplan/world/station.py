@@ -36,6 +36,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_symplan.boxes import OBJECT_TYPES
 from drake_symplan.structs import ObjectState
 from drake_symplan.world.cameras import AddDepthCameras, CameraConfig, DepthNoise, read_point_clouds
+from drake_symplan.world.hand import AddHand
 from drake_symplan.world.scenes import Scene, validate_scene
 
 MODEL_FILES = {
@@ -116,54 +117,12 @@ class Station:
         if cfg.robot not in ROBOTS:
             raise ValueError(f"unknown robot {cfg.robot!r}; expected one of {ROBOTS}")
         builder = DiagramBuilder()
-        plant, scene_graph = AddMultibodyPlant(
-            MultibodyPlantConfig(
-                time_step=cfg.time_step,
-                contact_model=cfg.contact_model,
-                discrete_contact_approximation=cfg.discrete_contact_approximation,
-            ),
-            builder,
-        )
-        parser = Parser(plant)
-        add_package_paths(parser)
-        self.arm = self.hand = None
-        if cfg.robot == "ur10":
-            self.arm = AddUr10(plant, parser)
-            # Gravity is compensated exactly by disabling it on the arm (PD alone would sag).
-            plant.set_gravity_enabled(self.arm, False)
-        (table,) = parser.AddModels(url="package://drake_symplan_models/table/table.sdf")
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("__model__", table))
-
-        self.pool: dict[str, list] = {t: [] for t in OBJECT_TYPES}
-        sizes = {"cube": cfg.pool_cubes, "long": cfg.pool_longs}
-        for kind in OBJECT_TYPES:
-            for i in range(sizes[kind]):
-                parser.SetAutoRenaming(True)
-                (inst,) = parser.AddModels(url=MODEL_FILES[kind])
-                plant.RenameModelInstance(inst, f"{kind}_{i}")
-                self.pool[kind].append(plant.GetBodyByName("body", inst))
-
-        if self.arm is not None:
-            for name, kp, kd in zip(ARM_JOINTS, cfg.arm_kp, cfg.arm_kd, strict=True):
-                plant.GetJointActuatorByName(name + "_motor").set_controller_gains(
-                    PdControllerGains(p=kp, d=kd))
-            for name in FINGER_JOINTS:
-                plant.GetJointActuatorByName(
-                    name.replace("_joint", "_motor")).set_controller_gains(
-                    PdControllerGains(p=cfg.finger_kp, d=cfg.finger_kd))
-        else:
-            from drake_symplan.world.hand import AddHand  # hand.py imports this module
-
-            self.hand = AddHand(plant, [b for bodies in self.pool.values() for b in bodies])
+        plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
+            time_step=cfg.time_step, contact_model=cfg.contact_model,
+            discrete_contact_approximation=cfg.discrete_contact_approximation), builder)
+        self._add_models(plant)
         plant.Finalize()
-
-        if self.arm is not None:
-            self.command_source = builder.AddSystem(
-                TrajectorySource(self.hold_trajectory(HOME_Q), 1))
-            builder.Connect(self.command_source.get_output_port(),
-                            plant.get_desired_state_input_port(self.arm))
-        else:
-            self.command_source = self.hand.add_command_source(builder)
+        self._add_command_source(builder, plant)
         self.meshcat = meshcat
         self.visualizer = None
         if meshcat is not None:
@@ -186,6 +145,46 @@ class Station:
             b.index(): plant.get_joint(plant.GetJointIndices(b.model_instance())[0])
             for bodies in self.pool.values() for b in bodies
         }
+
+    def _add_models(self, plant) -> None:
+        """Adds the robot (self.arm or self.hand), the table and the box pool (self.pool)."""
+        cfg = self.config
+        parser = Parser(plant)
+        add_package_paths(parser)
+        self.arm = self.hand = None
+        if cfg.robot == "ur10":
+            self.arm = AddUr10(plant, parser)
+            # Gravity is compensated exactly by disabling it on the arm (PD alone would sag).
+            plant.set_gravity_enabled(self.arm, False)
+        (table,) = parser.AddModels(url="package://drake_symplan_models/table/table.sdf")
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("__model__", table))
+        self.pool: dict[str, list] = {t: [] for t in OBJECT_TYPES}
+        sizes = {"cube": cfg.pool_cubes, "long": cfg.pool_longs}
+        for kind in OBJECT_TYPES:
+            for i in range(sizes[kind]):
+                parser.SetAutoRenaming(True)
+                (inst,) = parser.AddModels(url=MODEL_FILES[kind])
+                plant.RenameModelInstance(inst, f"{kind}_{i}")
+                self.pool[kind].append(plant.GetBodyByName("body", inst))
+        if self.arm is not None:
+            for name, kp, kd in zip(ARM_JOINTS, cfg.arm_kp, cfg.arm_kd, strict=True):
+                plant.GetJointActuatorByName(name + "_motor").set_controller_gains(
+                    PdControllerGains(p=kp, d=kd))
+            for name in FINGER_JOINTS:
+                plant.GetJointActuatorByName(
+                    name.replace("_joint", "_motor")).set_controller_gains(
+                    PdControllerGains(p=cfg.finger_kp, d=cfg.finger_kd))
+        else:
+            self.hand = AddHand(plant, [b for bodies in self.pool.values() for b in bodies])
+
+    def _add_command_source(self, builder, plant) -> None:
+        if self.arm is not None:
+            self.command_source = builder.AddSystem(
+                TrajectorySource(self.hold_trajectory(HOME_Q), 1))
+            builder.Connect(self.command_source.get_output_port(),
+                            plant.get_desired_state_input_port(self.arm))
+        else:
+            self.command_source = self.hand.add_command_source(builder)
 
     def hold_trajectory(self, q: np.ndarray, finger: float = FINGER_OPEN) -> PiecewisePolynomial:
         """A constant command: robot positions `q` (the arm's with `finger`, or the hand's)."""
