@@ -1,15 +1,16 @@
-"""The closed loop, the top layer: it wires the layers below and adds nothing to them.
+"""The agent layer: the closed loop, at the top; it wires the layers below.
 
-perceive the goal and the start scene (perception) -> read their symbols (a model bundle:
-the trained model, its domain and operators) -> write the problem and plan (planning) ->
-execute each step with the robot on the perceived objects (robot.backends: the arm or the
-hand) -> after each step perceive again and compare the symbols with what the step's
-operator predicted, replanning on a mismatch -> check every object within 5 cm of its
+perceive the goal and the start scene (robot + perception; `beliefs` names the boxes after
+the scene files) -> an `Abstraction` of a model bundle reads their symbols and plans
+(abstraction/) -> each typed step runs with the robot on the perceived objects (robot/),
+its offsets chosen by `refine` -> after each step perceive again and compare the symbols
+with the step's prediction, replanning on a mismatch -> every object within 5 cm of its
 perceived goal position.
 
-- `beliefs`: perceived scenes under the scene files' object names, followed across actions.
-- `solve`: `solve(start, goal, bundle, ...)` -> `SolveResult`; `Agent` keeps one station
-  for many solves.
+- `config`: `SolveConfig`, how a solve runs (planner, timeout, monitoring, replans, refine).
+- `solve`: `Agent.solve(start, goal, abstraction, config)` -> `SolveResult`.
+- `refine`: offsets among interchangeable operators; repositioning steps.
 - `problems`: random problem sets (a start scene, k random actions, the end state as goal).
-- `evaluation`: success rates of model bundles on a problem set, with and without monitoring.
+- `evaluation`: success rates of model bundles on a problem set (`symplan eval planning`).
+- `inspection`: a scene's symbols and a plan drawn in Meshcat (`symplan inspect`).
 """

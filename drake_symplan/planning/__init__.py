@@ -1,1 +1,7 @@
-"""planning layer."""
+"""The planning layer: PDDL in, plan out, behind one registry of back-ends; no Drake.
+
+`planners.PLANNERS` holds Fast Downward (its translator and search as subprocesses) and
+pyperplan (in a forked child); `plan` / `plan_pddl` return a PlanResult (solved,
+unsolvable, timeout, error) with the plan as PDDL step strings. The abstraction layer
+above parses those steps into typed steps of a model's operators.
+"""
