@@ -7,8 +7,9 @@ import pytest
 
 from drake_symplan.perception import segmentation as seg
 from drake_symplan.perception import tracking
-from drake_symplan.perception.box_fitting import FittedBox, upright_blocks
+from drake_symplan.perception.box_fitting import upright_blocks
 from drake_symplan.perception.evaluation import compare
+from drake_symplan.perception.fitted_box import FittedBox
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.world.cameras import default_cameras
 from drake_symplan.world.scenes import ObjectSpec, Scene

@@ -18,7 +18,8 @@ from collections import Counter
 import numpy as np
 
 from drake_symplan.perception import segmentation as seg
-from drake_symplan.perception.box_fitting import FittedBox, fit_boxes
+from drake_symplan.perception.box_fitting import fit_boxes
+from drake_symplan.perception.fitted_box import FittedBox
 
 ANCHOR_TOL = 0.008  # m: a top-face sample is contradicted if seen lower than this
 MAX_CONTRADICTED = 0.05  # fraction of top-face samples; ~5 mm of drift for a cube

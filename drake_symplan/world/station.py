@@ -178,6 +178,7 @@ class Station:
             self.hand = AddHand(plant, [b for bodies in self.pool.values() for b in bodies])
 
     def _add_command_source(self, builder, plant) -> None:
+        """Adds the source of the robot's commanded trajectory (`hold` and `follow` set it)."""
         if self.arm is not None:
             self.command_source = builder.AddSystem(
                 TrajectorySource(self.hold_trajectory(HOME_Q), 1))
