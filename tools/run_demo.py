@@ -1,16 +1,20 @@
-"""The demo: the robot solves a random goal with the symbols it learned, in full physics.
+"""The demo: the robot solves a goal with the symbols it learned, in full physics.
 
-    python tools/run_demo.py [--model DIR] [--seed 0] [--objects 3] [--k 2|3]
+    python tools/run_demo.py [--model DIR] [--seed N [--objects 3] [--k 2|3]]
                              [--start start.yaml --goal goal.yaml] [--out out/demo.html]
-                             [--meshcat] [--json]
+                             [--planner fd] [--timeout 10] [--no-record] [--meshcat] [--json]
 
-1. A start scene and a non-trivial goal: a random scene with `--objects` boxes, then k = 2
-   or 3 random pick/place actions executed by the UR10; the scene they leave is the goal
-   (agent/problems.py, as the planning evaluation makes them). Or `--start/--goal` files.
-   Both scenes are written beside the recording (`*_start.yaml`, `*_goal.yaml`).
+1. The problem: by default the shipped one, models/demo/ (start.yaml, goal.yaml: three
+   cubes, the goal two arm actions away), the same on every machine. `--seed N` samples a
+   new one: a random scene with `--objects` boxes, then k = 2 or 3 random pick/place
+   actions executed by the UR10; the scene they leave is the goal (agent/problems.py, as
+   the planning evaluation makes them). Sampled goals come from simulated physics, which
+   differs slightly between machines, so the same seed can give another goal elsewhere.
+   Or `--start/--goal` files.
 2. The model bundle (default: the shipped models/learned/) reads both perceived scenes into
-   symbols and the planner finds a plan, printed step by step ("pick o3 at its centre,
-   release on o1's left").
+   symbols and the planner plans once, printed step by step ("pick o3 at its centre,
+   release on o1's left"). With no plan the demo says why (the learned domain cannot
+   reach the goal's symbols, or the planner ran out of --timeout) and stops: exit 1.
 3. The UR10 executes it in full physics, perceiving after each step and replanning when
    the symbols differ from the operator's prediction (agent/solve.py).
 4. Each object's distance to its perceived goal position and the verdict against 5 cm.
@@ -21,13 +25,15 @@ budget's share runs out, effect-first operators: `symplan collect`, `train`, `bu
 each a child process, in `--work`/seed<S>, default out/from_scratch/), then solves with
 it; a re-run with the same `--work` and `--seed` reuses that model.
 
-One HTML recording (`--out`, default out/demo.html) holds the start scene, the goal (the
-translucent green boxes) and the execution, with the plan and the verdict in a panel.
-`--json` prints the result object of `symplan solve --json` (plus "demo": the problem and
-the readable plan) and nothing else on stdout.
+One HTML recording (`--out`, default out/demo.html; none with `--no-record`) holds the
+start scene, the goal (the translucent green boxes) and the execution, with the plan and
+the verdict in a panel. Meshcat serves on localhost only for that page (its URL is
+printed with `--meshcat`, which keeps it serving until Enter). `--json` prints the result
+object of `symplan solve --json` (plus "demo": the problem and the readable plan) and
+nothing else on stdout.
 
-Exit status: 0 success, 1 a verdict that is not success (or no non-trivial goal could be
-made), 2 bad input (one line on stderr).
+Exit status: 0 success, 1 a verdict that is not success, no plan, or no non-trivial goal
+could be made, 2 bad input (one line on stderr).
 """
 
 from __future__ import annotations
@@ -296,8 +302,8 @@ def main(argv=None) -> int:
             meshcat = StartMeshcat(announce=args.meshcat)
     agent = Agent("arm", meshcat=meshcat)
     abstraction = Abstraction(bundle)
-    say(f"model {shown(bundle.path)}: {bundle.n_unary} unary symbols, {bundle.n_relations} "
-        f"relations, {len(bundle.operators)} operators")
+    say(f"model {shown(bundle.path)}: {bundle.n_unary} unary symbol(s), "
+        f"{bundle.n_relations} relations, {len(bundle.operators)} operators")
     demo = {"seed": args.seed}
     if start is None:
         say(f"making a goal: {args.objects} objects, random actions by the UR10 ...")
