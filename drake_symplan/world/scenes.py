@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.atomic import write_atomic
+
 # HALF_EXTENTS and OBJECT_TYPES are also imported from here by modules not yet moved to
 # drake_symplan.boxes (skills, station).
 from drake_symplan.boxes import HALF_EXTENTS, LONG, OBJECT_TYPES, SIDE
@@ -212,7 +214,10 @@ def scene_to_yaml(scene: Scene) -> str:
 
 
 def save_scene(scene: Scene, path: str | Path) -> None:
-    Path(path).write_text(scene_to_yaml(validate_scene(scene)))
+    """Writes `scene` as YAML to `path` (its folder made if need be), atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, scene_to_yaml(validate_scene(scene)))
 
 
 def sample_scene(
