@@ -186,13 +186,13 @@ def finished_planning(rep) -> tuple[dict, str]:
 
 
 def write_results(rep) -> Path:
-    """results.md (and operators.json, planning_table.json) of a reproduce.Reproduction."""
+    """results.md (and operators_table.json, planning_table.json) of a reproduce.Reproduction."""
     res = rep.results
     effects = json.loads((res / "effects.json").read_text())
     operators = summarise_operators(collect_operator_reports(rep.out / "runs"))
     planning_result, planning_note = finished_planning(rep)
     planning = summarise_planning(planning_result)
-    write_atomic(res / "operators.json", json.dumps(operators, indent=1))
+    write_atomic(res / "operators_table.json", json.dumps(operators, indent=1))
     write_atomic(res / "planning_table.json", json.dumps(planning, indent=1))
     s = rep.scale
     text = "\n".join([

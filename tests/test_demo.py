@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -99,3 +100,29 @@ def test_from_scratch_bad_input(tmp_path, capsys):
     assert_bad_input(code, out, err, "give --model or --from-scratch, not both")
     code, out, err = run_main(["--from-scratch", "--budget-minutes", "1"], capsys)
     assert_bad_input(code, out, err, "--budget-minutes must be at least 2")
+
+
+def demo_lines(text: str) -> list[str]:
+    """The lines of the demo's output that must not change between machines: the problem,
+    the plan (its time left out) and its steps, and the verdict."""
+    keep = [line for line in text.splitlines()
+            if re.match(r"^\s+\d+\. ", line) or line.startswith(("problem: ", "plan (", "verdict: "))]
+    return [re.sub(r", [\d.]+ s\):$", "):", line) for line in keep]
+
+
+def test_demo_lines_leave_out_what_varies():
+    assert demo_lines("model x\nplan (2 step(s), reliability 49%, 0.5 s):\n  1. pick a\n"
+                      "  o1: 0.28 cm\nverdict: success (...)\nrecording written") == [
+        "plan (2 step(s), reliability 49%):", "  1. pick a", "verdict: success (...)"]
+
+
+@pytest.mark.slow
+def test_the_readme_demo_command_prints_the_readme_plan_and_verdict():
+    readme = (REPO / "README.md").read_text()
+    printed = readme.split("```text\n", 1)[1].split("```", 1)[0]  # the quick start's output
+    assert "python tools/run_demo.py" in readme.split("```text\n", 1)[0]
+    proc = subprocess.run([sys.executable, "tools/run_demo.py"], cwd=REPO, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert demo_lines(proc.stdout) == demo_lines(printed), proc.stdout
+    assert len(demo_lines(printed)) >= 5  # problem, plan, two steps, verdict

@@ -154,3 +154,17 @@ def test_planning_starts_with_the_objects_whose_goal_atoms_change(bundle, monkey
     stuck = reading([0, 0, 1])
     assert bundle.plan(stuck, goal, "fd").status == "unsolvable" and len(problems) == 3
     assert "(:objects a b c - obj)" in problems[2]
+
+
+def test_a_bundle_written_before_the_version_field_still_loads(bundle):
+    path = bundle.bundle.path / "operators.json"
+    data = json.loads(path.read_text())
+    for key in ("format", "version"):
+        del data[key]
+    for op in data["operators"]:  # version 1 had no outcomes, examples or cost_scale
+        for key in ("outcomes", "effect_count", "example", "example_slots", "cost_scale"):
+            del op[key]
+    path.write_text(json.dumps(data))
+    again = ModelBundle.load(path.parent)
+    assert [op.to_dict() for op in again.operators] == [
+        op.to_dict() for op in bundle.bundle.operators]
