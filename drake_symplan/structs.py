@@ -6,6 +6,7 @@ No Drake and no torch here, so `learning` and `symbolic` can import it freely.
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,8 @@ IS_SOURCE, IS_TARGET = 0, 4  # the role columns of the encoding
 # carry (source's lifted xy -> release xy) subtracted, so symbols need no global
 # position (paper, Experiment Setup).
 EFFECT_DIM = 6
+LIFT_TOL = 0.05  # m of rise at the end of the lift: the object went up with the hand
+GOAL_TOLERANCE = 0.05  # m: a goal is reached when every object is this near its position
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,20 @@ class Action:
 
     def __str__(self) -> str:
         return f"pick({self.source}:{self.grasp}) place({self.target}:{self.release})"
+
+    @classmethod
+    def from_text(cls, text: str) -> Action:
+        """The inverse of str(): 'pick(o1:center) place(o0:left)' -> its Action."""
+        m = re.fullmatch(r"pick\((\S+):(\w+)\) place\((\S+):(\w+)\)", text.strip())
+        if m is None:
+            raise ValueError(f"{text!r} is not an action 'pick(NAME:OFFSET) place(NAME:OFFSET)'")
+        return cls(m[1], m[2], m[3], m[4])
+
+
+def release_shift(action: Action) -> float:
+    """How far along world y from the target's centre the source's centre is released: its
+    grasp point goes over the target's release point (skills/pick_place.py)."""
+    return OFFSET_METRES[action.release] - OFFSET_METRES[action.grasp]
 
 
 def encode_action(action: Action, names: list[str]) -> np.ndarray:

@@ -16,7 +16,7 @@ from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import SolveConfig
 from drake_symplan.agent.solve import Agent, SolveResult
-from drake_symplan.perception.features import object_features
+from drake_symplan.features import object_features
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
 from drake_symplan.robot.backends import Execution
 from drake_symplan.structs import Action, ObjectState

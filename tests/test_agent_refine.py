@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_symplan.agent.refine import equivalents, refine_step
+from drake_symplan.abstraction.bilevel import equivalents
+from drake_symplan.agent.refine import refine_step
 from drake_symplan.structs import Action
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.effect_operators import EFFECT

@@ -285,7 +285,6 @@ def main(argv=None) -> int:
                                         "--budget-minutes" if "no operators" in str(e) else ""))
             return 1
     from drake_symplan.abstraction.abstraction import Abstraction, reliability
-    from drake_symplan.agent.config import GOAL_TOLERANCE
     from drake_symplan.agent.inspection import (
         annotate_html,
         draw_goal_scene,
@@ -293,6 +292,7 @@ def main(argv=None) -> int:
         readable_step,
     )
     from drake_symplan.agent.solve import Agent
+    from drake_symplan.structs import GOAL_TOLERANCE
     from drake_symplan.world.scenes import save_scene
     from drake_symplan.world.visualization import StartMeshcat
 

@@ -48,13 +48,18 @@ class Reading:
 
 @dataclass
 class Plan:
-    """What planning a task gives: the planner's status, the typed steps, seconds."""
+    """What planning gives: the status (planning.planners.STATUSES), the typed steps,
+    seconds; from bilevel planning (bilevel.py) also the level that found it, the scene
+    predicted after each step and the candidate plans looked at."""
 
-    status: str  # planning.planners.STATUSES
+    status: str
     steps: list[PlanStep] = field(default_factory=list)
     seconds: float = 0.0
     message: str = ""
     planner: str = ""
+    level: str = "symbolic"
+    predicted: list = field(default_factory=list)
+    candidates: list = field(default_factory=list)
 
     @property
     def solved(self) -> bool:
@@ -142,18 +147,20 @@ class Abstraction:
         return tuple(n for n in task.objects if n in changed | near)
 
     def plan(self, start: Reading, goal: Reading, planner: str = "fd",
-             timeout: float = DEFAULT_TIMEOUT) -> Plan:
+             timeout: float = DEFAULT_TIMEOUT, focus: bool = True) -> Plan:
         """Plans from start to goal. The `focus` objects first; only if that proves
-        unsolvable, all of them, in the time left. The empty plan, without a planner call,
-        when the goal's atoms hold already."""
+        unsolvable, all of them, in the time left (`focus=False`: all of them). The empty
+        plan, without a planner call, when the goal's atoms hold already."""
         t0 = time.perf_counter()
         task = self.task(start, goal)
-        focus = self.focus(task, start, goal)
-        if not focus:
+        objects = self.focus(task, start, goal)
+        if objects and not focus:
+            objects = task.objects
+        if not objects:
             return Plan("solved", [], time.perf_counter() - t0, "", planner)
         domain = self.bundle.domain if planner == "fd" else self.bundle.domain_strips
-        for objects in ([focus, None] if len(focus) < len(task.objects) else [None]):
-            sub = task if objects is None else task.restricted(objects)
+        for subset in ([objects, None] if len(objects) < len(task.objects) else [None]):
+            sub = task if subset is None else task.restricted(subset)
             found = plan_task(domain, sub, planner,
                               max(t0 + timeout - time.perf_counter(), 1e-3))
             if found.status != "unsolvable":

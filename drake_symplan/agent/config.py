@@ -7,21 +7,27 @@ import dataclasses as dc
 
 from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PLANNERS
 
-GOAL_TOLERANCE = 0.05  # m: every object must end this near its perceived goal position
+# How a plan is had (agent/planning_modes.py), and "oracle": the problem's recorded actions
+# replayed open loop, the evaluation's ceiling row.
+PLANNING = ("symbolic", "bilevel", "continuous")
+PLANNING_MODES = (*PLANNING, "oracle")
 
 
 @dc.dataclass(frozen=True)
 class SolveConfig:
-    """planner: a planning.planners.PLANNERS back-end; timeout: its seconds per call;
-    monitor: perceive after each step and replan on a mismatch (False: open loop, as the
-    paper); max_replans: replans per solve; refine: choose each step's offsets among
-    interchangeable operators and put boxes down at their goal spot (agent/refine.py)."""
+    """planner: a planning.planners.PLANNERS back-end; timeout: its seconds per call
+    (bilevel and continuous planning: the CPU seconds of the search); monitor: perceive
+    after each step and replan on a mismatch (False: open loop, as the paper);
+    max_replans: replans per solve; refine: with symbolic planning, choose each step's
+    offsets among interchangeable operators and put boxes down at their goal spot
+    (agent/refine.py); planning: PLANNING_MODES (agent/planning_modes.py)."""
 
     planner: str = "fd"
     timeout: float = DEFAULT_TIMEOUT
     monitor: bool = True
     max_replans: int = 2
     refine: bool = True
+    planning: str = "symbolic"
 
     def __post_init__(self):
         if self.planner not in PLANNERS:
@@ -30,6 +36,8 @@ class SolveConfig:
             raise ValueError(f"the planner timeout must be positive, got {self.timeout:g}")
         if self.max_replans < 0:
             raise ValueError(f"max_replans must be 0 or more, got {self.max_replans}")
+        if self.planning not in PLANNING_MODES:
+            raise ValueError(f"unknown planning {self.planning!r}; one of {PLANNING_MODES}")
 
     def to_dict(self) -> dict:
         return dc.asdict(self)
@@ -41,7 +49,7 @@ class SolveConfig:
         """The `symplan solve` / `eval planning` flags (cli/options.py) that give this
         config, less the monitoring (eval planning runs both modes): for child processes."""
         flags = ["--planner", self.planner, "--timeout", f"{self.timeout:g}",
-                 "--max-replans", str(self.max_replans)]
+                 "--max-replans", str(self.max_replans), "--planning", self.planning]
         return flags + ([] if self.refine else ["--no-refine"])
 
 

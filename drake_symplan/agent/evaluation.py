@@ -23,11 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Abstraction
-from drake_symplan.agent.config import DEFAULT_SOLVE, GOAL_TOLERANCE, SolveConfig
+from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.problems import load_problems
 from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
+from drake_symplan.structs import GOAL_TOLERANCE, Action
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene
 
@@ -59,7 +60,10 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
     folder = Path(problem["dir"])
     start, goal = problem.get("scenes") or (load_scene(folder / "start.yaml"),
                                             load_scene(folder / "goal.yaml"))
-    result = agent.solve(start, goal, abstraction, config)
+    given = None
+    if config.planning == "oracle":  # the problem's own actions, replayed open loop
+        given = [Action.from_text(a) for a in problem["actions"]]
+    result = agent.solve(start, goal, abstraction, config, given=given)
     return {
         "run": label, "problem": str(folder), "n_objects": problem["n_objects"],
         "k": problem["k"], "monitor": config.monitor, "status": result.status,

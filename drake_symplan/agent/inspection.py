@@ -51,7 +51,9 @@ def readable_step(step: PlanStep) -> str:
     left'; a repositioning (agent/refine.py) says so."""
     a = step.action
     text = f"pick {a.source} {GRASP[a.grasp]}, release on {a.target}'s {RELEASE[a.release]}"
-    return f"{text} (repositioning)" if isinstance(step, Reposition) else text
+    if isinstance(step, Reposition):
+        return f"{text} ({'repositioning' if step.kind == 'reposition' else 'continuous'})"
+    return text
 
 
 def pattern(bits, uncertain) -> str:

@@ -28,9 +28,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from drake_symplan.abstraction.bilevel import equivalents
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.structs import OFFSET_METRES, OFFSETS, Action
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
+from drake_symplan.structs import OFFSET_METRES, OFFSETS, Action, release_shift
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
 MIN_GAIN = 0.01  # m: a change of offsets must bring the source this much nearer its goal
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
@@ -39,25 +40,12 @@ RESTS_ON = 0.03  # m: a box in contact with another and this much higher rests o
 REPOSITIONS_PER_OBJECT = 2  # a solve's repositionings at most, per object
 
 
-def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
-    """`step`, then the steps of `operators` with the same arguments that apply in `state`
-    (a set of ground atoms) and after which `rest` still reaches `goal`."""
-    out = [step]
-    for other in operators:
-        if other.n_params != step.operator.n_params or other is step.operator:
-            continue
-        option = step.with_operator(other)
-        if option.applicable(state) and reaches(rest, option.apply(state), goal):
-            out.append(option)
-    return out
-
-
 def landing_error(step: PlanStep, now: dict[str, np.ndarray], goal: dict[str, np.ndarray],
                   goal_contacts) -> float:
     """How far (m, along world y, the offsets' axis) the step's source would land from its
     goal position, with the source's grasp point released over the target's release point."""
     action = step.action
-    shift = OFFSET_METRES[action.release] - OFFSET_METRES[action.grasp]
+    shift = release_shift(action)
     src, tgt = action.source, action.target
     if tuple(sorted((src, tgt))) in goal_contacts:
         want = goal[src][1] - goal[tgt][1]
@@ -128,7 +116,8 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
                                     for g in OFFSETS for r in OFFSETS):
             if abs(OFFSET_METRES[grasp]) >= size[1]:  # the grasp point is off the box
                 continue
-            land = boxes[tgt].position[:2] + [0.0, OFFSET_METRES[release] - OFFSET_METRES[grasp]]
+            shift = release_shift(Action(src, grasp, tgt, release))
+            land = boxes[tgt].position[:2] + [0.0, shift]
             shift = land - boxes[src].position[:2]
             miss = max(float(np.linalg.norm(boxes[n].position[:2] + shift - wanted[n][:2]))
                        for n in {src} | load - movers)

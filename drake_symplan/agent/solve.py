@@ -35,10 +35,12 @@ from contextlib import contextmanager
 
 from drake_symplan.abstraction.abstraction import Abstraction, Plan
 from drake_symplan.agent import beliefs
-from drake_symplan.agent.config import DEFAULT_SOLVE, GOAL_TOLERANCE, SolveConfig
+from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.planning_modes import Planner
 from drake_symplan.agent.refine import REPOSITIONS_PER_OBJECT, refine_step, reposition_step
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
+from drake_symplan.structs import GOAL_TOLERANCE
+from drake_symplan.symbolic.structs import PlanStep, Step
 from drake_symplan.world.visualization import StartMeshcat
 
 STATUSES = ("success", "failure", "no_plan", "timeout", "infeasible", "error")
@@ -65,6 +67,9 @@ class SolveResult:
     # off their goal positions means the symbols did not capture the goal; False means the
     # plan did not reach it (an operator's prediction or the execution went wrong).
     symbolic_goal_reached: bool | None = None
+    # The first plan's candidates (bilevel and continuous planning): the plans looked at,
+    # the rejected ones with why (abstraction/bilevel.py: Candidate).
+    candidates: list = dc.field(default_factory=list)
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -79,6 +84,8 @@ class SolveResult:
                "executed": [str(s) for s in self.executed], "replans": self.replans,
                "objects": self.objects,
                "seconds": {k: round(v, 4) for k, v in self.seconds.items()}}
+        if self.candidates:
+            out["candidates"] = [c.to_json() for c in self.candidates]
         if not self.success:
             out["failure_cause"] = self.failure_cause
             out["message"] = self.message
@@ -126,15 +133,17 @@ class Agent:
         return beliefs.name_by_file(self.robot.perceive(), scene)
 
     def solve(self, start_scene, goal_scene, abstraction: Abstraction,
-              config: SolveConfig = DEFAULT_SOLVE, record=None, on_plan=None) -> SolveResult:
+              config: SolveConfig = DEFAULT_SOLVE, record=None, on_plan=None,
+              given=None) -> SolveResult:
         """Solves `goal_scene` from `start_scene` (world.scenes.Scene); `record`: an HTML
         file for the Meshcat recording of the execution (with a Meshcat); `on_plan(plan,
         start, goal)` is told the first plan (abstraction.Plan, solved or not) and the
-        perceived scenes (beliefs.Named) before anything moves."""
+        perceived scenes (beliefs.Named) before anything moves; `given`: the actions the
+        oracle replays (config.planning "oracle")."""
         beliefs.check_scene_pair(start_scene, goal_scene)
         clock = _Clock(self.robot)
         t0 = time.perf_counter()
-        run = _Run(self, abstraction, clock, config, on_plan)
+        run = _Run(self, abstraction, clock, config, on_plan, given)
         try:
             goal = self.look(goal_scene, clock)
             with self.robot.recording(record):  # from the start scene on
@@ -160,9 +169,14 @@ class _Run:
     by step (`_execute`), monitoring each (`_monitor`) and the end (`_goal_seen`)."""
 
     def __init__(self, agent: Agent, abstraction: Abstraction, clock: _Clock,
-                 config: SolveConfig, on_plan=None):
+                 config: SolveConfig, on_plan=None, given=None):
         self.agent, self.abs, self.clock, self.config = agent, abstraction, clock, config
         self.on_plan = on_plan
+        self.planner = Planner(abstraction, config, given)
+        # The heuristic choices of agent/refine.py complete symbolic plans only: the other
+        # modes choose offsets and moves by search, the oracle replays.
+        self.refine = config.refine and config.planning == "symbolic"
+        self.predicted: list = []
         self.result = SolveResult("failure")
         self.goal = self.goal_reading = None
         self.goal_atoms = frozenset()
@@ -185,7 +199,7 @@ class _Run:
             if self.on_plan is not None:
                 self.on_plan(first, start, goal)
             self.steps = self._steps(first)
-            self.result.plan = list(self.steps)
+            self.result.plan, self.result.candidates = list(self.steps), first.candidates
             while True:
                 while self._next():
                     self._execute(self.steps.pop(0))
@@ -200,8 +214,7 @@ class _Run:
     def _search(self) -> Plan:
         """Plans from the scene perceived now."""
         with self.clock("plan"):
-            return self.abs.plan(self.reading, self.goal_reading, self.config.planner,
-                                 self.config.timeout)
+            return self.planner.plan(self.reading, self.goal_reading, self.now, self.goal)
 
     def _steps(self, found: Plan) -> list[PlanStep]:
         """The steps of a plan found; _Stop when the planner found none."""
@@ -209,6 +222,7 @@ class _Run:
             cause = PLANNER_STATUS.get(found.status, "error")
             raise _Stop(self.now, cause, f"planner {self.config.planner}: {found.status}: "
                                          f"{found.message}".strip())
+        self.predicted = list(found.predicted)
         return list(found.steps)
 
     def _replan(self) -> list[PlanStep]:
@@ -221,7 +235,7 @@ class _Run:
         """Is there a step to run? With `refine`, a repositioning goes first where a box
         the rest of the plan leaves alone is off its goal spot."""
         limit = REPOSITIONS_PER_OBJECT * len(self.now.names)
-        if self.config.refine and self.repositions < limit:
+        if self.refine and self.repositions < limit:
             extra = reposition_step(self.steps, self.now, self.goal, GOAL_TOLERANCE)
             if extra is not None:
                 self.steps.insert(0, extra)
@@ -230,7 +244,7 @@ class _Run:
 
     def _execute(self, step: PlanStep) -> None:
         """Runs `step` with the robot (its offsets refined first), perceives the result."""
-        if self.config.refine and isinstance(step, Step):
+        if self.refine and isinstance(step, Step):
             with self.clock("symbols"):
                 step = refine_step(self.abs.bundle.operators, step, self.steps, self.believed,
                                    self.goal_atoms, beliefs.positions(self.now),
@@ -270,14 +284,13 @@ class _Run:
         self.believed = self.abs.believed(self.reading)
 
     def _monitor(self, step: PlanStep) -> None:
-        """Reads the symbols now; if they depart from the step's prediction (for a
-        repositioning: if the rest of the plan no longer applies), replans."""
+        """Reads the symbols now; if the scene departs from the step's prediction
+        (planning_modes.Planner.departs), replans."""
+        predicted = self.predicted.pop(0) if self.predicted else None
         with self.clock("symbols"):
             self._perceived(self.now)
-            if isinstance(step, Reposition):
-                wrong = not reaches(self.steps, self.believed, self.goal_atoms)
-            else:
-                wrong = bool(self.abs.mismatches(self.reading, step))
+            wrong = self.planner.departs(step, predicted, self.reading, self.now, self.steps,
+                                         self.believed, self.goal_atoms)
         if wrong and self.result.replans < self.config.max_replans:
             try:
                 self.steps = self._replan()
@@ -294,7 +307,8 @@ class _Run:
         if not self.config.monitor or self.result.replans >= self.config.max_replans:
             return False
         with self.clock("symbols"):
-            reached = self.abs.goal_holds(self.reading, self.goal_atoms)
+            reached = self.planner.goal_seen(self.reading, self.goal_atoms, self.now,
+                                             self.goal)
         if reached:
             return False
         self.steps = self._replan()

@@ -73,7 +73,7 @@ def register(subparsers) -> None:
                    help="model bundle directories")
     p.add_argument("--problems", required=True, type=Path,
                    help="problem set directory (problems at any depth)")
-    add_solve_arguments(p, monitor_flag=False)
+    add_solve_arguments(p, monitor_flag=False, oracle=True)
     add_robot_argument(p)
     p.add_argument("--monitor", choices=("both", "on", "off"), default="both",
                    help="solve each problem monitored, open loop, or both (default both)")

@@ -22,9 +22,9 @@ def register(subparsers) -> None:
     p.add_argument("--config", type=Path, metavar="FILE",
                    help="YAML file of TrainConfig settings, e.g. configs/table1.yaml; "
                    "flags given on the command line override it")
-    p.add_argument("--model", choices=MODELS,
-                   help="required, here or in --config; reference: no symbols, the data "
-                   "set's error floor (models.py)")
+    p.add_argument("--model", choices=MODELS, metavar="MODEL",
+                   help="one of %(choices)s; required, here or in --config; reference: no "
+                   "symbols, the data set's error floor (models.py)")
     p.add_argument("--data", help="data set directory (shards + manifest.json); required, "
                    "here or in --config")
     p.add_argument("--out", help="run directory to create (or resume); required, here or "

@@ -48,6 +48,7 @@ PIPELINE = (
     ("operators", "learn lifted operators from the symbols and write a PDDL domain"),
     ("bundle", "a trained run and its learned operators in one model directory"),
     ("eval operators", "a model's domain on held-out episodes, at the symbolic level"),
+    ("eval rollout", "the continuous model's position error after k actions, held out"),
     ("plan", "plan on a PDDL domain and problem (Fast Downward or pyperplan)"),
     ("inspect", "show a scene's symbols and a plan to a goal in Meshcat"),
     ("solve", "perceive start and goal, plan, execute with the arm, check within 5 cm"),

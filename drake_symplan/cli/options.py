@@ -7,14 +7,16 @@ from __future__ import annotations
 import argparse
 import importlib
 
-from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.config import DEFAULT_SOLVE, PLANNING, PLANNING_MODES, SolveConfig
 from drake_symplan.cli.main import CommandError
 
 
 class RegistryChoices:
     """argparse `choices` that are the keys of a registry dict, read when first needed:
     importing the registry's module loads torch (models) or Drake (robots), which a
-    command that does not need them should not pay for."""
+    command that does not need them should not pay for. Give the option a `metavar`
+    (argparse lists plain choices when it builds the parser) and `%(choices)s` in its
+    help (read when the help is shown)."""
 
     def __init__(self, module: str, name: str):
         self.module, self.name = module, name
@@ -42,21 +44,30 @@ def add_json_argument(p: argparse.ArgumentParser) -> None:
 
 def add_planner_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--planner", choices=PLANNERS, default=DEFAULT_SOLVE.planner,
-                   help="planner back-end: fd (Fast Downward, A* with LM-cut) or pyperplan "
-                   f"(default {DEFAULT_SOLVE.planner})")
+                   metavar="PLANNER", help="planner back-end, one of %(choices)s: fd (Fast "
+                   f"Downward, A* with LM-cut), pyperplan (default {DEFAULT_SOLVE.planner})")
     p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.timeout,
                    help=f"planner seconds per call (default {DEFAULT_SOLVE.timeout:g})")
 
 
 def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None:
-    p.add_argument("--backend", choices=ROBOTS, default=default,
-                   help="arm: the UR10 in full physics; hand: the fast collision-free hand "
-                   f"(default {default})")
+    p.add_argument("--backend", choices=ROBOTS, default=default, metavar="ROBOT",
+                   help="one of %(choices)s: arm, the UR10 in full physics; hand, the fast "
+                   f"collision-free hand (default {default})")
 
 
-def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True) -> None:
-    """The SolveConfig flags; `monitor_flag`: --no-monitor (eval planning has --monitor)."""
+def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
+                        oracle: bool = False) -> None:
+    """The SolveConfig flags; `monitor_flag`: --no-monitor (eval planning has --monitor);
+    `oracle`: --planning may replay the problems' recorded actions (eval planning)."""
     add_planner_arguments(p)
+    p.add_argument("--planning", choices=PLANNING_MODES if oracle else PLANNING,
+                   default=DEFAULT_SOLVE.planning,
+                   help="symbolic: plans from the symbols alone; bilevel: symbolic skeletons "
+                   "checked and completed with the learned continuous model, a continuous "
+                   "search as the fallback; continuous: that search alone"
+                   + ("; oracle: replay the actions that made the problem, open loop"
+                      if oracle else ""))
     if monitor_flag:
         p.add_argument("--no-monitor", action="store_true",
                        help="run the first plan open loop (no replanning on a mismatch)")
@@ -73,7 +84,8 @@ def solve_config(args: argparse.Namespace) -> SolveConfig:
     try:
         return SolveConfig(args.planner, args.timeout, not getattr(args, "no_monitor", False),
                            getattr(args, "max_replans", DEFAULT_SOLVE.max_replans),
-                           not getattr(args, "no_refine", False))
+                           not getattr(args, "no_refine", False),
+                           getattr(args, "planning", DEFAULT_SOLVE.planning))
     except ValueError as e:
         raise CommandError(str(e).replace("max_replans", "--max-replans")
                            .replace("the planner timeout", "--timeout")) from e

@@ -51,12 +51,11 @@ from drake_symplan.perception.perceive import associate
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.robot.backends import PerceptionFailure
 from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.structs import EFFECT_DIM, OFFSETS, Action, encode_action
+from drake_symplan.structs import EFFECT_DIM, LIFT_TOL, OFFSETS, Action, encode_action
 from drake_symplan.world.scenes import sample_scene
 
 OUTCOMES = ("no_effect", "placed", "tipped", "carried_along", "fell_off", "other")
 NO_EFFECT_TOL = 0.01  # m: nothing moved more than this
-LIFT_TOL = 0.05  # m of rise at the end of the lift: the object went up with the hand
 TIP_TOL = np.radians(15.0)  # tilt gained by an object that tipped over
 # Ends of an episode; the DROP_REASONS ones are failures.
 DROP_REASONS = ("sim_failure", "perception_initial_count", "perception_unrecovered",

@@ -4,7 +4,7 @@ perceived features and contacts of whole scenes.
 A candidate description is a boolean per object (unary: "is a long block", "has an
 object on top") or per ordered pair of objects in contact (relations: "x is above y",
 "x's centre is over y's footprint"), computed from the feature vector (layout in
-perception/features.py: [x, y, z, cos(tilt), long_axis_up, cos(k yaw), sin(k yaw),
+features.py: [x, y, z, cos(tilt), long_axis_up, cos(k yaw), sin(k yaw),
 is_cube, is_long]) and the perceived contact graph. The literals are the base
 candidates and their negations; conjunctions and disjunctions of two literals are
 candidates too.

@@ -222,13 +222,22 @@ class Step:
         return hash(str(self))
 
 
+MOVE_KINDS = ("reposition", "move")
+
+
 @dataclass(frozen=True)
 class Reposition:
-    """The agent's move that no operator names: put `action.source` down beside
-    `action.target` so that it lands at its goal position (agent/refine.py). It predicts
-    no symbolic change."""
+    """A step no operator names: the pick/place `action` chosen for where it puts the
+    boxes, not for a symbolic effect, so it predicts none. `kind` "reposition": a box put
+    down beside another at its goal spot (agent/refine.py, bilevel extra moves); "move": a
+    step of a plan found in continuous space (abstraction/bilevel.py)."""
 
     action: Action
+    kind: str = "reposition"
+
+    def __post_init__(self):
+        if self.kind not in MOVE_KINDS:
+            raise ValueError(f"unknown move kind {self.kind!r}; one of {MOVE_KINDS}")
 
     def applicable(self, state) -> bool:
         return True
@@ -238,27 +247,27 @@ class Reposition:
 
     def __str__(self) -> str:
         a = self.action
-        return f"(reposition_{a.grasp}_{a.release} {a.source} {a.target})"
+        return f"({self.kind}_{a.grasp}_{a.release} {a.source} {a.target})"
 
 
 PlanStep = Step | Reposition
 
 _STEP = re.compile(
     r"^pick_(?P<grasp>[a-z]+)_place_(?P<release>[a-z]+)_n(?P<count>\d+)_op(?P<index>\d+)$")
-_REPOSITION = re.compile(r"^reposition_(?P<grasp>[a-z]+)_(?P<release>[a-z]+)$")
+_MOVE = re.compile(r"^(?P<kind>reposition|move)_(?P<grasp>[a-z]+)_(?P<release>[a-z]+)$")
 
 
 def parse_step(text: str, operators: Mapping[str, LiftedOperator]) -> PlanStep:
     """`(pick_center_place_right_n736_op19 o3 o1 o2)` -> the Step of that operator (by
-    name in `operators`) on o3, o1, o2; `(reposition_center_right o1 o0)` -> a Reposition.
-    ValueError naming the step otherwise."""
+    name in `operators`) on o3, o1, o2; `(reposition_center_right o1 o0)` or
+    `(move_center_right o1 o0)` -> a Reposition of that kind. ValueError otherwise."""
     tokens = text.strip().strip("()").lower().split()
     if len(tokens) < 3:
         raise ValueError(f"plan step {text!r} has no source and target arguments")
     name, args = tokens[0], tuple(tokens[1:])
-    m = _REPOSITION.match(name)
+    m = _MOVE.match(name)
     if m and m["grasp"] in OFFSETS and m["release"] in OFFSETS and len(args) == 2:
-        return Reposition(Action(args[0], m["grasp"], args[1], m["release"]))
+        return Reposition(Action(args[0], m["grasp"], args[1], m["release"]), m["kind"])
     m = _STEP.match(name)
     if not m or m["grasp"] not in OFFSETS or m["release"] not in OFFSETS:
         raise ValueError(f"{tokens[0]!r} is not a learned pick/place operator name")

@@ -1,7 +1,6 @@
-"""The object feature vector x_i, from a perceived box only.
+"""The object feature vector x_i: the contract between perception, which computes it from a
+perceived box only, and everything that learns from it or predicts it (docs/perception.md).
 
-Its layout is the contract that data collection and the learned models rely on
-(docs/perception.md lists it too):
 
 x = [x, y, z, cos(tilt), long_axis_up, cos(k*yaw), sin(k*yaw), is_cube, is_long]
 - position in metres, world frame (box centre);
@@ -22,6 +21,17 @@ FEATURE_NAMES = ("x", "y", "z", "cos_tilt", "long_axis_up", "cos_k_yaw", "sin_k_
                  "is_cube", "is_long")
 FEATURE_DIM = len(FEATURE_NAMES)
 YAW_SYMMETRY = {kind: round(2 * np.pi / period) for kind, period in YAW_PERIOD.items()}
+
+
+def box_of(features: np.ndarray) -> tuple[str, np.ndarray, np.ndarray]:
+    """(type, centre, axes R) of a box from its features, as if resting on a face (the
+    features keep a tilt's size, not its direction): the geometry the continuous model's
+    predicted scenes are checked for contact with."""
+    kind = "cube" if features[7] >= features[8] else "long"
+    yaw = float(np.arctan2(features[6], features[5])) / YAW_SYMMETRY[kind]
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return kind, np.asarray(features[:3], float), R
 
 
 def object_features(kind: str, position: np.ndarray, R: np.ndarray) -> np.ndarray:

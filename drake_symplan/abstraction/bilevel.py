@@ -1,0 +1,263 @@
+"""Bilevel planning: symbolic skeletons refined with the learned continuous model, and a
+continuous search when no skeleton refines. No simulator: every check is a prediction.
+
+As predicators' SeSamE and the paper's successor (Dogangun et al. 2026): the symbolic
+planner proposes a skeleton (the focus objects' plan, then the plan over every object);
+refining it chooses what the symbols leave open, depth first: each step's offsets among
+the operators interchangeable with it (agent/refine.py's `equivalents`: same arguments,
+the rest of the skeleton still reaches the goal's atoms), ordered by the predicted
+distance to the goal, then up to `extra_moves` moves that put a box down at its goal spot.
+A refinement is accepted when every box is predicted within the tolerance less a margin
+of its goal position; otherwise the search backtracks over choices, then skeletons. When
+no skeleton refines (or the planner finds none) a weighted best-first search over all
+pick/place actions, with the same model and the summed predicted distance to the goal as
+its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap, so a problem
+gets the same answer on a busy host as on a quiet one.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_symplan.abstraction.abstraction import Plan
+from drake_symplan.abstraction.continuous import Boxes
+from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.features import box_of
+from drake_symplan.structs import GOAL_TOLERANCE, OFFSET_METRES, OFFSETS, Action
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
+
+MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
+STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
+
+
+def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
+    """`step`, then the steps of `operators` with the same arguments that apply in `state`
+    (a set of ground atoms) and after which `rest` still reaches `goal`."""
+    out = [step]
+    for other in operators:
+        if other.n_params != step.operator.n_params or other is step.operator:
+            continue
+        option = step.with_operator(other)
+        if option.applicable(state) and reaches(rest, option.apply(state), goal):
+            out.append(option)
+    return out
+
+
+class Budget:
+    """CPU seconds with a wall-clock cap, counted from construction."""
+
+    def __init__(self, cpu_seconds: float, wall_seconds: float):
+        self.cpu, self.wall = cpu_seconds, wall_seconds
+        self.cpu0, self.wall0 = time.process_time(), time.perf_counter()
+
+    def spent(self) -> bool:
+        return (time.process_time() - self.cpu0 > self.cpu
+                or time.perf_counter() - self.wall0 > self.wall)
+
+
+@dataclass
+class Candidate:
+    """A plan the search looked at: its steps, whether it was accepted, why not, and the
+    predicted distance (cm) of each box to its goal at its end."""
+
+    source: str  # "skeleton 1", "continuous"
+    steps: list[str]
+    accepted: bool
+    why: str
+    errors_cm: dict[str, float] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"source": self.source, "steps": self.steps, "accepted": self.accepted,
+                "why": self.why, "errors_cm": self.errors_cm}
+
+
+@dataclass
+class Refined:
+    """A plan of typed steps with the scene predicted after each."""
+
+    steps: list[PlanStep]
+    predicted: list[Boxes]
+
+
+def goal_errors(boxes: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
+    where = boxes.where()
+    return {n: float(np.linalg.norm(where[n] - goal[n])) for n in goal}
+
+
+def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> bool:
+    return max(goal_errors(boxes, goal).values()) <= limit
+
+
+def moves(boxes: Boxes, sources, kind: str) -> list[Reposition]:
+    """Every pick/place of a box in `sources` onto another, at a grasp point on the box."""
+    out = []
+    for i, src in enumerate(boxes.names):
+        if src not in sources:
+            continue
+        half_length = HALF_EXTENTS[box_of(boxes.features[i])[0]][1]
+        for tgt, grasp, release in itertools.product(boxes.names, OFFSETS, OFFSETS):
+            if tgt != src and abs(OFFSET_METRES[grasp]) < half_length:
+                out.append(Reposition(Action(src, grasp, tgt, release), kind))
+    return out
+
+
+class Refiner:
+    """The continuous level: refines skeletons and searches (module docstring).
+    `continuous` has `predict(boxes, actions) -> [Boxes]` (abstraction/continuous.py)."""
+
+    def __init__(self, operators, continuous, tolerance: float = GOAL_TOLERANCE,
+                 margin: float = MARGIN, extra_moves: int = 2, max_depth: int = 6,
+                 weight: float = 1.5):
+        self.operators, self.continuous = operators, continuous
+        self.limit = tolerance - margin
+        self.extra_moves, self.max_depth, self.weight = extra_moves, max_depth, weight
+        self.predictions = 0
+
+    def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
+        self.predictions += len(steps)
+        return self.continuous.predict(boxes, [s.action for s in steps])
+
+    def refine(self, skeleton: list[Step], start: Boxes, believed, goal_atoms,
+               goal: dict[str, np.ndarray], budget: Budget) -> Refined | None:
+        """The skeleton's offsets chosen and extra moves added so that the predicted end
+        reaches `goal` (positions by name), or None."""
+        def extend(i: int, boxes: Boxes, state, done: Refined) -> Refined | None:
+            if i == len(skeleton):
+                return self.finish(boxes, done, goal, budget)
+            rest = skeleton[i + 1:]
+            options = equivalents(self.operators, skeleton[i], rest, state, goal_atoms)
+            scored = sorted(zip(self._predict(boxes, options), options, strict=True),
+                            key=lambda pair: sum(goal_errors(pair[0], goal).values()))
+            for after, option in scored:
+                found = extend(i + 1, after, option.apply(state),
+                               Refined(done.steps + [option], done.predicted + [after]))
+                if found is not None or budget.spent():
+                    return found
+            return None
+
+        return extend(0, start, frozenset(believed), Refined([], []))
+
+    def finish(self, boxes: Boxes, done: Refined, goal, budget: Budget,
+               depth: int = 0) -> Refined | None:
+        """`done` if its end reaches the goal, else with up to `extra_moves` moves of the
+        boxes that are off their goal (the best three predicted first at each depth)."""
+        if reaches_goal(boxes, goal, self.limit):
+            return done
+        if depth >= self.extra_moves or budget.spent():
+            return None
+        off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
+        options = moves(boxes, off, "reposition")
+        scored = sorted(zip(self._predict(boxes, options), options, strict=True),
+                        key=lambda pair: max(goal_errors(pair[0], goal).values()))
+        for after, option in scored[:3]:
+            found = self.finish(after, Refined(done.steps + [option],
+                                               done.predicted + [after]),
+                                goal, budget, depth + 1)
+            if found is not None or budget.spent():
+                return found
+        return None
+
+    def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget
+               ) -> Refined | None:
+        """Weighted best-first search over pick/place moves in predicted space: f = steps
+        + weight * (summed distance to the goal) / STEP_SCALE."""
+        def h(boxes):
+            return sum(goal_errors(boxes, goal).values()) / STEP_SCALE
+
+        tie = itertools.count()
+        frontier = [(self.weight * h(start), next(tie), start, Refined([], []))]
+        seen = set()
+        while frontier and not budget.spent():
+            _, _, boxes, done = heapq.heappop(frontier)
+            if reaches_goal(boxes, goal, self.limit):
+                return done
+            key = tuple(np.round(boxes.positions, 2).ravel())
+            if key in seen or len(done.steps) >= self.max_depth:
+                continue
+            seen.add(key)
+            options = moves(boxes, set(boxes.names), "move")
+            for after, option in zip(self._predict(boxes, options), options, strict=True):
+                steps = len(done.steps) + 1
+                heapq.heappush(frontier, (steps + self.weight * h(after), next(tie), after,
+                                          Refined(done.steps + [option],
+                                                  done.predicted + [after])))
+        return None
+
+
+def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
+                 goal_boxes: Boxes, planning: str = "bilevel", planner: str = "fd",
+                 timeout: float = 10.0, budget: Budget | None = None):
+    """A plan from the perceived `start` to `goal` (their Readings and Boxes): "bilevel"
+    refines the symbolic planner's skeletons, then searches; "continuous" searches only.
+    An abstraction.Plan whose `level` says which found it, with the scene predicted after
+    each step and the candidates looked at (the rejected ones with why)."""
+    t0 = time.perf_counter()
+    budget = budget or Budget(timeout, 3 * timeout)
+    target = goal_boxes.where()
+    candidates: list[Candidate] = []
+    if planning == "bilevel":
+        believed, goal_atoms = abstraction.believed(start), abstraction.goal_atoms(goal)
+        for i, found in enumerate(skeletons(abstraction, start, goal, planner, timeout), 1):
+            if not found.solved:
+                candidates.append(Candidate(f"skeleton {i}", [], False,
+                                            f"planner: {found.status}"))
+                continue
+            refined = refiner.refine(found.steps, start_boxes, believed, goal_atoms, target,
+                                     budget)
+            candidates.append(_candidate(f"skeleton {i}", found.steps, refined, refiner,
+                                         start_boxes, target))
+            if refined is not None:
+                return Plan("solved", refined.steps, time.perf_counter() - t0, "", planner,
+                            level="bilevel", predicted=refined.predicted,
+                            candidates=candidates)
+            if budget.spent():
+                break
+    refined = refiner.search(start_boxes, target, Budget(budget.cpu, budget.wall))
+    candidates.append(_candidate("continuous", [], refined, refiner, start_boxes, target))
+    if refined is None:
+        return Plan("timeout", [], time.perf_counter() - t0,
+                    "no plan reaches the goal positions in prediction", planner,
+                    level=planning, candidates=candidates)
+    return Plan("solved", refined.steps, time.perf_counter() - t0, "", planner,
+                level="continuous", predicted=refined.predicted, candidates=candidates)
+
+
+def skeletons(abstraction, start, goal, planner: str, timeout: float):
+    """The symbolic planner's plans: the focus objects' first, then over every object
+    when that gives another."""
+    first = abstraction.plan(start, goal, planner, timeout)
+    yield first
+    every = abstraction.plan(start, goal, planner, timeout, focus=False)
+    if [str(s) for s in every.steps] != [str(s) for s in first.steps] or not first.solved:
+        yield every
+
+
+def _candidate(source: str, skeleton, refined: Refined | None, refiner: Refiner,
+               start: Boxes, target) -> Candidate:
+    """The candidate record of a refinement or search (rejected when `refined` is None:
+    the skeleton's own predicted end is what missed)."""
+    if refined is not None:
+        end = refined.predicted[-1] if refined.predicted else start
+        return Candidate(source, [str(s) for s in refined.steps], True, "",
+                         _cm(goal_errors(end, target)))
+    if not skeleton:
+        return Candidate(source, [], False, "no plan within the budget")
+    ends = refiner.continuous.predict(start, [skeleton[0].action]) if skeleton else [start]
+    end = ends[0]
+    for step in skeleton[1:]:
+        end = refiner.continuous.predict(end, [step.action])[0]
+    errors = _cm(goal_errors(end, target))
+    far = {n: e for n, e in errors.items() if e > 100 * refiner.limit}
+    return Candidate(source, [str(s) for s in skeleton], False,
+                     f"predicted off the goal by more than {100 * refiner.limit:g} cm: "
+                     f"{far}" if far else "no choice of offsets and moves reaches the goal",
+                     errors)
+
+
+def _cm(errors: dict[str, float]) -> dict[str, float]:
+    return {n: round(100 * e, 1) for n, e in errors.items()}

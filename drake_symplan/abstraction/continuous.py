@@ -1,0 +1,120 @@
+"""A learned continuous model of the world: where each box goes under a pick/place, from the
+effect model the robot trained on its own exploration data, rolled forward.
+
+The effect model predicts, for the objects an action involves (its source and target and
+whatever touches them, as in training: data/exploration.py), each one's displacement at
+the end of the lift and after the release relative to where the carry put it (the effect,
+structs.py). A box predicted to rise with the hand is carried with it: the source's
+centre to the release point (the target's centre shifted along y, structs.release_shift),
+what rides on it by the same vector. Orientations are kept (a tipped box is predicted
+lying as it was), positions change, and the predicted scene's contacts come from the box
+geometry (boxes.contact_graph). Objects out of the action's reach stay. No simulator: what
+the planner knows, the robot learned.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from drake_symplan.boxes import HALF_EXTENTS, contact_graph
+from drake_symplan.features import box_of
+from drake_symplan.structs import LIFT_TOL, Action, encode_action, release_shift
+
+
+@dataclass(frozen=True)
+class Boxes:
+    """A scene as the continuous model sees it: named objects, their features [n, d_o]
+    (position first, features.py) and the pairs in contact."""
+
+    names: tuple[str, ...]
+    features: np.ndarray
+    contacts: frozenset
+
+    @classmethod
+    def of(cls, scene) -> Boxes:
+        """From a perceived scene (names, features(), contacts)."""
+        return cls(tuple(scene.names), np.asarray(scene.features(), np.float32),
+                   frozenset(tuple(sorted(p)) for p in scene.contacts))
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.features[:, :3]
+
+    def where(self) -> dict[str, np.ndarray]:
+        return {n: self.features[i, :3].astype(float) for i, n in enumerate(self.names)}
+
+    def moved(self, positions: np.ndarray) -> Boxes:
+        """The same boxes at `positions` [n, 3], their contacts from the geometry."""
+        features = self.features.copy()
+        features[:, :3] = positions
+        geometry = {}
+        for name, row in zip(self.names, features, strict=True):
+            kind, centre, R = box_of(row)
+            geometry[name] = (centre, R, np.asarray(HALF_EXTENTS[kind]))
+        return Boxes(self.names, features, frozenset(contact_graph(geometry)))
+
+    def involved(self, action: Action) -> list[int]:
+        """The action's source and target and the objects touching either (by index)."""
+        args = {action.source, action.target}
+        near = {b for a, b in self.contacts if a in args} | {
+            a for a, b in self.contacts if b in args}
+        return [i for i, n in enumerate(self.names) if n in args | near]
+
+
+class ContinuousModel:
+    """`predict(boxes, actions)`: the scene after each action, from a trained effect
+    model (learning/models.py) run without sampling (its bits read by their sign)."""
+
+    def __init__(self, model: torch.nn.Module):
+        self.model = model.eval()
+
+    def predict(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
+        """The predicted scene after each of `actions` from `boxes`, in one batch."""
+        if not actions:
+            return []
+        rows = [boxes.involved(a) for a in actions]
+        width = max(len(r) for r in rows)
+        d = boxes.features.shape[1]
+        state = np.zeros((len(actions), width, d), np.float32)
+        code = np.zeros((len(actions), width, 8), np.float32)
+        mask = np.zeros((len(actions), width), bool)
+        for b, (action, row) in enumerate(zip(actions, rows, strict=True)):
+            state[b, :len(row)] = boxes.features[row]
+            code[b, :len(row)] = encode_action(action, [boxes.names[i] for i in row])
+            mask[b, :len(row)] = True
+        with torch.no_grad():
+            effect = self.model(torch.from_numpy(state), torch.from_numpy(code),
+                                torch.from_numpy(mask)).numpy()
+        return [boxes.moved(self._positions(boxes, action, row, effect[b, :len(row)]))
+                for b, (action, row) in enumerate(zip(actions, rows, strict=True))]
+
+    def rollout(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
+        """The scenes after each action of a sequence, one applied after the other."""
+        out = []
+        for action in actions:
+            boxes = self.predict(boxes, [action])[0]
+            out.append(boxes)
+        return out
+
+    @staticmethod
+    def _positions(boxes: Boxes, action: Action, row: list[int], effect: np.ndarray
+                   ) -> np.ndarray:
+        """Positions after `action`: the effects of the involved objects `row` [m, 6]
+        added to where they were, the carry added to those that rose with the hand."""
+        where = boxes.where()
+        land = where[action.target][:2] + [0.0, release_shift(action)]
+        carry = np.array([*(land - where[action.source][:2]), 0.0])
+        out = boxes.positions.astype(float).copy()
+        for i, e in zip(row, effect, strict=True):
+            lifted = e[2] > LIFT_TOL
+            out[i] = out[i] + e[:3] + e[3:] + (carry if lifted else 0.0)
+        return out
+
+
+def errors(predicted: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
+    """Each object's predicted distance (m) to its goal position."""
+    where = predicted.where()
+    return {n: float(np.linalg.norm(where[n] - np.asarray(goal[n], float))) for n in goal}

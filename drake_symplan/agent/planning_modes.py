@@ -1,0 +1,77 @@
+"""How the agent gets its plan (SolveConfig.planning): from the symbols alone, bilevel
+(skeletons refined with the learned continuous model), in continuous space alone, or, for
+the evaluation's oracle row, replayed from the actions that made the problem.
+
+`Planner.plan(now, goal, now_scene, goal_scene)` returns an abstraction.Plan; `departs`
+says whether what is perceived after a step has left the plan's prediction (the monitor
+then replans): the symbols against the step's operator for symbolic plans, the perceived
+positions against the predicted ones (DEVIATION) for plans checked in continuous space.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
+from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel
+from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.agent.config import SolveConfig
+from drake_symplan.structs import GOAL_TOLERANCE, Action
+from drake_symplan.symbolic.structs import PlanStep, Reposition, reaches
+
+DEVIATION = 0.03  # m: a box perceived this far from its predicted position departs the plan
+WALL_FACTOR = 3.0  # the wall-clock cap of a CPU-second budget, as a multiple of it
+
+
+class Planner:
+    """The agent's planning for one solve (module docstring); `given`: the replayed plan
+    of the oracle mode."""
+
+    def __init__(self, abstraction: Abstraction, config: SolveConfig,
+                 given: list[Action] | None = None):
+        self.abs, self.config = abstraction, config
+        self.given = given
+        self.refiner = None
+        if config.planning in ("bilevel", "continuous"):
+            self.refiner = Refiner(abstraction.bundle.operators,
+                                   ContinuousModel(abstraction.bundle.model))
+
+    def plan(self, now: Reading, goal: Reading, now_scene, goal_scene) -> Plan:
+        mode = self.config.planning
+        if mode == "oracle":
+            if self.given is None:
+                raise ValueError("the oracle replays a problem's recorded actions; none given")
+            return Plan("solved", [Reposition(a, "move") for a in self.given], 0.0, "",
+                        "oracle", level="oracle")
+        if mode == "symbolic":
+            return self.abs.plan(now, goal, self.config.planner, self.config.timeout)
+        budget = Budget(self.config.timeout, WALL_FACTOR * self.config.timeout)
+        return plan_bilevel(self.abs, self.refiner, now, goal, Boxes.of(now_scene),
+                            Boxes.of(goal_scene), mode, self.config.planner,
+                            self.config.timeout, budget)
+
+    @property
+    def predicts_positions(self) -> bool:
+        return self.refiner is not None
+
+    def departs(self, step: PlanStep, predicted: Boxes | None, seen: Reading, seen_scene,
+                rest: list[PlanStep], believed, goal_atoms) -> bool:
+        """Has the scene perceived after `step` left the plan?"""
+        if self.predicts_positions:
+            if predicted is None:
+                return False
+            where = predicted.where()
+            return any(np.linalg.norm(o.position - where[o.name]) > DEVIATION
+                       for o in seen_scene.objects if o.name in where)
+        if isinstance(step, Reposition):  # no symbolic prediction: the rest must apply
+            return not reaches(rest, believed, goal_atoms)
+        return bool(self.abs.mismatches(seen, step))
+
+    def goal_seen(self, reading: Reading, goal_atoms, scene, goal_scene) -> bool:
+        """At the plan's end: the goal's atoms seen (symbolic plans), or every box seen
+        within the tolerance of its goal (plans checked in continuous space)."""
+        if not self.predicts_positions:
+            return self.abs.goal_holds(reading, goal_atoms)
+        goal = {o.name: o.position for o in goal_scene.objects}
+        return all(np.linalg.norm(o.position - goal[o.name]) <= GOAL_TOLERANCE
+                   for o in scene.objects if o.name in goal)
