@@ -317,3 +317,26 @@ def test_evaluate_planning_on_a_fake_world(tmp_path):
     again = evaluate_planning([tmp_path / "oracle"], tmp_path, **kwargs)  # resumes
     assert len(records.read_text().splitlines()) == 2
     assert again["runs"] == result["runs"]
+
+
+def test_the_oracle_replays_a_recorded_problem(tmp_path):
+    import json
+
+    from drake_symplan.agent.evaluation import evaluate_planning
+    from drake_symplan.world.scenes import save_scene
+
+    folder = tmp_path / "set" / "p000"
+    folder.mkdir(parents=True)
+    save_scene(START, folder / "start.yaml")
+    save_scene(GOAL, folder / "goal.yaml")
+    actions = ["pick(a:center) place(b:center)"]
+    (folder / "problem.json").write_text(json.dumps(
+        {"k": 1, "seed": 0, "n_objects": 3, "actions": actions}))
+    backend = FakeBackend()
+    result = evaluate_planning([tmp_path / "oracle"], tmp_path,
+                               SolveConfig(planning="oracle", monitor=False), monitor=(False,),
+                               agent=Agent(backend), load=lambda run: OracleAbstraction())
+    (record,) = result["records"]
+    assert record["status"] == "success" and record["executed"] == 1
+    assert backend.executed == [Action("a", "center", "b", "center")]
+    assert result["settings"]["planning"] == "oracle"

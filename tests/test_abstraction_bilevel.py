@@ -1,0 +1,128 @@
+"""Bilevel planning (abstraction/bilevel.py) on a tiny domain with a hand-written continuous
+model: skeletons checked against the goal positions, offsets chosen by prediction, the
+continuous search where the symbols find nothing; the continuous model's arithmetic."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from drake_symplan.abstraction.abstraction import Plan
+from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel
+from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.features import object_features
+from drake_symplan.structs import Action, release_shift
+from drake_symplan.symbolic.structs import LiftedOperator, Reposition, Step
+
+ON = (("on", 0, 1),)
+STACK = {r: LiftedOperator(i, "center", r, 2, (), ON, (), 10, 10, 10)
+         for i, r in enumerate(("center", "left", "right"))}
+
+
+def boxes(**where) -> Boxes:
+    """Cubes at the given (x, y, z) positions."""
+    names = tuple(where)
+    features = np.stack([object_features("cube", np.array(p, float), np.eye(3))
+                         for p in where.values()])
+    return Boxes(names, features, frozenset()).moved(features[:, :3])
+
+
+class Stacking:
+    """The hand-written world model: the source lands on the target's top, shifted by the
+    offsets (structs.release_shift); nothing else moves."""
+
+    def predict(self, scene: Boxes, actions: list[Action]) -> list[Boxes]:
+        out = []
+        for a in actions:
+            pos = scene.positions.astype(float).copy()
+            i, j = scene.names.index(a.source), scene.names.index(a.target)
+            pos[i] = pos[j] + [0.0, release_shift(a), 0.05]
+            out.append(scene.moved(pos))
+        return out
+
+
+class Skeletons:
+    """An abstraction whose symbolic planner returns the given plans, in turn."""
+
+    def __init__(self, *plans):
+        self.plans = list(plans)
+
+    def plan(self, start, goal, planner, timeout, focus=True):
+        return self.plans.pop(0) if self.plans else Plan("unsolvable")
+
+    def believed(self, reading):
+        return frozenset()
+
+    def goal_atoms(self, reading):
+        return frozenset()
+
+
+START = boxes(a=(0.5, 0.2, 0.025), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+
+
+def solve(abstraction, goal: Boxes, extra_moves=0, planning="bilevel"):
+    refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=extra_moves)
+    return plan_bilevel(abstraction, refiner, None, None, START, goal, planning,
+                        budget=Budget(10.0, 30.0))
+
+
+def test_a_skeleton_whose_predicted_end_misses_the_goal_is_rejected_for_one_that_meets_it():
+    goal = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    on_b = Plan("solved", [Step(STACK["center"], ("a", "b"))])
+    on_c = Plan("solved", [Step(STACK["center"], ("a", "c"))])
+    found = solve(Skeletons(on_b, on_c), goal)
+    assert found.solved and found.level == "bilevel"
+    assert [str(s) for s in found.steps] == [str(Step(STACK["center"], ("a", "c")))]
+    first, second = found.candidates
+    assert not first.accepted and "predicted off the goal" in first.why and "'a'" in first.why
+    assert first.errors_cm["a"] > 20 and second.accepted and second.errors_cm["a"] == 0.0
+    assert np.allclose(found.predicted[-1].where()["a"], [0.7, 0.0, 0.075])
+
+
+def test_the_offsets_are_chosen_by_the_predicted_landing():
+    goal = boxes(a=(0.7, 0.075, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    skeleton = Plan("solved", [Step(STACK["center"], ("a", "c"))])  # lands 7.5 cm short
+    found = solve(Skeletons(skeleton), goal)
+    assert found.solved and [s.operator.release for s in found.steps] == ["right"]
+
+
+def test_extra_moves_put_a_box_at_its_goal_spot_the_symbols_do_not_name():
+    goal = boxes(a=(0.5, 0.2, 0.025), b=(0.7, 0.075, 0.075), c=(0.7, 0.0, 0.025))
+    found = solve(Skeletons(Plan("solved", [])), goal, extra_moves=1)  # symbols hold already
+    assert found.solved and found.steps == [
+        Reposition(Action("b", "center", "c", "right"), "reposition")]
+
+
+def test_the_continuous_fallback_finds_a_two_step_plan_the_symbols_cannot():
+    tower = boxes(a=(0.7, 0.0, 0.125), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
+    found = solve(Skeletons(Plan("unsolvable"), Plan("unsolvable")), tower)
+    assert found.solved and found.level == "continuous"
+    assert [s.action for s in found.steps] == [Action("b", "center", "c", "center"),
+                                               Action("a", "center", "b", "center")]
+    assert all(isinstance(s, Reposition) and s.kind == "move" for s in found.steps)
+    assert [c.source for c in found.candidates] == ["skeleton 1", "skeleton 2", "continuous"]
+    assert solve(Skeletons(), tower, planning="continuous").steps == found.steps
+
+
+class Lifting(torch.nn.Module):
+    """An effect model that says: the source rises 10 cm at the lift and comes down 5 cm
+    above where the carry put it; the target and the rest do not move."""
+
+    def forward(self, state, action, mask):
+        effect = torch.zeros(*state.shape[:2], 6)
+        source = action[:, :, 0] > 0.5
+        effect[source] = torch.tensor([0.0, 0.0, 0.10, 0.0, 0.0, -0.05])
+        return effect
+
+
+def test_the_continuous_model_carries_a_lifted_box_to_the_release_point():
+    model = ContinuousModel(Lifting())
+    after = model.predict(START, [Action("a", "center", "c", "left")])[0].where()
+    # a: up 10 cm, carried to c shifted 7.5 cm along -y, down 5 cm: on c's top.
+    assert np.allclose(after["a"], [0.7, -0.075, 0.075], atol=1e-6)
+    assert np.allclose(after["c"], [0.7, 0.0, 0.025]) and np.allclose(after["b"], START.where()["b"])
+    rolled = model.rollout(START, [Action("a", "center", "c", "center"),
+                                   Action("b", "center", "a", "center")])
+    # b is carried to where a was predicted to be (this model's heights ignore the target).
+    assert np.allclose(rolled[-1].where()["b"], [0.7, 0.0, 0.075], atol=1e-6)
+    assert ("a", "c") in rolled[0].contacts  # contacts of the predicted scene
