@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import html
 import json
 import sys
 import time
@@ -254,9 +255,12 @@ def panel(result: dict, demo: dict) -> str:
     errors = "".join(f"<div>{n}: {o['error_cm']} cm</div>" for n, o in result["objects"].items())
     if result.get("symbolic_goal_reached") is not None:
         errors += f"<div><i>{WHY[result['symbolic_goal_reached']]}</i></div>"
+    rejected = [html.escape(f"{c['source']}: {' '.join(c['steps']) or 'no steps'}: {c['why']}")
+                for c in result.get("candidates", []) if not c["accepted"]]
     sections = [("Goal", "<div>translucent green boxes; k = "
                  f"{demo.get('k', '-')} random actions from the start</div>"),
                 ("Plan", items(demo["plan_readable"]) or "<div>none</div>"),
+                *([("Rejected candidate plans", items(rejected))] if rejected else []),
                 (f"Executed ({result['replans']} replan(s))",
                  items(demo["executed_readable"])),
                 (f"Verdict: {result['status']}", errors)]
@@ -335,6 +339,9 @@ def main(argv=None) -> int:
 
     def planned(plan, start_seen, goal_seen):
         demo["plan_readable"] = [readable_step(s) for s in plan.steps]
+        for c in plan.candidates:
+            if not c.accepted:
+                say(f"rejected {c.source}: {' '.join(c.steps) or 'no steps'}: {c.why}")
         if not plan.solved:
             demo["no_plan"] = explain_no_plan(abstraction, plan, start_seen, goal_seen,
                                               config.timeout)
@@ -344,7 +351,8 @@ def main(argv=None) -> int:
             say("plan: empty, the goal's symbols already hold in the start scene")
         else:
             say(f"plan ({len(plan.steps)} step(s), reliability "
-                f"{reliability(plan.steps):.0%}, {plan.seconds:.1f} s):")
+                f"{reliability(plan.steps):.0%}, {plan.seconds:.1f} s"
+                + ("" if plan.level == "symbolic" else f", {plan.level}") + "):")
         for i, step in enumerate(plan.steps, 1):
             say(f"  {i}. {readable_step(step)}    {step}")
         say("executing with the UR10 in full physics, perceiving after each step ...")

@@ -30,9 +30,10 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_symplan.abstraction.abstraction import Abstraction
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.planning_modes import Planner
 from drake_symplan.agent.solve import Agent
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
+from drake_symplan.symbolic.structs import PlanStep, Reposition
 
 PREFIX = "/symplan"
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#edc948", "#76b7b2",
@@ -98,17 +99,23 @@ def symbol_view(named_scene, reading) -> dict:
             "contacts": [list(p) for p in sorted(reading.contacts)], "legend": legend}
 
 
-def plan_view(steps: list[Step]) -> list[dict]:
+def plan_view(steps: list[PlanStep]) -> list[dict]:
     """Each plan step: its readable form, roles, operator, reliability and the grounded
-    preconditions and effects."""
+    preconditions and effects (none for a move no operator names)."""
     def texts(atoms):
         return [a.text() for a in sorted(atoms)]
 
-    return [{"step": str(step), "readable": readable_step(step), "source": step.args[0],
-             "target": step.args[1], "operator": step.operator.name,
-             "reliability": round(step.operator.reliability, 3),
-             "preconditions": texts(step.pre), "add": texts(step.add),
-             "delete": texts(step.delete)} for step in steps]
+    def view(step):
+        if isinstance(step, Reposition):
+            return {"operator": None, "reliability": None, "preconditions": [], "add": [],
+                    "delete": []}
+        return {"operator": step.operator.name,
+                "reliability": round(step.operator.reliability, 3),
+                "preconditions": texts(step.pre), "add": texts(step.add),
+                "delete": texts(step.delete)}
+
+    return [{"step": str(step), "readable": readable_step(step), "source": step.action.source,
+             "target": step.action.target, **view(step)} for step in steps]
 
 
 # --- Meshcat ------------------------------------------------------------------------
@@ -251,16 +258,26 @@ def inspection_sections(result: dict) -> list[tuple[str, str]]:
     if result.get("goal"):
         sections.append(("Goal (translucent)", _objects_html(result["goal"]) + "<div>atoms: "
                          + _html.escape(", ".join(result["goal"]["atoms"])) + "</div>"))
-        steps = "".join(
-            f"<li>{_swatch(STEP_COLOURS[i % len(STEP_COLOURS)])}<b>{_html.escape(s['readable'])}"
-            f"</b><br><code>{_html.escape(s['operator'])}</code> reliability "
-            f"{s['reliability']:.0%}<br>pre: {_html.escape(', '.join(s['preconditions']))}"
-            f"<br>add: {_html.escape(', '.join(s['add']) or '-')}<br>del: "
-            f"{_html.escape(', '.join(s['delete']) or '-')}</li>"
-            for i, s in enumerate(result["plan"]))
+        steps = "".join(f"<li>{_swatch(STEP_COLOURS[i % len(STEP_COLOURS)])}{_step_html(s)}</li>"
+                        for i, s in enumerate(result["plan"]))
         sections.append((f"Plan ({result['plan_status']}, {len(result['plan'])} steps)",
                          f"<ol style='padding-left:18px;margin:2px 0'>{steps}</ol>"))
+        rejected = [c for c in result.get("candidates", []) if not c["accepted"]]
+        if rejected:
+            sections.append(("Rejected candidate plans", "".join(
+                f"<div>{_html.escape(c['source'])}: {_html.escape(' '.join(c['steps']))}"
+                f"<br><i>{_html.escape(c['why'])}</i></div>" for c in rejected)))
     return sections
+
+
+def _step_html(s: dict) -> str:
+    text = f"<b>{_html.escape(s['readable'])}</b>"
+    if s["operator"] is None:  # a move no operator names
+        return text
+    return (f"{text}<br><code>{_html.escape(s['operator'])}</code> reliability "
+            f"{s['reliability']:.0%}<br>pre: {_html.escape(', '.join(s['preconditions']))}"
+            f"<br>add: {_html.escape(', '.join(s['add']) or '-')}<br>del: "
+            f"{_html.escape(', '.join(s['delete']) or '-')}")
 
 
 def annotate_html(page: str, panel: str) -> str:
@@ -308,9 +325,11 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
         goal_reading = abstraction.read_scene(goal.scene)
         result["goal"] = symbol_view(goal.scene, goal_reading)
         result["goal"]["atoms"] = sorted(a.text() for a in abstraction.goal_atoms(goal_reading))
-        found = abstraction.plan(start_reading, goal_reading, config.planner, config.timeout)
-        result["plan_status"] = found.status
+        found = Planner(abstraction, config).plan(start_reading, goal_reading, start.scene,
+                                                  goal.scene)
+        result["plan_status"], result["plan_level"] = found.status, found.level
         result["plan"] = plan_view(found.steps)
+        result["candidates"] = [c.to_json() for c in found.candidates]
     if meshcat is not None:
         draw_view(meshcat, start.scene, result["start"])
         look_at(meshcat, [o["position"] for o in result["start"]["objects"]])

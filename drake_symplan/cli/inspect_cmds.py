@@ -21,7 +21,12 @@ import sys
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer
-from drake_symplan.cli.options import add_json_argument, add_planner_arguments, solve_config
+from drake_symplan.cli.options import (
+    add_json_argument,
+    add_planner_arguments,
+    add_planning_argument,
+    solve_config,
+)
 
 
 def register(subparsers) -> None:
@@ -41,6 +46,7 @@ def register(subparsers) -> None:
     p.add_argument("--meshcat", action="store_true",
                    help="keep serving the live scene on localhost until Enter is pressed")
     add_planner_arguments(p)
+    add_planning_argument(p)
     add_json_argument(p)
     p.set_defaults(func=cmd_inspect)
 
@@ -131,10 +137,15 @@ def summary_lines(result: dict, sections=None) -> list[str]:
         lines.append("goal atoms: " + ", ".join(result["goal"]["atoms"]))
         lines.append(f"plan ({result['plan_status']}, {len(result['plan'])} steps):")
         for i, s in enumerate(result["plan"], 1):
+            if s["operator"] is None:  # a move no operator names
+                lines.append(f"  {i}. {s['readable']}")
+                continue
             lines += [f"  {i}. {s['readable']}   [{s['operator']}, reliability "
                       f"{s['reliability']:.0%}]",
                       f"     pre: {', '.join(s['preconditions'])}",
                       f"     add: {', '.join(s['add']) or '-'}; del: {', '.join(s['delete']) or '-'}"]
+        lines += [f"rejected {c['source']}: {' '.join(c['steps']) or 'no steps'}: {c['why']}"
+                  for c in result.get("candidates", []) if not c["accepted"]]
     if "recording" in result:
         lines.append(f"recording written to {result['recording']}")
     return lines

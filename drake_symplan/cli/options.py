@@ -56,11 +56,8 @@ def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None
                    f"collision-free hand (default {default})")
 
 
-def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
-                        oracle: bool = False) -> None:
-    """The SolveConfig flags; `monitor_flag`: --no-monitor (eval planning has --monitor);
-    `oracle`: --planning may replay the problems' recorded actions (eval planning)."""
-    add_planner_arguments(p)
+def add_planning_argument(p: argparse.ArgumentParser, oracle: bool = False) -> None:
+    """--planning; with `oracle` it may replay the problems' recorded actions."""
     p.add_argument("--planning", choices=PLANNING_MODES if oracle else PLANNING,
                    default=DEFAULT_SOLVE.planning,
                    help="symbolic: plans from the symbols alone; bilevel: symbolic skeletons "
@@ -68,6 +65,14 @@ def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
                    "search as the fallback; continuous: that search alone"
                    + ("; oracle: replay the actions that made the problem, open loop"
                       if oracle else ""))
+
+
+def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
+                        oracle: bool = False) -> None:
+    """The SolveConfig flags; `monitor_flag`: --no-monitor (eval planning has --monitor);
+    `oracle`: --planning may replay the problems' recorded actions (eval planning)."""
+    add_planner_arguments(p)
+    add_planning_argument(p, oracle)
     if monitor_flag:
         p.add_argument("--no-monitor", action="store_true",
                        help="run the first plan open loop (no replanning on a mismatch)")
