@@ -198,8 +198,9 @@ class _Run:
             first = self._search()
             if self.on_plan is not None:
                 self.on_plan(first, start, goal)
+            self.result.candidates = first.candidates
             self.steps = self._steps(first)
-            self.result.plan, self.result.candidates = list(self.steps), first.candidates
+            self.result.plan = list(self.steps)
             while True:
                 while self._next():
                     self._execute(self.steps.pop(0))
