@@ -9,6 +9,7 @@ import json
 
 import pytest
 
+from drake_symplan.agent.config import SolveConfig
 from drake_symplan.cli.main import main
 from drake_symplan.reproduce import SCALES, Reproduction, Stage, StageFailed
 from drake_symplan.world.scenes import ObjectSpec, Scene
@@ -28,6 +29,10 @@ def test_the_stages_of_a_scale(tmp_path):
     runs = planning[planning.index("--runs") + 1:planning.index("--problems")]
     assert [r.parent.name for r in runs] == ["relational_s0", "attentive_s0"]
     assert "--ray" not in planning
+    assert planning[planning.index("--planning") + 1] == "symbolic"  # SolveConfig's flags
+    bilevel = Reproduction("small", tmp_path, solve=SolveConfig(planning="bilevel", refine=False))
+    argv = bilevel.planning_stage().argv
+    assert argv[argv.index("--planning") + 1] == "bilevel" and "--no-refine" in argv
     on_ray = Reproduction("small", tmp_path, ray="10.0.0.1:6379")
     assert on_ray.collect_stages()[0].argv[-2:] == ["--ray", "10.0.0.1:6379"]
 
