@@ -77,16 +77,21 @@ def _register_bundle(subparsers) -> None:
     b.set_defaults(func=cmd_bundle)
 
 
+def add_heldout_arguments(e) -> None:
+    """--model and --data of the evaluations on a held-out data set."""
+    e.add_argument("--model", type=Path, default=None,
+                   help="bundle directory (default: the shipped models/learned)")
+    e.add_argument("--data", type=Path, required=True,
+                   help="held-out data set with whole scenes (a seed the model never saw)")
+
+
 def _register_eval_operators(subparsers) -> None:
     e = eval_subparsers(subparsers).add_parser(
         "operators", help="a learned domain on held-out episodes at the symbolic level",
         description="Problems from held-out episodes (start: symbols at step t, goal: at t+k, "
         "relations only between objects in contact), planned once each with the bundle's "
         "domain; solved rate, plan reliability, coverage, precision and symbol stability.")
-    e.add_argument("--model", type=Path, default=None,
-                   help="bundle directory (default: the shipped models/learned)")
-    e.add_argument("--data", type=Path, required=True,
-                   help="held-out data set with whole scenes (a seed the model never saw)")
+    add_heldout_arguments(e)
     e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3],
                    help="steps between start and goal, one problem set each")
     e.add_argument("--max-problems", type=positive_int, default=50,
@@ -106,10 +111,7 @@ def _register_eval_rollout(subparsers) -> None:
         description="Rolls the model's predicted positions forward through the recorded "
         "actions of held-out episodes (no simulator) and compares them with the scenes "
         "perceived after k actions: the error bilevel planning depends on.")
-    e.add_argument("--model", type=Path, default=None,
-                   help="bundle directory (default: the shipped models/learned)")
-    e.add_argument("--data", type=Path, required=True,
-                   help="held-out data set with whole scenes (a seed the model never saw)")
+    add_heldout_arguments(e)
     e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3, 4, 5],
                    help="actions rolled forward, one table row each")
     e.add_argument("--max-starts", type=positive_int, default=200,
