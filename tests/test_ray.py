@@ -141,9 +141,9 @@ def test_eval_planning_on_ray_gives_the_local_records(local_ray, tmp_path):
     problems = tmp_path / "problems"
     make_problems(problems, 2, [1], 2, 5, "hand")
     runs = [models_dir() / "learned"]
-    local = evaluate_planning(runs, problems, backend="hand", monitor=(True,))
+    local = evaluate_planning(runs, problems, robot="hand", monitor=(True,))
     records = tmp_path / "records.jsonl"
-    on_ray = evaluate_planning(runs, problems, backend="hand", monitor=(True,),
+    on_ray = evaluate_planning(runs, problems, robot="hand", monitor=(True,),
                                records_path=records, ray_address="")
 
     def without_times(result):
@@ -152,6 +152,6 @@ def test_eval_planning_on_ray_gives_the_local_records(local_ray, tmp_path):
     assert len(without_times(on_ray)) == 2
     assert without_times(on_ray) == without_times(local)
     assert len(records.read_text().splitlines()) == 2
-    again = evaluate_planning(runs, problems, backend="hand", monitor=(True,),
+    again = evaluate_planning(runs, problems, robot="hand", monitor=(True,),
                               records_path=records, ray_address="")  # resumes: no solve
     assert again["records"] == on_ray["records"]

@@ -73,3 +73,11 @@ def test_a_task_restricted_to_some_objects_keeps_their_atoms():
     sub = task.restricted(["b", "a"])
     assert sub.objects == ("a", "b") and sub.init == {("p0", "a")}
     assert sub.goal == task.goal and not sub.solved
+
+
+def test_atoms_and_operators_survive_pickling():
+    import pickle
+
+    again = pickle.loads(pickle.dumps(STACK))
+    assert again.pre == STACK.pre and isinstance(again.pre[0], Atom)
+    assert again.pre[0].key == ("r0", 0, 1)

@@ -28,6 +28,9 @@ class Atom(tuple):
     def __new__(cls, predicate: str, *args):
         return super().__new__(cls, (predicate, *args))
 
+    def __getnewargs__(self):  # pickle (Ray ships bundles) calls __new__(cls, *these)
+        return tuple(self)
+
     @classmethod
     def of(cls, items: Iterable) -> Atom:
         """From any sequence (predicate, arg, ...), e.g. a row of operators.json."""
