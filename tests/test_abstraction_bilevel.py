@@ -126,3 +126,14 @@ def test_the_continuous_model_carries_a_lifted_box_to_the_release_point():
     # b is carried to where a was predicted to be (this model's heights ignore the target).
     assert np.allclose(rolled[-1].where()["b"], [0.7, 0.0, 0.075], atol=1e-6)
     assert ("a", "c") in rolled[0].contacts  # contacts of the predicted scene
+
+
+def test_with_nothing_verified_the_first_skeleton_runs_on_its_symbols():
+    goal = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    on_b = Plan("solved", [Step(STACK["center"], ("a", "b"))])
+    refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=0, max_depth=0)
+    found = plan_bilevel(Skeletons(on_b), refiner, None, None, START, goal,
+                         budget=Budget(10.0, 30.0))
+    assert found.solved and found.level == "symbolic" and found.steps == on_b.steps
+    assert "runs on its symbols" in found.message
+    assert [c.accepted for c in found.candidates] == [False, False, False]

@@ -200,6 +200,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
     budget = budget or Budget(timeout, 3 * timeout)
     target = goal_boxes.where()
     candidates: list[Candidate] = []
+    unverified = None  # the first skeleton, run on its symbols if nothing else is found
     if planning == "bilevel":
         believed, goal_atoms = abstraction.believed(start), abstraction.goal_atoms(goal)
         for i, found in enumerate(skeletons(abstraction, start, goal, planner, timeout), 1):
@@ -207,6 +208,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
                 candidates.append(Candidate(f"skeleton {i}", [], False,
                                             f"planner: {found.status}"))
                 continue
+            unverified = unverified or found
             refined = refiner.refine(found.steps, start_boxes, believed, goal_atoms, target,
                                      budget)
             candidates.append(_candidate(f"skeleton {i}", found.steps, refined, refiner,
@@ -219,6 +221,12 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
                 break
     refined = refiner.search(start_boxes, target, Budget(budget.cpu, budget.wall))
     candidates.append(_candidate("continuous", [], refined, refiner, start_boxes, target))
+    if refined is None and unverified is not None:
+        # Predictions are not the world (`symplan eval rollout`): the symbolic plan still
+        # has its chance, completed and monitored as a symbolic plan is.
+        return Plan("solved", unverified.steps, time.perf_counter() - t0,
+                    "no plan reaches the goal positions in prediction; the first skeleton "
+                    "runs on its symbols", planner, level="symbolic", candidates=candidates)
     if refined is None:
         return Plan("timeout", [], time.perf_counter() - t0,
                     "no plan reaches the goal positions in prediction", planner,

@@ -31,12 +31,18 @@ class Planner:
                  given: list[Action] | None = None):
         self.abs, self.config = abstraction, config
         self.given = given
+        self.level = "symbolic"  # of the plan returned last
         self.refiner = None
         if config.planning in ("bilevel", "continuous"):
             self.refiner = Refiner(abstraction.bundle.operators,
                                    ContinuousModel(abstraction.bundle.model))
 
     def plan(self, now: Reading, goal: Reading, now_scene, goal_scene) -> Plan:
+        found = self._plan(now, goal, now_scene, goal_scene)
+        self.level = found.level
+        return found
+
+    def _plan(self, now: Reading, goal: Reading, now_scene, goal_scene) -> Plan:
         mode = self.config.planning
         if mode == "oracle":
             if self.given is None:
@@ -52,7 +58,8 @@ class Planner:
 
     @property
     def predicts_positions(self) -> bool:
-        return self.refiner is not None
+        """Was the last plan checked in continuous space (else: on its symbols)?"""
+        return self.level in ("bilevel", "continuous")
 
     def departs(self, step: PlanStep, predicted: Boxes | None, seen: Reading, seen_scene,
                 rest: list[PlanStep], believed, goal_atoms) -> bool:

@@ -173,9 +173,7 @@ class _Run:
         self.agent, self.abs, self.clock, self.config = agent, abstraction, clock, config
         self.on_plan = on_plan
         self.planner = Planner(abstraction, config, given)
-        # The heuristic choices of agent/refine.py complete symbolic plans only: the other
-        # modes choose offsets and moves by search, the oracle replays.
-        self.refine = config.refine and config.planning == "symbolic"
+        self.refine = config.refine
         self.predicted: list = []
         self.result = SolveResult("failure")
         self.goal = self.goal_reading = None
@@ -236,16 +234,21 @@ class _Run:
         """Is there a step to run? With `refine`, a repositioning goes first where a box
         the rest of the plan leaves alone is off its goal spot."""
         limit = REPOSITIONS_PER_OBJECT * len(self.now.names)
-        if self.refine and self.repositions < limit:
+        if self._heuristics() and self.repositions < limit:
             extra = reposition_step(self.steps, self.now, self.goal, GOAL_TOLERANCE)
             if extra is not None:
                 self.steps.insert(0, extra)
                 self.repositions += 1
         return bool(self.steps)
 
+    def _heuristics(self) -> bool:
+        """Do agent/refine.py's choices complete the plan? For symbolic plans only: plans
+        checked in continuous space chose offsets and moves by search, the oracle replays."""
+        return self.refine and self.planner.level == "symbolic"
+
     def _execute(self, step: PlanStep) -> None:
         """Runs `step` with the robot (its offsets refined first), perceives the result."""
-        if self.refine and isinstance(step, Step):
+        if self._heuristics() and isinstance(step, Step):
             with self.clock("symbols"):
                 step = refine_step(self.abs.bundle.operators, step, self.steps, self.believed,
                                    self.goal_atoms, beliefs.positions(self.now),
