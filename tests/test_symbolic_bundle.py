@@ -168,3 +168,18 @@ def test_a_bundle_written_before_the_version_field_still_loads(bundle):
     again = ModelBundle.load(path.parent)
     assert [op.to_dict() for op in again.operators] == [
         op.to_dict() for op in bundle.bundle.operators]
+
+
+def test_a_continuous_model_is_added_to_a_bundle_and_loaded_beside_its_symbol_model(bundle,
+                                                                                    capsys):
+    from drake_symplan.cli import main as cli_main
+
+    path = bundle.bundle.path
+    assert bundle.bundle.continuous is bundle.bundle.model  # none: the symbol model rolls
+    run = path.parent / "run"
+    assert cli_main.main(["bundle", "--continuous", str(run), "--out", str(path)]) == 0
+    again = ModelBundle.load(path)
+    assert (path / "continuous.pt").is_file() and again.continuous is not again.model
+    assert type(again.continuous) is type(again.model)
+    assert cli_main.main(["bundle", "--out", str(path)]) == 2  # neither --run nor --continuous
+    assert "give --run and --data" in capsys.readouterr().err

@@ -35,7 +35,7 @@ class Planner:
         self.refiner = None
         if config.planning in ("bilevel", "continuous"):
             self.refiner = Refiner(abstraction.bundle.operators,
-                                   ContinuousModel(abstraction.bundle.model))
+                                   ContinuousModel(abstraction.bundle.continuous))
 
     def plan(self, now: Reading, goal: Reading, now_scene, goal_scene) -> Plan:
         found = self._plan(now, goal, now_scene, goal_scene)

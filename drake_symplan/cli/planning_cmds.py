@@ -60,10 +60,14 @@ def _register_bundle(subparsers) -> None:
         "operators (effect-first by default; 'paper': the paper's method as implemented) and "
         "writes the bundle (model.pt, operators.json, domain.pddl, domain_strips.pddl, "
         "provenance.json) that `symplan solve` and `symplan eval operators` read.")
-    b.add_argument("--run", type=Path, required=True, help="trained run directory")
-    b.add_argument("--data", type=Path, required=True,
+    b.add_argument("--run", type=Path, help="trained run directory (required unless "
+                   "--continuous is added to an existing bundle)")
+    b.add_argument("--data", type=Path,
                    help="data set collected with whole scenes (the run's training set)")
     b.add_argument("--out", type=Path, required=True, help="bundle directory to write")
+    b.add_argument("--continuous", type=Path, default=None, metavar="RUN",
+                   help="a trained run whose model bilevel planning rolls forward "
+                   "(continuous.pt); without --run, added to the bundle in --out as it is")
     b.add_argument("--learner", choices=LEARNERS, default="effect", metavar="LEARNER",
                    help="one of %(choices)s: effect, effect-first operators with "
                    "reliabilities; paper, the paper's method as implemented (default effect)")
@@ -114,6 +118,9 @@ def _register_eval_rollout(subparsers) -> None:
     add_heldout_arguments(e)
     e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3, 4, 5],
                    help="actions rolled forward, one table row each")
+    e.add_argument("--run", type=Path, default=None,
+                   help="a trained run's model instead of the bundle's (its continuous.pt "
+                   "if it has one, else its model.pt)")
     e.add_argument("--max-starts", type=positive_int, default=200,
                    help="rollouts per k, sampled with --seed (default 200)")
     e.add_argument("--seed", type=int, default=0, help="seed of the choice of rollouts")
@@ -206,8 +213,22 @@ def cmd_bundle(args) -> dict:
     from drake_symplan.learning.checkpoint import load_run
     from drake_symplan.learning.readout import readout_scenes
     from drake_symplan.shards import fingerprint
-    from drake_symplan.symbolic.bundle import learn_bundle_operators, write_bundle
+    from drake_symplan.symbolic.bundle import (
+        CONTINUOUS,
+        ModelBundle,
+        copy_model,
+        learn_bundle_operators,
+        write_bundle,
+    )
 
+    if args.run is None and args.continuous is not None:
+        ModelBundle.load(args.out)  # an existing bundle, or a one-line error
+        load_run(args.continuous)
+        path = copy_model(args.continuous, args.out / CONTINUOUS)
+        return {"out": str(args.out), "continuous": str(path)}
+    if args.run is None or args.data is None:
+        raise CommandError("give --run and --data (or --continuous RUN alone, to add it to "
+                           "the bundle in --out)")
     model, _ = load_run(args.run)
     data, _ = readout_scenes(model, args.data, args.margin)
     operators, semantics, info = learn_bundle_operators(data, args.learner, args.min_count,
@@ -217,7 +238,8 @@ def cmd_bundle(args) -> dict:
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]),
                   "run": str(args.run), "run_config": run_config,
                   "data": str(args.data), "data_fingerprint": fingerprint(args.data)}
-    write_bundle(args.out, args.run, operators, semantics, info, provenance, args.margin)
+    write_bundle(args.out, args.run, operators, semantics, info, provenance, args.margin,
+                 args.continuous)
     return {"out": str(args.out), "operators": len(operators), **info}
 
 
@@ -243,12 +265,19 @@ def cmd_eval_operators(args) -> dict:
 
 def cmd_eval_rollout(args) -> dict:
     from drake_symplan.abstraction.rollout_eval import RolloutConfig, evaluate_rollouts
-    from drake_symplan.symbolic.bundle import ModelBundle
+    from drake_symplan.symbolic.bundle import CONTINUOUS, ModelBundle
 
-    bundle = ModelBundle.load(args.model)
-    report = evaluate_rollouts(bundle.model, args.data,
+    if args.run is not None:
+        from drake_symplan.learning.checkpoint import load_run
+
+        model, source = load_run(args.run)[0], str(args.run)
+    else:
+        bundle = ModelBundle.load(args.model)
+        model = bundle.continuous
+        source = str(bundle.path / (CONTINUOUS if model is not bundle.model else "model.pt"))
+    report = evaluate_rollouts(model, args.data,
                                RolloutConfig(tuple(args.k), args.max_starts, args.seed))
-    report["model"] = str(bundle.path)
+    report["model"] = source
     if not args.json:
         for k, row in report["by_k"].items():
             print(f"k={k}: {row['rollouts']} rollouts, error median {row['error_cm']['median']}"

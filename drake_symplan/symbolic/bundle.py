@@ -7,7 +7,9 @@ Layout of a bundle directory (`models/learned/` is the shipped default):
   settings and the atom semantics (`operators_json`, the one layout, versioned);
 - `domain.pddl` (with `:action-costs`, for Fast Downward) and `domain_strips.pddl` (the
   same actions without costs, for pyperplan);
-- `provenance.json`: commands, seeds, data fingerprints and the bundle's measured figures.
+- `provenance.json`: commands, seeds, data fingerprints and the bundle's measured figures;
+- `continuous.pt` (optional): an effect model that bilevel planning rolls forward instead
+  of the symbol model (abstraction/continuous.py), e.g. one without the bottleneck.
 
 What a bundle does with scenes (read symbols, plan, check steps) is the abstraction layer's
 (drake_symplan/abstraction/).
@@ -43,6 +45,7 @@ from drake_symplan.symbolic.pddl import domain_pddl
 from drake_symplan.symbolic.structs import LiftedOperator
 
 FILES = ("model.pt", "operators.json", "domain.pddl", "domain_strips.pddl", "provenance.json")
+CONTINUOUS = "continuous.pt"
 LEARNERS = ("effect", "paper")
 OPERATORS_FORMAT, OPERATORS_VERSION = "drake_symplan operators", 2
 
@@ -99,8 +102,10 @@ class ModelBundle:
 
     def __init__(self, path: Path, model, operators: list[LiftedOperator],
                  semantics: Semantics, info: dict, provenance: dict,
-                 margin: float = DEFAULT_MARGIN):
+                 margin: float = DEFAULT_MARGIN, continuous=None):
         self.path, self.model, self.operators = path, model, operators
+        # The effect model bilevel planning rolls forward: continuous.pt, else the model.
+        self.continuous = continuous if continuous is not None else model
         self.semantics, self.info, self.provenance, self.margin = (
             semantics, info, provenance, margin)
         self.by_name = {op.name: op for op in operators}
@@ -122,6 +127,8 @@ class ModelBundle:
             operators, semantics, info = read_operators_json(
                 json.loads((path / "operators.json").read_text()))
             model = model_from_checkpoint(read_checkpoint(path / "model.pt")).eval()
+            continuous = model_from_checkpoint(read_checkpoint(path / CONTINUOUS)).eval() \
+                if (path / CONTINUOUS).is_file() else None
         except (ValueError, KeyError, TypeError, OSError, RuntimeError) as e:
             raise BundleError(f"model directory {path}: cannot read it ({e})") from e
         if not operators:
@@ -129,10 +136,19 @@ class ModelBundle:
         prov = path / "provenance.json"
         provenance = json.loads(prov.read_text()) if prov.is_file() else {}
         return cls(path, model, operators, semantics, info, provenance,
-                   info.get("margin", DEFAULT_MARGIN))
+                   info.get("margin", DEFAULT_MARGIN), continuous)
 
 
 # --- making a bundle --------------------------------------------------------------------
+
+
+def copy_model(run_dir: str | Path, path: Path) -> Path:
+    """A run's best checkpoint as a bundle's model file: what rebuilds the model and says
+    where it came from, no optimizer state."""
+    ckpt = read_checkpoint(Path(run_dir) / BEST)
+    return save_checkpoint(path, {k: ckpt[k] for k in (
+        "model", "model_config", "model_state", "epoch", "train_config", "data_fingerprint",
+        "metrics") if k in ckpt})
 
 
 def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
@@ -151,16 +167,16 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
 
 
 def write_bundle(out: str | Path, run_dir: str | Path, operators, semantics: Semantics,
-                 info: dict, provenance: dict, margin: float = DEFAULT_MARGIN) -> Path:
-    """Writes a bundle directory (every file atomically) from a run's best checkpoint."""
+                 info: dict, provenance: dict, margin: float = DEFAULT_MARGIN,
+                 continuous_run: str | Path | None = None) -> Path:
+    """Writes a bundle directory (every file atomically) from a run's best checkpoint, and
+    `continuous_run`'s as continuous.pt."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     model, _ = load_run(run_dir)
-    ckpt = read_checkpoint(Path(run_dir) / BEST)
-    # What rebuilds the model and says where it came from; no optimizer state.
-    save_checkpoint(out / "model.pt", {k: ckpt[k] for k in (
-        "model", "model_config", "model_state", "epoch", "train_config", "data_fingerprint",
-        "metrics") if k in ckpt})
+    copy_model(run_dir, out / "model.pt")
+    if continuous_run is not None:
+        copy_model(continuous_run, out / CONTINUOUS)
     data = operators_json(operators, semantics, {
         **info, "n_unary": model.n_unary, "n_relations": model.n_relations, "margin": margin})
     write_atomic(out / "operators.json", json.dumps(data, indent=1))
