@@ -47,7 +47,7 @@ class Skeletons:
     def __init__(self, *plans):
         self.plans = list(plans)
 
-    def plan(self, start, goal, planner, timeout, focus=True):
+    def plan(self, start, goal, planner, timeout, focus=True, cpu_seconds=None):
         return self.plans.pop(0) if self.plans else Plan("unsolvable")
 
     def believed(self, reading):

@@ -260,3 +260,23 @@ def test_operators_command_reads_symbols_out_of_a_run(tmp_path, monkeypatch, cap
     assert result["threshold"] == 10 and result["n_transitions"] == 1000
     saved = np.load(tmp_path / "ops" / "symbols.npz")
     assert np.array_equal(saved["relational"], data.relational)
+
+
+@pytest.mark.parametrize("planner", ["fd", "pyperplan"])
+def test_a_cpu_budget_stops_the_planner_before_its_wall_clock_cap(planner):
+    import time
+
+    from drake_symplan.symbolic.bundle import ModelBundle
+    from drake_symplan.symbolic.pddl import problem_from_atoms
+
+    bundle = ModelBundle.load()  # the shipped domain: ten objects ground a large task
+    objects = [f"o{i}" for i in range(10)]
+    init = [("touching0", o) for o in objects] + [("not_p0", o) for o in objects]
+    costs = planner == "fd"
+    problem = problem_from_atoms(objects, init, [("touching3", "o0"), ("p0", "o1")],
+                                 costs=costs)
+    t0 = time.perf_counter()
+    result = plan_pddl(bundle.domain if costs else bundle.domain_strips, problem, planner,
+                       timeout=60.0, cpu_seconds=1.0)
+    assert result.status == "timeout", result
+    assert time.perf_counter() - t0 < 20.0  # far inside the wall-clock cap

@@ -17,7 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.learning.readout import read_symbols
-from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PlanResult, plan_pddl
+from drake_symplan.planning.planners import (
+    DEFAULT_TIMEOUT,
+    PlanResult,
+    children_cpu,
+    plan_pddl,
+)
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.pddl import problem_from_atoms
 from drake_symplan.symbolic.states import SymbolicState, check_name
@@ -73,9 +78,13 @@ def problem_text(task: Task, costs: bool) -> str:
 
 
 def plan_task(domain: str, task: Task, planner: str = "fd",
-              timeout: float = DEFAULT_TIMEOUT) -> PlanResult:
-    """Plans `task` on the PDDL `domain` text (with action costs for Fast Downward)."""
-    return plan_pddl(domain, problem_text(task, costs=planner == "fd"), planner, timeout)
+              timeout: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None
+              ) -> PlanResult:
+    """Plans `task` on the PDDL `domain` text (with action costs for Fast Downward);
+    `cpu_seconds`: a CPU budget, `timeout` then the wall-clock cap (planning/planners.py)."""
+    options = {} if cpu_seconds is None else {"cpu_seconds": cpu_seconds}
+    return plan_pddl(domain, problem_text(task, costs=planner == "fd"), planner, timeout,
+                     **options)
 
 
 def reliability(steps) -> float:
@@ -147,11 +156,13 @@ class Abstraction:
         return tuple(n for n in task.objects if n in changed | near)
 
     def plan(self, start: Reading, goal: Reading, planner: str = "fd",
-             timeout: float = DEFAULT_TIMEOUT, focus: bool = True) -> Plan:
+             timeout: float = DEFAULT_TIMEOUT, focus: bool = True,
+             cpu_seconds: float | None = None) -> Plan:
         """Plans from start to goal. The `focus` objects first; only if that proves
         unsolvable, all of them, in the time left (`focus=False`: all of them). The empty
-        plan, without a planner call, when the goal's atoms hold already."""
-        t0 = time.perf_counter()
+        plan, without a planner call, when the goal's atoms hold already. With
+        `cpu_seconds` the budget is the planner's CPU time, `timeout` the wall-clock cap."""
+        t0, cpu0 = time.perf_counter(), children_cpu()
         task = self.task(start, goal)
         objects = self.focus(task, start, goal)
         if objects and not focus:
@@ -161,8 +172,10 @@ class Abstraction:
         domain = self.bundle.domain if planner == "fd" else self.bundle.domain_strips
         for subset in ([objects, None] if len(objects) < len(task.objects) else [None]):
             sub = task if subset is None else task.restricted(subset)
+            cpu = None if cpu_seconds is None else max(
+                cpu_seconds - (children_cpu() - cpu0), 1e-3)
             found = plan_task(domain, sub, planner,
-                              max(t0 + timeout - time.perf_counter(), 1e-3))
+                              max(t0 + timeout - time.perf_counter(), 1e-3), cpu)
             if found.status != "unsolvable":
                 break
         steps = [self.step(s) for s in found.plan] if found.solved else []

@@ -238,9 +238,10 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
 def skeletons(abstraction, start, goal, planner: str, timeout: float):
     """The symbolic planner's plans: the focus objects' first, then over every object
     when that gives another."""
-    first = abstraction.plan(start, goal, planner, timeout)
+    wall = 3 * timeout
+    first = abstraction.plan(start, goal, planner, wall, cpu_seconds=timeout)
     yield first
-    every = abstraction.plan(start, goal, planner, timeout, focus=False)
+    every = abstraction.plan(start, goal, planner, wall, focus=False, cpu_seconds=timeout)
     if [str(s) for s in every.steps] != [str(s) for s in first.steps] or not first.solved:
         yield every
 

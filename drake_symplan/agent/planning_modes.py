@@ -49,12 +49,12 @@ class Planner:
                 raise ValueError("the oracle replays a problem's recorded actions; none given")
             return Plan("solved", [Reposition(a, "move") for a in self.given], 0.0, "",
                         "oracle", level="oracle")
+        cpu, wall = self.config.timeout, WALL_FACTOR * self.config.timeout
         if mode == "symbolic":
-            return self.abs.plan(now, goal, self.config.planner, self.config.timeout)
-        budget = Budget(self.config.timeout, WALL_FACTOR * self.config.timeout)
+            return self.abs.plan(now, goal, self.config.planner, wall, cpu_seconds=cpu)
         return plan_bilevel(self.abs, self.refiner, now, goal, Boxes.of(now_scene),
-                            Boxes.of(goal_scene), mode, self.config.planner,
-                            self.config.timeout, budget)
+                            Boxes.of(goal_scene), mode, self.config.planner, cpu,
+                            Budget(cpu, wall))
 
     @property
     def predicts_positions(self) -> bool:

@@ -16,6 +16,10 @@ file, an unsolvable task, a timeout or a missing planner all come back as result
   of its own and a Python thread cannot be stopped: at the deadline the child is
   killed, so a timeout really stops the work.
 
+With `cpu_seconds`, both also stop when their processes have used that much CPU (an
+RLIMIT_CPU on each child, what is left of the budget), `timeout` then being the wall-clock
+cap: a busy host gives the planner the same work as a quiet one.
+
 Both default to optimal A* with LM-cut, so on unit-cost tasks their plans have equal
 length.
 """
@@ -23,8 +27,10 @@ length.
 from __future__ import annotations
 
 import importlib.util
+import math
 import multiprocessing
 import os
+import resource
 import signal
 import subprocess
 import sys
@@ -126,8 +132,10 @@ def fast_downward(
     timeout: float = DEFAULT_TIMEOUT,
     search: str = FD_SEARCH,
     driver: str | Path | None = None,
+    cpu_seconds: float | None = None,
 ) -> PlanResult:
-    """Fast Downward on PDDL files, in a temporary directory, under a time limit."""
+    """Fast Downward on PDDL files, in a temporary directory, under a time limit (and a
+    CPU budget, see the module docstring)."""
     start = time.perf_counter()
     domain, problem = _check_files(domain, problem)
 
@@ -157,12 +165,14 @@ def fast_downward(
                       str(problem), "--sas-file", "output.sas"], env, None),
                     ([str(search_exe), "--search", search, "--internal-plan-file",
                       str(plan_file)], None, Path(tmp) / "output.sas")]
+        used = children_cpu()
         for phase, (cmd, env, stdin) in enumerate(runs):
-            code, out, err = _run_group(cmd, tmp, env, stdin, deadline)
+            left = None if cpu_seconds is None else cpu_seconds - (children_cpu() - used)
+            code, out, err = _run_group(cmd, tmp, env, stdin, deadline, left)
             if code is None:
                 return result("timeout", message=f"Fast Downward killed after {timeout:g} s")
             if code != 0:
-                if phase == 0 and len(runs) == 2 and code not in (20, 31):
+                if phase == 0 and len(runs) == 2 and code not in (20, 21, 31):
                     code = 30  # the translator crashed, as the driver reports it
                 break
         plan_files = sorted(Path(tmp).glob("sas_plan*"))
@@ -189,14 +199,32 @@ def _fd_components(driver: Path) -> tuple[Path, Path] | None:
     return None
 
 
-def _run_group(cmd, cwd, env, stdin: Path | None, deadline: float):
-    """Runs `cmd` in its own process group until `deadline` (perf_counter): (exit code,
-    stdout, stderr), or (None, "", "") when the group was killed at the deadline."""
+def children_cpu() -> float:
+    """CPU seconds used so far by this process's finished children."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def limit_cpu(seconds: float | None) -> None:
+    """In a child: SIGXCPU after `seconds` of CPU (rounded up: the limit has whole
+    seconds), then SIGKILL a second later."""
+    if seconds is not None:
+        soft = max(1, math.ceil(seconds))
+        resource.setrlimit(resource.RLIMIT_CPU, (soft, soft + 1))
+
+
+def _run_group(cmd, cwd, env, stdin: Path | None, deadline: float,
+               cpu_seconds: float | None = None):
+    """Runs `cmd` in its own process group until `deadline` (perf_counter) or its CPU
+    budget: (exit code, stdout, stderr), or (None, "", "") when killed at the deadline."""
     try:
         with open(stdin) if stdin is not None else open(os.devnull) as feed:
             proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdin=feed,
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                    text=True, start_new_session=True)
+                                    text=True, start_new_session=True,
+                                    # preexec_fn is unsafe beside threads: only when asked.
+                                    preexec_fn=None if cpu_seconds is None
+                                    else (lambda: limit_cpu(cpu_seconds)))
     except OSError as e:
         return 35, "", f"could not start Fast Downward: {e}"
     try:
@@ -218,8 +246,10 @@ def _kill_group(proc: subprocess.Popen) -> None:
 # ---------------------------------------------------------------- pyperplan
 
 
-def _pyperplan_child(conn, domain: str, problem: str, search: str, heuristic: str | None):
+def _pyperplan_child(conn, domain: str, problem: str, search: str, heuristic: str | None,
+                     cpu_seconds: float | None = None):
     """Runs in the child: parse, ground, search; sends (status, payload)."""
+    limit_cpu(cpu_seconds)
     try:
         import logging
 
@@ -249,8 +279,10 @@ def pyperplan_plan(
     timeout: float = DEFAULT_TIMEOUT,
     search: str = "astar",
     heuristic: str | None = "lmcut",
+    cpu_seconds: float | None = None,
 ) -> PlanResult:
-    """pyperplan on PDDL files in a child process that is killed at the deadline."""
+    """pyperplan on PDDL files in a child process that is killed at the deadline (or
+    stops at its CPU budget, see the module docstring)."""
     start = time.perf_counter()
     domain, problem = _check_files(domain, problem)
 
@@ -263,7 +295,8 @@ def pyperplan_plan(
     ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
     recv, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_pyperplan_child,
-                       args=(send, str(domain), str(problem), search, heuristic), daemon=True)
+                       args=(send, str(domain), str(problem), search, heuristic,
+                             cpu_seconds), daemon=True)
     try:
         proc.start()
     except OSError as e:
@@ -274,14 +307,19 @@ def pyperplan_plan(
         ready = recv.poll(max(timeout - (time.perf_counter() - start), 0.0))
         message = recv.recv() if ready else None
     except (EOFError, OSError):
-        message = ("error", f"pyperplan child died (exit code {proc.exitcode})")
+        proc.join(5.0)
+        if proc.exitcode in (-signal.SIGXCPU, -signal.SIGKILL) and cpu_seconds is not None:
+            message = None  # its CPU budget ran out
+        else:
+            message = ("error", f"pyperplan child died (exit code {proc.exitcode})")
     finally:
         if proc.is_alive() and not ready:
             proc.kill()
         proc.join(5.0)
         recv.close()
     if message is None:
-        return result("timeout", message=f"pyperplan stopped after {timeout:g} s")
+        return result("timeout", message=f"pyperplan stopped after {timeout:g} s" + (
+            "" if cpu_seconds is None else f" or {cpu_seconds:g} s of CPU"))
     status, payload = message
     if status == "solved":
         return result("solved", payload)
