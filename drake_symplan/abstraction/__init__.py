@@ -1,8 +1,10 @@
-"""The abstraction layer: a model bundle's view of perceived scenes, above learning, symbolic
-and planning and below the agent; no Drake.
+"""The abstraction layer: what the robot learned, as the planner uses it; above learning,
+symbolic and planning, below the agent; no Drake.
 
-perceived scene (names, features, contacts) -> `Abstraction.read` (learning's read-out) ->
-atoms under the bundle's semantics -> `Task` -> `Abstraction.plan` (planning's back-ends on
-the bundle's domain) -> typed `Step`s. `operator_eval` measures a bundle at this level on
-held-out episodes (`symplan eval operators`).
+perceived scene (names, features, contacts) -> `abstraction.Abstraction.read` (learning's
+read-out) -> atoms under the bundle's semantics -> `Task` -> `Abstraction.plan` (planning's
+back-ends on the bundle's domain) -> typed `Step`s. `continuous` rolls the learned effect
+model forward on positions; `bilevel` checks and completes symbolic plans with it and
+searches in continuous space. `operator_eval` (`symplan eval operators`) and
+`rollout_eval` (`symplan eval rollout`) measure a bundle at this level on held-out episodes.
 """
