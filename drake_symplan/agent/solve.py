@@ -1,6 +1,6 @@
 """Solving one goal in full physics: perceive, read symbols, plan, execute, monitor, check.
 
-`solve(start_scene, goal_scene, bundle, config)` builds one robot (cameras and the arm or
+`solve(start_scene, goal_scene, abstraction, config)` builds one robot (cameras and the arm or
 the hand, robot/backends.py) and runs `Agent.solve` on it; `Agent` keeps the robot for many
 solves (the evaluation). How it solves is a `SolveConfig` (agent/config.py); what it knows
 is an `Abstraction` of a model bundle (abstraction/abstraction.py).
@@ -9,7 +9,9 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
    (agent/beliefs.py). The start scene likewise, then the robot stays in it.
 2. The bundle reads both scenes' symbols and writes the problem: the start's certain atoms,
    the goal's unary atoms and relation atoms only between objects perceived in contact in
-   the goal scene. The planner (Fast Downward or pyperplan) plans.
+   the goal scene. The planner (Fast Downward or pyperplan) plans; with
+   `config.planning` "bilevel" or "continuous" the plan is checked and completed with the
+   learned continuous model, or found by it (agent/planning_modes.py).
 3. Each step is executed by the back-end on the perceived objects (the arm: IK-planned
    pick/place in full physics); the scene perceived after it keeps the names through
    perception's association. Before it runs, its offsets may be swapped for an
@@ -17,7 +19,8 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
    symbols leave off its goal position on the table may be put down beside another first,
    a `Reposition` step (agent/refine.py; both with `refine`).
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
-   step's operator predicted; on a mismatch the agent replans from the perceived state
+   step's operator predicted (a plan checked in continuous space: the perceived positions
+   with the predicted ones); on a departure the agent replans from the perceived state
    (if that replan fails, the current plan runs on).
    When the plan has run out, the goal's atoms must hold in the perceived symbols, or it
    replans too. At most `max_replans` replans; after that the current plan runs on.
