@@ -87,6 +87,19 @@ def release_shift(action: Action) -> float:
     return OFFSET_METRES[action.release] - OFFSET_METRES[action.grasp]
 
 
+def relevant_objects(scene, action: Action) -> list[str]:
+    """The objects a transition records and an effect model sees (the Relevance contract):
+    [source, target] + the objects in contact with either in `scene` (its `contacts`)."""
+    args = (action.source, action.target)
+    touching = set()
+    for a, b in scene.contacts:
+        if a in args and b not in args:
+            touching.add(b)
+        elif b in args and a not in args:
+            touching.add(a)
+    return [*args, *sorted(touching)]
+
+
 def encode_action(action: Action, names: list[str]) -> np.ndarray:
     """The per-object action encoding [len(names), ACTION_DIM] for objects `names`."""
     if action.source not in names:

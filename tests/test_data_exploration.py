@@ -16,10 +16,9 @@ from drake_symplan.data.exploration import (
     classify,
     effects,
     random_action,
-    relevant_objects,
 )
 from drake_symplan.data.stats import dataset_stats
-from drake_symplan.structs import ACTION_DIM, EFFECT_DIM, Action
+from drake_symplan.structs import ACTION_DIM, EFFECT_DIM, Action, relevant_objects
 
 
 @dc.dataclass

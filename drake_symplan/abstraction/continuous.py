@@ -21,7 +21,13 @@ import torch
 
 from drake_symplan.boxes import HALF_EXTENTS, contact_graph
 from drake_symplan.features import box_of
-from drake_symplan.structs import LIFT_TOL, Action, encode_action, release_shift
+from drake_symplan.structs import (
+    LIFT_TOL,
+    Action,
+    encode_action,
+    release_shift,
+    relevant_objects,
+)
 
 
 @dataclass(frozen=True)
@@ -57,11 +63,9 @@ class Boxes:
         return Boxes(self.names, features, frozenset(contact_graph(geometry)))
 
     def involved(self, action: Action) -> list[int]:
-        """The action's source and target and the objects touching either (by index)."""
-        args = {action.source, action.target}
-        near = {b for a, b in self.contacts if a in args} | {
-            a for a, b in self.contacts if b in args}
-        return [i for i, n in enumerate(self.names) if n in args | near]
+        """The indices, in scene order, of the objects the action involves
+        (structs.relevant_objects)."""
+        return sorted(self.names.index(n) for n in relevant_objects(self, action))
 
 
 class ContinuousModel:

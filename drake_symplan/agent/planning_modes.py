@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
-from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel
+from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel, reaches_goal
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
 from drake_symplan.agent.config import SolveConfig
 from drake_symplan.structs import GOAL_TOLERANCE, Action
@@ -79,6 +79,4 @@ class Planner:
         within the tolerance of its goal (plans checked in continuous space)."""
         if not self.predicts_positions:
             return self.abs.goal_holds(reading, goal_atoms)
-        goal = {o.name: o.position for o in goal_scene.objects}
-        return all(np.linalg.norm(o.position - goal[o.name]) <= GOAL_TOLERANCE
-                   for o in scene.objects if o.name in goal)
+        return reaches_goal(Boxes.of(scene), Boxes.of(goal_scene).where(), GOAL_TOLERANCE)

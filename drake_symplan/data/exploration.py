@@ -51,7 +51,14 @@ from drake_symplan.perception.perceive import associate
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.robot.backends import PerceptionFailure
 from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.structs import EFFECT_DIM, LIFT_TOL, OFFSETS, Action, encode_action
+from drake_symplan.structs import (
+    EFFECT_DIM,
+    LIFT_TOL,
+    OFFSETS,
+    Action,
+    encode_action,
+    relevant_objects,
+)
 from drake_symplan.world.scenes import sample_scene
 
 OUTCOMES = ("no_effect", "placed", "tipped", "carried_along", "fell_off", "other")
@@ -118,18 +125,6 @@ class EpisodeLog:
 def random_action(rng: np.random.Generator, names: list[str]) -> Action:
     s, t = rng.choice(len(names), size=2, replace=False)
     return Action(names[s], OFFSETS[rng.integers(3)], names[t], OFFSETS[rng.integers(3)])
-
-
-def relevant_objects(scene, action: Action) -> list[str]:
-    """[source, target] + the objects in contact with either, in the perceived scene."""
-    args = (action.source, action.target)
-    touching = set()
-    for a, b in scene.contacts:
-        if a in args and b not in args:
-            touching.add(b)
-        elif b in args and a not in args:
-            touching.add(a)
-    return [*args, *sorted(touching)]
 
 
 def scene_record(before, after, after_map, ids: dict[str, int], names: list[str],
