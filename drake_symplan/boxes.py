@@ -67,3 +67,11 @@ def contact_graph(boxes: dict, tolerance: float = CONTACT_TOLERANCE) -> set[tupl
             if box_distance(ca, Ra, ha, cb, Rb, hb) <= tolerance:
                 pairs.add((a, b))
     return pairs
+
+
+def tilt_of(R: np.ndarray) -> float:
+    """Angle (rad) between a box's local z axis and world z for its rotation matrix R,
+    folded for box symmetry: a box lying on any face has tilt 0 (the body axis closest to
+    vertical counts)."""
+    m = np.abs(np.asarray(R)[2, :])
+    return float(np.arccos(np.clip(m.max(), -1.0, 1.0)))

@@ -78,7 +78,7 @@ class FakeBackend:
                     if a.name != b.name and _on(a.position, b.position)}
         return PerceivedScene(objects, contacts)
 
-    def execute(self, action, before):
+    def execute(self, action, before, lift=True):
         self.executed.append(action)
         # The belief names are the scene names (the agent names boxes after the file).
         target = self.station.truth[action.target]
@@ -257,8 +257,8 @@ def test_no_plan_is_a_verdict_with_its_cause():
 
 def test_an_object_left_short_of_its_goal_is_an_execution_failure():
     class Nudging(FakeBackend):
-        def execute(self, action, before):
-            super().execute(action, before)
+        def execute(self, action, before, lift=True):
+            super().execute(action, before, lift)
             self.station.truth["c"] = self.station.truth["c"] + [0.0, 0.08, 0.0]
             return Execution("ok", None, self.perceive(before))
 

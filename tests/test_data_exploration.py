@@ -167,7 +167,7 @@ class ScriptedBackend:
     def perceive(self, prior=None):
         return self.seen.pop(0)
 
-    def execute(self, action, before):
+    def execute(self, action, before, lift=True):
         from drake_symplan.robot.backends import Execution
 
         return Execution("ok", before, self.after.pop(0))
@@ -225,10 +225,10 @@ def test_perception_raising_drops_the_episode_and_keeps_what_it_recorded():
         backend.perceive()
 
     class FailingThird(ScriptedBackend):
-        def execute(self, action, before):
+        def execute(self, action, before, lift=True):
             if not self.after:
                 raise PerceptionFailure("perception failed: ValueError: NaN")
-            return super().execute(action, before)
+            return super().execute(action, before, lift)
 
     two = cubes(0.5, 0.7)
     config = EpisodeConfig(min_objects=2, max_objects=2, length=4)

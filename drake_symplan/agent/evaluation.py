@@ -171,6 +171,22 @@ def _group(records: list[dict], field: str) -> dict[str, dict]:
     return out
 
 
+def _seconds(records: list[dict]) -> dict:
+    """Median wall seconds per solve: in all, and executing (the arm's actions)."""
+    return {phase: round(statistics.median(r["seconds"][phase] for r in records), 4)
+            for phase in ("total", "execute") if all(phase in r["seconds"] for r in records)}
+
+
+def _goal_errors(records: list[dict]) -> dict | None:
+    """Perceived distances of the goal objects from their goal positions in successful
+    solves (placement accuracy): median and 90th percentile over objects, in cm."""
+    errors = [e for r in records for e in r["error_cm"].values() if e is not None]
+    if not errors:
+        return None
+    return {"objects": len(errors), "median": round(statistics.median(errors), 3),
+            "p90": round(float(np.percentile(errors, 90)), 3)}
+
+
 def summarise(records: list[dict]) -> dict:
     """{run: {"monitor"|"open_loop": summary}} over evaluation records."""
     out: dict[str, dict] = {}
@@ -192,6 +208,8 @@ def summarise(records: list[dict]) -> dict:
                         if b},
             "plan_seconds": {"median": round(statistics.median(plan_s), 4),
                              "mean": round(float(np.mean(plan_s)), 4)},
+            "solve_seconds": _seconds(rs),
+            "goal_error_cm": _goal_errors([r for r in rs if r["status"] == "success"]),
             "plan_length_minus_k": round(float(np.mean(
                 [r["plan_length"] - r["k"] for r in solved])), 3) if solved else None,
             "replans_mean": round(float(np.mean([r["replans"] for r in rs])), 3),

@@ -93,7 +93,7 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
     actions, infeasible = [], 0
     while len(actions) < k:
         action = random_action(rng, now.names)
-        execution = agent.robot.execute(action, now)
+        execution = agent.robot.execute(action, now, lift=False)
         if execution.status == "infeasible":
             infeasible += 1
             if infeasible >= MAX_INFEASIBLE:

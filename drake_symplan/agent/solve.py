@@ -257,7 +257,7 @@ class _Run:
                                    self.goal_atoms, beliefs.positions(self.now),
                                    beliefs.positions(self.goal), self.goal.contacts)
         with self.clock("execute"):
-            execution = self.agent.robot.execute(step.action, self.now)
+            execution = self.agent.robot.execute(step.action, self.now, lift=False)
         self.result.executed.append(step)
         if execution.status == "infeasible":
             raise _Stop(self.now, "infeasible", f"{step}: {execution.message}")

@@ -96,7 +96,9 @@ class Backend:
         finally:
             self.perception_seconds += time.perf_counter() - start
 
-    def execute(self, action: Action, before) -> Execution:
+    def execute(self, action: Action, before, lift: bool = True) -> Execution:
+        """Runs `action` planned from the perceived `before`; `lift=False` skips perceiving
+        the scene at the end of the lift (Execution.lift is None then)."""
         raise NotImplementedError
 
     def ground_truth_states(self) -> dict:
@@ -124,12 +126,12 @@ class HandBackend(Backend):
         super().__init__(*args, **kwargs)
         self.allow_kinematic = allow_kinematic
 
-    def execute(self, action: Action, before) -> Execution:
+    def execute(self, action: Action, before, lift: bool = True) -> Execution:
+        at_lift = (lambda: self._perceive_if_moved(before)) if lift else (lambda: None)
         try:
-            motion, lift = hand_pick_place(
-                self.station, action, before.object_states(),
-                at_lift=lambda: self._perceive_if_moved(before),
-                allow_kinematic=self.allow_kinematic)
+            motion, lifted = hand_pick_place(self.station, action, before.object_states(),
+                                             at_lift=at_lift,
+                                             allow_kinematic=self.allow_kinematic)
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             self.station.release()
@@ -137,10 +139,10 @@ class HandBackend(Backend):
         if motion.held is None and self.noise is None:
             # Nothing was caught, so nothing was simulated: the scene is exactly the one
             # perceived before, and perceiving it again would return the same objects.
-            return Execution("ok", before, before)
-        if lift is None:
-            lift = before
-        return Execution("ok", lift, self.perceive(before))
+            return Execution("ok", before if lift else None, before)
+        if lift and lifted is None:
+            lifted = before
+        return Execution("ok", lifted, self.perceive(before))
 
     def _perceive_if_moved(self, before):
         held = self.station.held
@@ -157,18 +159,19 @@ class ArmBackend(Backend):
         super().__init__(*args, **kwargs)
         self.planner = PickPlacePlanner()
 
-    def execute(self, action: Action, before) -> Execution:
+    def execute(self, action: Action, before, lift: bool = True) -> Execution:
         try:
             motion = self.planner.plan(action, before.object_states(),
                                        self.station.robot_positions())
         except InfeasibleAction as e:
             return Execution("infeasible", message=str(e))
+        at_lift = (lambda: self.perceive(before)) if lift else (lambda: None)
         try:
-            lift = run_motion(self.station, motion, lambda: self.perceive(before))
+            lifted = run_motion(self.station, motion, at_lift)
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             return Execution("sim_failure", message=f"simulation failed: {e}")
-        return Execution("ok", lift, self.perceive(before))
+        return Execution("ok", lifted, self.perceive(before))
 
 
 BACKENDS: dict[str, type[Backend]] = {"hand": HandBackend, "arm": ArmBackend}

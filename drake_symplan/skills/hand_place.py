@@ -29,18 +29,15 @@ from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.skills.pick_place import action_geometry, carry_duration
 from drake_symplan.structs import Action, ObjectState
 from drake_symplan.world.hand import grasp_catches, hand_q_of_pose
+from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import Station
 
 VERTICAL_SPEED = 0.4  # m/s while lifting and lowering
 MIN_VERTICAL_TIME = 0.35  # s, as the arm's lift and release knots
 CARRY_STEP = 0.15  # m per carry segment, as the arm's
-SETTLE_MIN = 0.15  # s of physics after the release before checking for rest
-SETTLE_MAX = 1.2  # s
-SETTLE_CHECK = 0.05  # s between rest checks
-REST_MOVE = 5e-4  # m per SETTLE_CHECK: a box that moved less than this is at rest
-REST_TURN = np.radians(0.5)  # and turned less than this
+HAND_SETTLE_MIN = 0.15  # s of physics after the release before checking for rest
+HAND_SETTLE_MAX = 1.2  # s
 RELEASE_MIN_CLEARANCE = 0.001  # m: a release pose closer than this to anything is not free
-OFF_TABLE_Z = -0.02  # m: a box whose centre is below the table top has fallen off it
 STACKED_DZ = 0.01  # m: a touching box whose centre is this much higher rides on the held one
 RIDER_DZ = 0.01  # m: a box the lift raised this much rides on the load
 
@@ -161,7 +158,7 @@ def hand_pick_place(
             station.follow(motion.trajectory, motion.t_above, motion.t_release)
     station.release()
     station.hold(station.robot_positions())
-    settle_until_rest(station)
+    settle_until_rest(station, HAND_SETTLE_MIN, HAND_SETTLE_MAX)
     return motion, lifted
 
 
@@ -186,31 +183,3 @@ def _move_load(station: Station, motion: HandMotion, riders: list, t_from: float
     for name in riders:
         station.set_object_pose(name, X_move.multiply(poses[name]))
     _place(station, station.held, q_to)
-
-
-def settle_until_rest(station: Station) -> float:
-    """Runs physics until the scene's boxes are at rest (or SETTLE_MAX); returns seconds.
-
-    At rest: over one SETTLE_CHECK no box on the table moved more than REST_MOVE (or turned
-    more than REST_TURN). Poses, not velocities: a box resting on a flat face keeps a
-    sub-millimetre discrete-time vibration whose velocity never drops below a threshold,
-    but that perception can't see and that goes nowhere.
-    """
-    t0 = station.time()
-    station.advance_to(t0 + SETTLE_MIN)
-    poses = list(station.object_poses().values())
-    while station.time() - t0 < SETTLE_MAX - 1e-9:
-        station.advance_to(station.time() + SETTLE_CHECK)
-        now = list(station.object_poses().values())
-        if all(_at_rest(a, b) for a, b in zip(poses, now, strict=True)):
-            break
-        poses = now
-    return station.time() - t0
-
-
-def _at_rest(before: RigidTransform, after: RigidTransform) -> bool:
-    if after.translation()[2] < OFF_TABLE_Z:
-        return True  # fell off the table: it only falls on, and the episode ends
-    turn = before.rotation().InvertAndCompose(after.rotation()).ToAngleAxis().angle()
-    return bool(np.linalg.norm(after.translation() - before.translation()) < REST_MOVE
-                and turn < REST_TURN)

@@ -18,7 +18,9 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.skills.ik import ArmIK
+from drake_symplan.skills.timing import PathTimer, Phase
 from drake_symplan.structs import OFFSET_METRES, Action, ObjectState
+from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
 
 APPROACH_HEIGHT = 0.12  # m above grasp/release points
@@ -26,7 +28,9 @@ MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
-JOINT_SPEED = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi])  # UR10 limits
+FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
+ARM_SETTLE_MAX = 0.5  # s: the boxes released on the way home have mostly settled
+LIFT_PHASE = 3  # the phase after which the box is lifted (PickPlacePlanner.plan)
 
 T = TypeVar("T")
 
@@ -128,6 +132,7 @@ class PickPlacePlanner:
 
     def __init__(self, ik: ArmIK | None = None):
         self.ik = ik or ArmIK()
+        self.timer = PathTimer(self.ik.plant, self.ik.tcp)
 
     def _solve(self, what: str, p: np.ndarray, yaw: float, seed: np.ndarray) -> np.ndarray:
         q = self.ik.solve(p, yaw, seed)
@@ -143,52 +148,47 @@ class PickPlacePlanner:
         grasp, release, carry_z = g.grasp, g.release, g.carry_z
         yaw_g, yaw_r = g.yaw_grasp, g.yaw_release
         up = np.array([0.0, 0.0, APPROACH_HEIGHT])
-
-        knots: list[tuple[np.ndarray, float, float]] = []  # (q_arm, finger, min duration)
-        q = self._solve("pre-grasp", grasp + up, yaw_g, q_start)
-        knots.append((q, FINGER_OPEN, 0.4))
-        for frac in (0.5, 1.0):
-            q = self._solve("grasp", grasp + up * (1 - frac), yaw_g, q)
-            knots.append((q, FINGER_OPEN, 0.15))
-        knots.append((q, FINGER_CLOSED, 0.25))
+        pre = self._solve("pre-grasp", grasp + up, yaw_g, q_start)
+        mid = self._solve("grasp", grasp + up * 0.5, yaw_g, pre)
+        at_grasp = self._solve("grasp", grasp, yaw_g, mid)
         lift = np.array([grasp[0], grasp[1], carry_z])
-        q = self._solve("lift", lift, yaw_g, q)
-        knots.append((q, FINGER_CLOSED, 0.35))
-        n_lift = len(knots)
+        q_lift = self._solve("lift", lift, yaw_g, at_grasp)
         above = np.array([release[0], release[1], carry_z])
-        dist = float(np.linalg.norm(above[:2] - lift[:2]))
-        steps = max(1, int(np.ceil(dist / 0.15)))
+        steps = max(1, int(np.ceil(float(np.linalg.norm(above[:2] - lift[:2])) / 0.15)))
+        carry = [q_lift]
         for k in range(1, steps + 1):
             f = k / steps
-            q = self._solve("carry", lift + (above - lift) * f, yaw_g + (yaw_r - yaw_g) * f, q)
-            knots.append((q, FINGER_CLOSED, carry_duration(dist, steps) / steps))
-        q = self._solve("release", release, yaw_r, q)
-        knots.append((q, FINGER_CLOSED, 0.35))
-        knots.append((q, FINGER_OPEN, 0.25))
-        q = self._solve("retreat", release + up, yaw_r, q)
-        knots.append((q, FINGER_OPEN, 0.2))
-        knots.append((HOME_Q, FINGER_OPEN, 0.45))
-        knots.append((HOME_Q, FINGER_OPEN, 0.15))  # settle
+            carry.append(self._solve("carry", lift + (above - lift) * f,
+                                     yaw_g + (yaw_r - yaw_g) * f, carry[-1]))
+        at_release = self._solve("release", release, yaw_r, carry[-1])
+        q_retreat = self._solve("retreat", release + up, yaw_r, at_release)
 
-        times, qs = [0.0], [np.concatenate([q_start, [FINGER_OPEN] * 2])]
-        t_lift = 0.0
-        for i, (qk, finger, dmin) in enumerate(knots):
-            dq = np.abs(qk - qs[-1][:6])
-            times.append(times[-1] + max(dmin, float(np.max(1.5 * dq / JOINT_SPEED))))
-            qs.append(np.concatenate([qk, [finger, finger]]))
-            if i + 1 == n_lift:
-                t_lift = times[-1]
-        traj = PiecewisePolynomial.CubicShapePreserving(
-            times, np.column_stack(qs), zero_end_point_derivatives=True)
-        return Motion(traj, t_lift, times[-1])
+        def at(q, finger):
+            return np.concatenate([q, [finger, finger]])
+
+        opened, closed = FINGER_OPEN, FINGER_CLOSED
+        phases = [
+            Phase([at(q_start, opened), at(pre, opened)]),
+            Phase([at(pre, opened), at(mid, opened), at(at_grasp, opened)]),
+            Phase([at(at_grasp, opened)], dwell=FINGER_SECONDS, finger=closed),
+            Phase([at(at_grasp, closed), at(q_lift, closed)], loaded=True),
+            Phase([at(q, closed) for q in carry], loaded=True),
+            Phase([at(carry[-1], closed), at(at_release, closed)], loaded=True),
+            Phase([at(at_release, closed)], dwell=FINGER_SECONDS, finger=opened),
+            Phase([at(at_release, opened), at(q_retreat, opened), at(HOME_Q, opened)]),
+        ]
+        trajectory, ends = self.timer.trajectory(phases)
+        return Motion(trajectory, ends[LIFT_PHASE], ends[-1])
 
 
 def run_motion(station: Station, motion: Motion, at_lift: Callable[[], T]) -> T:
-    """Executes `motion` from the station's current time; returns what `at_lift()`, called
-    once the lift has ended, returned (e.g. the scene perceived then)."""
+    """Executes `motion` from the station's current time, then lets the boxes come to rest;
+    returns what `at_lift()`, called once the lift has ended, returned (e.g. the scene
+    perceived then)."""
     station.follow(motion.trajectory, 0.0, motion.t_lift)
     lifted = at_lift()
     station.follow(motion.trajectory, motion.t_lift, motion.t_end)
+    settle_until_rest(station, 0.0, ARM_SETTLE_MAX)
     return lifted
 
 

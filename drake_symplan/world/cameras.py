@@ -1,7 +1,8 @@
 """Depth cameras around the table: RgbdSensors rendered headless by VTK (EGL) + point clouds.
 
 `AddDepthCameras` adds one RgbdSensor per camera config; `read_point_clouds` renders their
-depth images and back-projects them into world-frame xyz arrays, with optional noise.
+depth images and back-projects them into world-frame xyz arrays, with optional noise;
+`robot_shapes` says where the robot is in them.
 """
 
 from __future__ import annotations
@@ -10,7 +11,9 @@ import dataclasses as dc
 
 import numpy as np
 from pydrake.geometry import (
+    Box,
     ClippingRange,
+    Cylinder,
     DepthRange,
     DepthRenderCamera,
     MakeRenderEngineVtk,
@@ -153,3 +156,21 @@ def read_point_clouds(
                 xyz = xyz[xyz[:, 2] > z_min]
         clouds.append(xyz)
     return clouds
+
+
+def robot_shapes(plant, query, model_instance) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The collision shapes of `model_instance` (the robot) at the state `query` was
+    evaluated at, which perception cuts out of the point clouds: ("box", X_W [4x4],
+    size xyz) or ("cylinder", X_W, [radius, length])."""
+    inspector = query.inspector()
+    shapes = []
+    for body_index in plant.GetBodyIndices(model_instance):
+        for gid in plant.GetCollisionGeometriesForBody(plant.get_body(body_index)):
+            shape = inspector.GetShape(gid)
+            X = query.GetPoseInWorld(gid).GetAsMatrix4()
+            if isinstance(shape, Box):
+                shapes.append(("box", X, np.array([shape.width(), shape.depth(),
+                                                   shape.height()])))
+            elif isinstance(shape, Cylinder):
+                shapes.append(("cylinder", X, np.array([shape.radius(), shape.length()])))
+    return shapes

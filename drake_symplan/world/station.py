@@ -13,14 +13,12 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import (
-    Box,
-    Cylinder,
     Meshcat,
     MeshcatVisualizer,
     MeshcatVisualizerParams,
     Role,
 )
-from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import (
@@ -33,9 +31,15 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_symplan.boxes import OBJECT_TYPES
+from drake_symplan.boxes import OBJECT_TYPES, tilt_of
 from drake_symplan.structs import ObjectState
-from drake_symplan.world.cameras import AddDepthCameras, CameraConfig, DepthNoise, read_point_clouds
+from drake_symplan.world.cameras import (
+    AddDepthCameras,
+    CameraConfig,
+    DepthNoise,
+    read_point_clouds,
+    robot_shapes,
+)
 from drake_symplan.world.hand import AddHand
 from drake_symplan.world.scenes import Scene, validate_scene
 
@@ -52,6 +56,12 @@ FINGER_OPEN = 0.05  # finger joint position (m): 8.5 cm between the finger pads
 FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlier
 
 ROBOTS = ("ur10", "hand")  # StationConfig.robot
+# Physics steps (s). The arm at 10 ms: on 120 random pick/places the same boxes land, tip
+# and stay put as at 5 ms, a landed box 0.3 cm from its aim (median; 0.15 at 5 ms), for
+# half the steps (docs/speed.md). The hand at 5 ms: its release lets go of the box at
+# once, and at 10 ms a cube dropped the 4 mm clearance onto another slides 1 cm off it.
+TIME_STEPS = {"ur10": 1e-2, "hand": 5e-3}
+
 
 # Home: TCP at (0.35, 0, 0.30) pointing down, behind the workspace (x >= 0.45): the
 # cameras see every object unoccluded, and every pick starts close by.
@@ -62,8 +72,7 @@ HOME_Q = np.array([-0.4757, -2.1928, 2.4549, -1.8312, -1.5838, -2.0314])
 class StationConfig:
     """Everything that shapes the diagram; loadable with yaml_load_typed."""
 
-    # 5 ms: at 10 ms a cube released 4 mm above another slides ~1 cm off it on landing.
-    time_step: float = 5e-3
+    time_step: float | None = None  # s; None: the robot's (TIME_STEPS)
     contact_model: str = "hydroelastic_with_fallback"
     discrete_contact_approximation: str = "similar"
     pool_cubes: int = 8
@@ -99,15 +108,6 @@ def _parked_pose(index: int) -> RigidTransform:
     return RigidTransform([-3.0 + 0.4 * index, 3.0, -3.0])
 
 
-def tilt_of(R: RotationMatrix) -> float:
-    """Angle (rad) between the box's local z axis and world z, folded for box symmetry.
-
-    A box lying on any face has tilt 0: we take the body axis closest to vertical.
-    """
-    m = np.abs(R.matrix()[2, :])
-    return float(np.arccos(np.clip(m.max(), -1.0, 1.0)))
-
-
 class Station:
     """The built diagram plus handles and per-episode reset."""
 
@@ -118,7 +118,7 @@ class Station:
             raise ValueError(f"unknown robot {cfg.robot!r}; expected one of {ROBOTS}")
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
-            time_step=cfg.time_step, contact_model=cfg.contact_model,
+            time_step=cfg.time_step or TIME_STEPS[cfg.robot], contact_model=cfg.contact_model,
             discrete_contact_approximation=cfg.discrete_contact_approximation), builder)
         self._add_models(plant)
         plant.Finalize()
@@ -335,7 +335,7 @@ class Station:
         for n, X in self.object_poses().items():
             R = X.rotation()
             yaw = float(RollPitchYaw(R).yaw_angle())
-            out[n] = ObjectState(n, self.types[n], X.translation().copy(), yaw, tilt_of(R))
+            out[n] = ObjectState(n, self.types[n], X.translation().copy(), yaw, tilt_of(R.matrix()))
         return out
 
     def contact_graph(self, tolerance: float = 0.003) -> set[tuple[str, str]]:
@@ -373,23 +373,11 @@ class Station:
         return best
 
     def robot_collision_shapes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
-        """The robot's collision shapes at its current joint state (proprioception), as
-        ("box", X_W [4x4], size xyz) or ("cylinder", X_W, [radius, length]); the hand has none."""
+        """The robot's collision shapes at its current joint state (proprioception):
+        world/cameras.robot_shapes."""
         if self.arm is None:
             return []
-        query = self._query()
-        inspector = query.inspector()
-        shapes = []
-        for body_index in self.plant.GetBodyIndices(self.arm):
-            for gid in self.plant.GetCollisionGeometriesForBody(self.plant.get_body(body_index)):
-                shape = inspector.GetShape(gid)
-                X = query.GetPoseInWorld(gid).GetAsMatrix4()
-                if isinstance(shape, Box):
-                    shapes.append(("box", X, np.array([shape.width(), shape.depth(),
-                                                       shape.height()])))
-                elif isinstance(shape, Cylinder):
-                    shapes.append(("cylinder", X, np.array([shape.radius(), shape.length()])))
-        return shapes
+        return robot_shapes(self.plant, self._query(), self.arm)
 
     def _query(self):
         return self.scene_graph.get_query_output_port().Eval(
