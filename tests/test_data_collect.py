@@ -28,9 +28,11 @@ def hand_station():
 
 
 def run_hand(station, objects, action):
+    from drake_symplan.robot.backends import RESET_SETTLE
     from drake_symplan.skills.hand_place import hand_pick_place
 
     station.reset(Scene([ObjectSpec(n, t, list(p), 0.0) for n, t, p in objects]))
+    station.settle(RESET_SETTLE)  # as the back-end's reset: the boxes sink into the table
     beliefs = {n: ObjectState(n, t, np.array(p, float)) for n, t, p in objects}
     start = station.object_states()
     motion, lifted = hand_pick_place(station, action, beliefs, station.object_states)
@@ -139,6 +141,22 @@ def test_a_larger_n_extends_a_collection_and_anything_else_is_refused(tmp_path):
             assert np.allclose(a["effect"], b["effect"])
     manifest = read_manifest(out)
     assert manifest["config"]["transitions"] == 7 and manifest["extended_from"] == [4]
+
+
+def test_a_collection_made_at_5_ms_extends_only_at_5_ms(tmp_path):
+    import dataclasses as dc
+
+    from drake_symplan.data import storage
+    from drake_symplan.data.collect import CollectConfig, _prepare
+
+    old = dc.asdict(CollectConfig(transitions=4, chunk_size=2))
+    del old["time_step"]  # manifests written before the step was recorded ran at 5 ms
+    storage.write_manifest(tmp_path, {"config": old, "seed": 0, "status": "done"})
+    with pytest.raises(ValueError, match="different configuration"):
+        _prepare(tmp_path, CollectConfig(transitions=6, chunk_size=2))  # 10 ms
+    manifest, todo, done = _prepare(
+        tmp_path, CollectConfig(transitions=6, chunk_size=2, time_step=0.005))
+    assert todo == [0, 1, 2] and done == 0 and manifest["config"]["time_step"] == 0.005
 
 
 @pytest.mark.slow

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from drake_symplan.skills.timing import (
-    CARRY_ACCELERATION,
     JOINT_ACCELERATION,
     JOINT_VELOCITY,
+    TCP_ACCELERATION,
     Phase,
 )
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q
@@ -32,18 +32,18 @@ def test_one_joint_move_takes_the_trapezoid_time_and_stays_in_the_limits(planner
     assert np.allclose(q[:, 1:], q8(HOME_Q)[1:])  # the other joints stay put
 
 
-def test_a_loaded_path_keeps_the_tcp_acceleration_under_the_carry_limit(planner):
+def test_a_limited_path_keeps_the_tcp_acceleration_under_the_limit(planner):
     lift = planner.ik.solve(np.array([0.6, 0.25, 0.2]), 0.0, HOME_Q)
     above = planner.ik.solve(np.array([0.75, -0.15, 0.2]), 0.0, lift)
     free = planner.timer.samples(Phase([q8(lift, FINGER_CLOSED), q8(above, FINGER_CLOSED)]))
     loaded = planner.timer.samples(
-        Phase([q8(lift, FINGER_CLOSED), q8(above, FINGER_CLOSED)], loaded=True))
+        Phase([q8(lift, FINGER_CLOSED), q8(above, FINGER_CLOSED)], tcp_acceleration=TCP_ACCELERATION))
     t, q, _ = loaded
     tcp = np.array([planner.ik.tcp_pose(qi[:6]).translation() for qi in q])
     dt = t[1] - t[0]
     acceleration = np.abs(np.diff(tcp, 2, axis=0)) / dt**2
-    assert acceleration.max() <= CARRY_ACCELERATION * 1.25  # sampled finite differences
-    assert loaded[0][-1] > free[0][-1]  # the load slows the carry down
+    assert acceleration.max() <= TCP_ACCELERATION * 1.25  # sampled finite differences
+    assert loaded[0][-1] > free[0][-1]  # the limit slows the carry down
 
 
 def test_a_dwell_moves_only_the_fingers_for_its_duration(planner):

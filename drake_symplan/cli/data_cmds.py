@@ -31,6 +31,9 @@ def register(subparsers) -> None:
     collect.add_argument("--noise-sigma", type=float, default=0.0, help="depth noise (m)")
     collect.add_argument("--noise-dropout", type=float, default=0.0,
                          help="fraction of depth pixels lost")
+    collect.add_argument("--time-step", type=float, default=0.01,
+                         help="physics step (s); 0.005 extends a collection made before 10 ms "
+                              "became the step")
     collect.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_json_argument(collect)
     collect.set_defaults(func=cmd_collect)
@@ -61,7 +64,8 @@ def cmd_collect(args: argparse.Namespace) -> dict:
         backend=args.backend, transitions=args.transitions, seed=args.seed,
         min_objects=lo, max_objects=hi, episode_length=args.episode_length,
         long_fraction=args.long_fraction, chunk_size=args.chunk_size,
-        noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout)
+        noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout,
+        time_step=args.time_step)
     summary = collect(args.out, config, workers=args.workers, progress=not args.no_progress,
                       ray_address=args.ray)
     if not args.json:

@@ -46,9 +46,11 @@ from drake_symplan.data.stats import dataset_stats
 from drake_symplan.robot.backends import BACKENDS, make_backend
 from drake_symplan.structs import TransitionArrays
 from drake_symplan.world.cameras import DepthNoise
+from drake_symplan.world.station import TIME_STEP
 
 EPISODE_STRIDE = 100_000  # episode ids of chunk c are c * EPISODE_STRIDE + k
 MAX_EPISODES_PER_CHUNK = 20_000
+LEGACY_TIME_STEP = 5e-3  # s: collections whose manifest names no time step ran at 5 ms
 
 
 @dc.dataclass
@@ -65,6 +67,7 @@ class CollectConfig:
     chunk_size: int = 100
     noise_sigma: float = 0.0  # depth noise (m) along camera rays
     noise_dropout: float = 0.0
+    time_step: float = TIME_STEP  # s of physics per step (world/station.py)
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -85,6 +88,11 @@ class CollectConfig:
     def episode_config(self) -> EpisodeConfig:
         return EpisodeConfig(self.min_objects, self.max_objects, self.episode_length,
                              self.long_fraction)
+
+
+def collection_backend(name: str, time_step: float):
+    """The back-end a collection's workers run: `name` at `time_step`."""
+    return make_backend(name, time_step=time_step)
 
 
 def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
@@ -193,7 +201,7 @@ _worker: dict = {}
 def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
     config = CollectConfig(**config_dict)
     _worker.update(config=config, progress=progress, parent=parent_pid,
-                   backend=make_backend(config.backend))
+                   backend=collection_backend(config.backend, config.time_step))
     progress.put(0)  # started: its station is built
 
 
@@ -244,7 +252,7 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
         elif ray is not None:
             started = _run_ray(ray, out_dir, config, todo, min(workers, len(todo)), bar)
         elif workers == 1:
-            backend = make_backend(config.backend)
+            backend = collection_backend(config.backend, config.time_step)
             started = time.perf_counter()
             for c in todo:
                 storage.write_shard(out_dir, c, *chunk_shard(backend, config, c,
@@ -273,6 +281,8 @@ def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int
     if (out_dir / storage.MANIFEST).exists():
         manifest = storage.read_manifest(out_dir)
         stored = manifest.get("config")
+        if isinstance(stored, dict) and "time_step" not in stored:
+            stored = {**stored, "time_step": LEGACY_TIME_STEP}
         if stored != identity:
             if not _extends(stored, identity):
                 raise ValueError(
@@ -359,7 +369,7 @@ def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers
         advance(c, config.chunk_count(c))
         written.add(c)
 
-    return run_jobs(ray, make_backend, (config.backend,), chunk_shard,
+    return run_jobs(ray, collection_backend, (config.backend, config.time_step), chunk_shard,
                     [(c, config, c) for c in todo], workers, write, advance)
 
 

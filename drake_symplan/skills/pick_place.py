@@ -18,7 +18,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.skills.ik import ArmIK
-from drake_symplan.skills.timing import PathTimer, Phase
+from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
 from drake_symplan.structs import OFFSET_METRES, Action, ObjectState
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
@@ -30,7 +30,8 @@ RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target'
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
 ARM_SETTLE_MAX = 0.5  # s: the boxes released on the way home have mostly settled
-LIFT_PHASE = 3  # the phase after which the box is lifted (PickPlacePlanner.plan)
+LIFT_HOLD = 0.1  # s: the arm comes to rest after the lift (the PD overshoots ~1 cm)
+LIFT_PHASE = 4  # the phase after which the box is lifted and still (PickPlacePlanner.plan)
 
 T = TypeVar("T")
 
@@ -167,13 +168,15 @@ class PickPlacePlanner:
             return np.concatenate([q, [finger, finger]])
 
         opened, closed = FINGER_OPEN, FINGER_CLOSED
+        near = {"tcp_acceleration": TCP_ACCELERATION}  # near the boxes or holding one
         phases = [
             Phase([at(q_start, opened), at(pre, opened)]),
-            Phase([at(pre, opened), at(mid, opened), at(at_grasp, opened)]),
+            Phase([at(pre, opened), at(mid, opened), at(at_grasp, opened)], **near),
             Phase([at(at_grasp, opened)], dwell=FINGER_SECONDS, finger=closed),
-            Phase([at(at_grasp, closed), at(q_lift, closed)], loaded=True),
-            Phase([at(q, closed) for q in carry], loaded=True),
-            Phase([at(carry[-1], closed), at(at_release, closed)], loaded=True),
+            Phase([at(at_grasp, closed), at(q_lift, closed)], **near),
+            Phase([at(q_lift, closed)], dwell=LIFT_HOLD, finger=closed),
+            Phase([at(q, closed) for q in carry], **near),
+            Phase([at(carry[-1], closed), at(at_release, closed)], **near),
             Phase([at(at_release, closed)], dwell=FINGER_SECONDS, finger=opened),
             Phase([at(at_release, opened), at(q_retreat, opened), at(HOME_Q, opened)]),
         ]

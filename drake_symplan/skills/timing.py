@@ -3,8 +3,8 @@
 A motion is a sequence of phases, each a joint path through IK waypoints that starts and
 ends at rest, or a dwell while the fingers open or close. Each path is parametrised
 time-optimally under the joint velocity and acceleration limits and, while the gripper
-holds a box, a limit on the TCP's acceleration, so that boxes stacked on the load ride
-along. The phases are sampled into one cubic Hermite trajectory for the station to track.
+holds a box or comes close to one, a limit on the TCP's acceleration. The phases are
+sampled into one cubic Hermite trajectory for the station to track.
 """
 
 from __future__ import annotations
@@ -20,9 +20,10 @@ JOINT_VELOCITY = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi])
 # The datasheet gives no acceleration limit; the fixed-duration trajectories this replaced
 # peaked at 7-23 rad/s^2 (median actions), so 8 is no harder on the arm than before.
 JOINT_ACCELERATION = np.full(6, 15.0)
-# While holding a box: the friction between boxes (mu 0.6) holds a box stacked on the load
-# up to mu * g = 5.9 m/s^2 of horizontal acceleration; half of it leaves a margin.
-CARRY_ACCELERATION = 4.0  # m/s^2, TCP, each world axis
+# Near the boxes and while holding one, the TCP's acceleration (each world axis): the
+# friction between boxes (mu 0.6) holds a box stacked on the load up to mu * g = 5.9 m/s^2,
+# and the PD's lag behind a harder stop would bring the fingers 1 cm too low at the grasp.
+TCP_ACCELERATION = 4.0  # m/s^2
 FINGER_VELOCITY = 1.0  # m/s, finger joints (they stay put along a path)
 SAMPLE_PERIOD = 0.02  # s between samples of the tracked trajectory
 # 20 grid points: about 4 ms per path and within 10 % of the time-optimal duration on a
@@ -35,8 +36,9 @@ class Phase:
     """A joint path through `waypoints` (plant positions: arm and fingers), from rest to rest,
     or with one waypoint held for `dwell` seconds while the fingers move to `finger`."""
 
+
     waypoints: list[np.ndarray]
-    loaded: bool = False  # the gripper holds a box: the TCP acceleration limit applies
+    tcp_acceleration: float | None = None  # m/s^2 at the TCP (TCP_ACCELERATION), if limited
     dwell: float = 0.0
     finger: float | None = None
 
@@ -96,8 +98,8 @@ class PathTimer:
         toppra = Toppra(path, self.plant, Toppra.CalcGridPoints(path, GRID))
         toppra.AddJointVelocityLimit(-self.velocity, self.velocity)
         toppra.AddJointAccelerationLimit(-self.acceleration, self.acceleration)
-        if phase.loaded:
-            limit = np.concatenate([[1e3] * 3, [CARRY_ACCELERATION] * 3])
+        if phase.tcp_acceleration is not None:
+            limit = np.concatenate([[1e3] * 3, [phase.tcp_acceleration] * 3])
             toppra.AddFrameAccelerationLimit(self.tcp, -limit, limit)
         s_of_t = toppra.SolvePathParameterization()
         if s_of_t is None:

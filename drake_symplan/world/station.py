@@ -56,11 +56,11 @@ FINGER_OPEN = 0.05  # finger joint position (m): 8.5 cm between the finger pads
 FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlier
 
 ROBOTS = ("ur10", "hand")  # StationConfig.robot
-# Physics steps (s). The arm at 10 ms: on 120 random pick/places the same boxes land, tip
-# and stay put as at 5 ms, a landed box 0.3 cm from its aim (median; 0.15 at 5 ms), for
-# half the steps (docs/speed.md). The hand at 5 ms: its release lets go of the box at
-# once, and at 10 ms a cube dropped the 4 mm clearance onto another slides 1 cm off it.
-TIME_STEPS = {"ur10": 1e-2, "hand": 5e-3}
+# 10 ms, Hunt-Crossley contact (robot/backends.py): on 120 random arm pick/places (180
+# with the hand) the same boxes land, tip and stay put as at 5 ms; a landed box ends
+# 0.3 cm from its aim with the arm (median; 0.15 at 5 ms), 0.07 with the hand (0.03);
+# hand-arm parity is unchanged; half the steps (docs/speed.md).
+TIME_STEP = 1e-2  # s
 
 
 # Home: TCP at (0.35, 0, 0.30) pointing down, behind the workspace (x >= 0.45): the
@@ -72,7 +72,7 @@ HOME_Q = np.array([-0.4757, -2.1928, 2.4549, -1.8312, -1.5838, -2.0314])
 class StationConfig:
     """Everything that shapes the diagram; loadable with yaml_load_typed."""
 
-    time_step: float | None = None  # s; None: the robot's (TIME_STEPS)
+    time_step: float = TIME_STEP
     contact_model: str = "hydroelastic_with_fallback"
     discrete_contact_approximation: str = "similar"
     pool_cubes: int = 8
@@ -118,7 +118,7 @@ class Station:
             raise ValueError(f"unknown robot {cfg.robot!r}; expected one of {ROBOTS}")
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
-            time_step=cfg.time_step or TIME_STEPS[cfg.robot], contact_model=cfg.contact_model,
+            time_step=cfg.time_step, contact_model=cfg.contact_model,
             discrete_contact_approximation=cfg.discrete_contact_approximation), builder)
         self._add_models(plant)
         plant.Finalize()
