@@ -4,9 +4,8 @@
                              [--start start.yaml --goal goal.yaml] [--out out/demo.html]
                              [--planner fd] [--timeout 10] [--no-record] [--meshcat] [--json]
 
-1. The problem: by default the shipped one, models/demo/ (start.yaml, goal.yaml: three
-   cubes and a long block, the goal two arm actions away: the block across a two-cube
-   tower), the same on every machine. `--seed N` samples a
+1. The problem: by default the shipped one, models/demo/ (start.yaml, goal.yaml: a cube
+   and three long blocks, the goal two arm actions away), the same on every machine. `--seed N` samples a
    new one: a random scene with `--objects` boxes, then k = 2 or 3 random pick/place
    actions executed by the UR10; the scene they leave is the goal (agent/problems.py, as
    the planning evaluation makes them). Sampled goals come from simulated physics, which

@@ -18,7 +18,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.skills.ik import ArmIK
-from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
+from drake_symplan.skills.timing import LOAD_ACCELERATION, TCP_ACCELERATION, PathTimer, Phase
 from drake_symplan.structs import OFFSET_METRES, Action, ObjectState
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
@@ -31,6 +31,8 @@ LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
 ARM_SETTLE_MAX = 0.5  # s: the boxes released on the way home have mostly settled
 LIFT_HOLD = 0.1  # s: the arm comes to rest after the lift (the PD overshoots ~1 cm)
+RELEASE_HOLD = 0.1  # s: the arm comes to rest over the target before the fingers open
+RIDE_GAP = 0.015  # m: a box whose bottom is this close to the source's top rests on it
 LIFT_PHASE = 4  # the phase after which the box is lifted and still (PickPlacePlanner.plan)
 
 T = TypeVar("T")
@@ -82,6 +84,24 @@ class InfeasibleAction(Exception):
 def _top_z(o: ObjectState) -> float:
     hx, hy, hz = HALF_EXTENTS[o.type]
     return float(o.position[2] + hz * np.cos(o.tilt) + max(hx, hy) * np.sin(o.tilt))
+
+
+def riders(action: Action, objects: dict[str, ObjectState]) -> list[str]:
+    """The objects believed to rest on the source (their bottom at its top, within their own
+    reach of its footprint): they ride along when it is carried."""
+    src = objects[action.source]
+    top, (hx, hy, _) = _top_z(src), HALF_EXTENTS[src.type]
+    c, s = np.cos(src.yaw), np.sin(src.yaw)
+    out = []
+    for name, o in objects.items():
+        half = HALF_EXTENTS[o.type]
+        if name == action.source or abs(o.position[2] - half[2] - top) > RIDE_GAP:
+            continue
+        dx, dy = o.position[:2] - src.position[:2]
+        reach = max(half[:2])
+        if abs(c * dx + s * dy) < hx + reach and abs(-s * dx + c * dy) < hy + reach:
+            out.append(name)
+    return out
 
 
 def grasp_yaw(o: ObjectState) -> float:
@@ -168,15 +188,19 @@ class PickPlacePlanner:
             return np.concatenate([q, [finger, finger]])
 
         opened, closed = FINGER_OPEN, FINGER_CLOSED
-        near = {"tcp_acceleration": TCP_ACCELERATION}  # near the boxes or holding one
+        near = {"tcp_acceleration": TCP_ACCELERATION}  # near the boxes
+        # Holding the box: as gently as near the boxes when another box rides on it.
+        load = {"tcp_acceleration": TCP_ACCELERATION if riders(action, objects)
+                else LOAD_ACCELERATION}
         phases = [
             Phase([at(q_start, opened), at(pre, opened)]),
             Phase([at(pre, opened), at(mid, opened), at(at_grasp, opened)], **near),
             Phase([at(at_grasp, opened)], dwell=FINGER_SECONDS, finger=closed),
-            Phase([at(at_grasp, closed), at(q_lift, closed)], **near),
+            Phase([at(at_grasp, closed), at(q_lift, closed)], **load),
             Phase([at(q_lift, closed)], dwell=LIFT_HOLD, finger=closed),
-            Phase([at(q, closed) for q in carry], **near),
-            Phase([at(carry[-1], closed), at(at_release, closed)], **near),
+            Phase([at(q, closed) for q in carry], **load),
+            Phase([at(carry[-1], closed), at(at_release, closed)], **load),
+            Phase([at(at_release, closed)], dwell=RELEASE_HOLD, finger=closed),
             Phase([at(at_release, closed)], dwell=FINGER_SECONDS, finger=opened),
             Phase([at(at_release, opened), at(q_retreat, opened), at(HOME_Q, opened)]),
         ]
