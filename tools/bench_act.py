@@ -89,6 +89,7 @@ def combine(rounds: list[dict]) -> dict:
         "landed": len(errors),
         "median_placement_error_cm": statistics.median(errors) if errors else None,
         "p90_placement_error_cm": float(np.percentile(errors, 90)) if errors else None,
+        "placement_errors_cm": errors,
     }
 
 
