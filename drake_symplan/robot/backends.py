@@ -162,7 +162,7 @@ class ArmBackend(Backend):
     def execute(self, action: Action, before, lift: bool = True) -> Execution:
         try:
             motion = self.planner.plan(action, before.object_states(),
-                                       self.station.robot_positions())
+                                       self.station.robot_positions(), lift_hold=lift)
         except InfeasibleAction as e:
             return Execution("infeasible", message=str(e))
         at_lift = (lambda: self.perceive(before)) if lift else (lambda: None)

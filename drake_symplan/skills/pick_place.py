@@ -29,11 +29,10 @@ CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
-ARM_SETTLE_MAX = 0.5  # s: the boxes released on the way home have mostly settled
+ARM_SETTLE_MAX = 0.5  # s of settling at most once home (the boxes were let go before)
 LIFT_HOLD = 0.1  # s: the arm comes to rest after the lift (the PD overshoots ~1 cm)
 RELEASE_HOLD = 0.1  # s: the arm comes to rest over the target before the fingers open
 RIDE_GAP = 0.015  # m: a box whose bottom is this close to the source's top rests on it
-LIFT_PHASE = 4  # the phase after which the box is lifted and still (PickPlacePlanner.plan)
 
 T = TypeVar("T")
 
@@ -162,50 +161,50 @@ class PickPlacePlanner:
                 f"unreachable pose: {what} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})")
         return q
 
-    def plan(
-        self, action: Action, objects: dict[str, ObjectState], q_start: np.ndarray = HOME_Q
-    ) -> Motion:
+    def plan(self, action: Action, objects: dict[str, ObjectState],
+             q_start: np.ndarray = HOME_Q, lift_hold: bool = True) -> Motion:
+        """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
+        still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
         g = action_geometry(action, objects)
-        grasp, release, carry_z = g.grasp, g.release, g.carry_z
-        yaw_g, yaw_r = g.yaw_grasp, g.yaw_release
         up = np.array([0.0, 0.0, APPROACH_HEIGHT])
-        pre = self._solve("pre-grasp", grasp + up, yaw_g, q_start)
-        mid = self._solve("grasp", grasp + up * 0.5, yaw_g, pre)
-        at_grasp = self._solve("grasp", grasp, yaw_g, mid)
-        lift = np.array([grasp[0], grasp[1], carry_z])
-        q_lift = self._solve("lift", lift, yaw_g, at_grasp)
-        above = np.array([release[0], release[1], carry_z])
+        pre = self._solve("pre-grasp", g.grasp + up, g.yaw_grasp, q_start)
+        mid = self._solve("grasp", g.grasp + up * 0.5, g.yaw_grasp, pre)
+        at_grasp = self._solve("grasp", g.grasp, g.yaw_grasp, mid)
+        lift = np.array([g.grasp[0], g.grasp[1], g.carry_z])
+        carry = [self._solve("lift", lift, g.yaw_grasp, at_grasp)]
+        above = np.array([g.release[0], g.release[1], g.carry_z])
         steps = max(1, int(np.ceil(float(np.linalg.norm(above[:2] - lift[:2])) / 0.15)))
-        carry = [q_lift]
         for k in range(1, steps + 1):
             f = k / steps
             carry.append(self._solve("carry", lift + (above - lift) * f,
-                                     yaw_g + (yaw_r - yaw_g) * f, carry[-1]))
-        at_release = self._solve("release", release, yaw_r, carry[-1])
-        q_retreat = self._solve("retreat", release + up, yaw_r, at_release)
-
-        def at(q, finger):
-            return np.concatenate([q, [finger, finger]])
-
-        opened, closed = FINGER_OPEN, FINGER_CLOSED
-        near = {"tcp_acceleration": TCP_ACCELERATION}  # near the boxes
+                                     g.yaw_grasp + (g.yaw_release - g.yaw_grasp) * f, carry[-1]))
+        at_release = self._solve("release", g.release, g.yaw_release, carry[-1])
+        retreat = self._solve("retreat", g.release + up, g.yaw_release, at_release)
         # Holding the box: as gently as near the boxes when another box rides on it.
-        load = {"tcp_acceleration": TCP_ACCELERATION if riders(action, objects)
-                else LOAD_ACCELERATION}
-        phases = [
-            Phase([at(q_start, opened), at(pre, opened)]),
-            Phase([at(pre, opened), at(mid, opened), at(at_grasp, opened)], **near),
-            Phase([at(at_grasp, opened)], dwell=FINGER_SECONDS, finger=closed),
-            Phase([at(at_grasp, closed), at(q_lift, closed)], **load),
-            Phase([at(q_lift, closed)], dwell=LIFT_HOLD, finger=closed),
-            Phase([at(q, closed) for q in carry], **load),
-            Phase([at(carry[-1], closed), at(at_release, closed)], **load),
-            Phase([at(at_release, closed)], dwell=RELEASE_HOLD, finger=closed),
-            Phase([at(at_release, closed)], dwell=FINGER_SECONDS, finger=opened),
-            Phase([at(at_release, opened), at(q_retreat, opened), at(HOME_Q, opened)]),
+        load = TCP_ACCELERATION if riders(action, objects) else LOAD_ACCELERATION
+        opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(FINGER_CLOSED)
+        lifting = [
+            Phase(opened(q_start, pre)),
+            Phase(opened(pre, mid, at_grasp), tcp_acceleration=TCP_ACCELERATION),
+            Phase(opened(at_grasp), dwell=FINGER_SECONDS, finger=FINGER_CLOSED),
+            Phase(closed(at_grasp, carry[0]), tcp_acceleration=load),
         ]
-        trajectory, ends = self.timer.trajectory(phases)
-        return Motion(trajectory, ends[LIFT_PHASE], ends[-1])
+        if lift_hold:
+            lifting.append(Phase(closed(carry[0]), dwell=LIFT_HOLD, finger=FINGER_CLOSED))
+        placing = [
+            Phase(closed(*carry), tcp_acceleration=load),
+            Phase(closed(carry[-1], at_release), tcp_acceleration=load),
+            Phase(closed(at_release), dwell=RELEASE_HOLD, finger=FINGER_CLOSED),
+            Phase(closed(at_release), dwell=FINGER_SECONDS, finger=FINGER_OPEN),
+            Phase(opened(at_release, retreat, HOME_Q)),
+        ]
+        trajectory, ends = self.timer.trajectory(lifting + placing)
+        return Motion(trajectory, ends[len(lifting) - 1], ends[-1])
+
+
+def _with_fingers(finger: float):
+    """Arm waypoints -> plant positions with both fingers at `finger`."""
+    return lambda *qs: [np.concatenate([q, [finger, finger]]) for q in qs]
 
 
 def run_motion(station: Station, motion: Motion, at_lift: Callable[[], T]) -> T:
@@ -228,11 +227,12 @@ def pick_place(
     """Plans from `objects` (the caller's belief) and executes on the station.
 
     Actions chain: each starts where the last one left the station. Reported poses are the
-    simulator's (this is the outcome report, not an input to any decision).
+    simulator's (this is the outcome report, not an input to any decision); no camera
+    looks at the lift, so the arm does not stop there.
     """
     t_wall = time.perf_counter()
     try:
-        motion = planner.plan(action, objects, station.robot_positions())
+        motion = planner.plan(action, objects, station.robot_positions(), lift_hold=False)
     except InfeasibleAction as e:
         now = station.object_states()
         return Outcome("infeasible", _report(now, now, now), time.perf_counter() - t_wall,
