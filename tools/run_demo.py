@@ -4,11 +4,11 @@
                              [--start start.yaml --goal goal.yaml] [--out out/demo.html]
                              [--planner fd] [--timeout 10] [--no-record] [--meshcat] [--json]
 
-1. The problem: by default the shipped one, models/demo/ (start.yaml, goal.yaml: a cube
-   and three long blocks, the goal two arm actions away), the same on every machine. `--seed N` samples a
-   new one: a random scene with `--objects` boxes, then k = 2 or 3 random pick/place
-   actions executed by the UR10; the scene they leave is the goal (agent/problems.py, as
-   the planning evaluation makes them). Sampled goals come from simulated physics, which
+1. The problem: by default the shipped one, models/demo/ (start.yaml, goal.yaml: two
+   cubes and two long blocks, the goal two arm actions away), the same on every machine.
+   `--seed N` samples a new one: a random scene with `--objects` boxes, then k = 2 or 3
+   random pick/place actions executed by the UR10; the scene they leave is the goal
+   (agent/problems.py, as the planning evaluation makes them). Sampled goals come from simulated physics, which
    differs slightly between machines, so the same seed can give another goal elsewhere.
    Or `--start/--goal` files.
 2. The model bundle (default: the shipped models/learned/) reads both perceived scenes into

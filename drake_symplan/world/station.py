@@ -56,10 +56,9 @@ FINGER_OPEN = 0.05  # finger joint position (m): 8.5 cm between the finger pads
 FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlier
 
 ROBOTS = ("ur10", "hand")  # StationConfig.robot
-# 10 ms, Hunt-Crossley contact (robot/backends.py): on 120 random arm pick/places (180
-# with the hand) the same boxes land, tip and stay put as at 5 ms; a landed box ends
-# 0.3 cm from its aim with the arm (median; 0.15 at 5 ms), 0.07 with the hand (0.03);
-# hand-arm parity is unchanged; half the steps (docs/speed.md).
+# 10 ms, Hunt-Crossley contact (robot/backends.py): half the steps of 5 ms, the same
+# outcomes on 117 of 120 random arm pick/places and 180 of 180 with the hand, placements
+# 0.3 cm from their aim (median; 0.15 at 5 ms), hand-arm parity kept (docs/speed.md).
 TIME_STEP = 1e-2  # s
 
 
