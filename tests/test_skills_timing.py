@@ -64,15 +64,3 @@ def test_a_motion_ends_home_at_rest_and_marks_the_lift(planner):
     assert np.allclose(motion.trajectory.EvalDerivative(motion.t_end, 1), 0.0, atol=1e-9)
     lifted = planner.ik.tcp_pose(motion.trajectory.value(motion.t_lift)[:6, 0]).translation()
     assert lifted[2] == pytest.approx(0.2, abs=2e-3)  # MIN_CARRY_HEIGHT over low boxes
-
-
-def test_riders_are_the_boxes_believed_to_rest_on_the_source():
-    from drake_symplan.skills.pick_place import riders
-    from drake_symplan.structs import Action, ObjectState
-
-    objects = {"block": ObjectState("block", "long", np.array([0.6, 0.2, 0.025])),
-               "on": ObjectState("on", "cube", np.array([0.6, 0.275, 0.075])),
-               "beside": ObjectState("beside", "cube", np.array([0.7, 0.2, 0.025])),
-               "far": ObjectState("far", "cube", np.array([0.8, 0.0, 0.075]))}
-    assert riders(Action("block", "center", "beside", "center"), objects) == ["on"]
-    assert riders(Action("beside", "center", "block", "center"), objects) == []

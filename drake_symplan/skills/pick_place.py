@@ -18,7 +18,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.skills.ik import ArmIK
-from drake_symplan.skills.timing import LOAD_ACCELERATION, TCP_ACCELERATION, PathTimer, Phase
+from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
 from drake_symplan.structs import OFFSET_METRES, Action, ObjectState
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
@@ -28,11 +28,10 @@ MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
-FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
+FINGER_SECONDS = 0.25  # the fingers close (open) on a box while the arm holds still
 ARM_SETTLE_MAX = 0.5  # s of settling at most once home (the boxes were let go before)
 LIFT_HOLD = 0.1  # s: the arm comes to rest after the lift (the PD overshoots ~1 cm)
 RELEASE_HOLD = 0.1  # s: the arm comes to rest over the target before the fingers open
-RIDE_GAP = 0.015  # m: a box whose bottom is this close to the source's top rests on it
 
 T = TypeVar("T")
 
@@ -83,24 +82,6 @@ class InfeasibleAction(Exception):
 def _top_z(o: ObjectState) -> float:
     hx, hy, hz = HALF_EXTENTS[o.type]
     return float(o.position[2] + hz * np.cos(o.tilt) + max(hx, hy) * np.sin(o.tilt))
-
-
-def riders(action: Action, objects: dict[str, ObjectState]) -> list[str]:
-    """The objects believed to rest on the source (their bottom at its top, within their own
-    reach of its footprint): they ride along when it is carried."""
-    src = objects[action.source]
-    top, (hx, hy, _) = _top_z(src), HALF_EXTENTS[src.type]
-    c, s = np.cos(src.yaw), np.sin(src.yaw)
-    out = []
-    for name, o in objects.items():
-        half = HALF_EXTENTS[o.type]
-        if name == action.source or abs(o.position[2] - half[2] - top) > RIDE_GAP:
-            continue
-        dx, dy = o.position[:2] - src.position[:2]
-        reach = max(half[:2])
-        if abs(c * dx + s * dy) < hx + reach and abs(-s * dx + c * dy) < hy + reach:
-            out.append(name)
-    return out
 
 
 def grasp_yaw(o: ObjectState) -> float:
@@ -180,20 +161,18 @@ class PickPlacePlanner:
                                      g.yaw_grasp + (g.yaw_release - g.yaw_grasp) * f, carry[-1]))
         at_release = self._solve("release", g.release, g.yaw_release, carry[-1])
         retreat = self._solve("retreat", g.release + up, g.yaw_release, at_release)
-        # Holding the box: as gently as near the boxes when another box rides on it.
-        load = TCP_ACCELERATION if riders(action, objects) else LOAD_ACCELERATION
         opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(FINGER_CLOSED)
         lifting = [
             Phase(opened(q_start, pre)),
             Phase(opened(pre, mid, at_grasp), tcp_acceleration=TCP_ACCELERATION),
             Phase(opened(at_grasp), dwell=FINGER_SECONDS, finger=FINGER_CLOSED),
-            Phase(closed(at_grasp, carry[0]), tcp_acceleration=load),
+            Phase(closed(at_grasp, carry[0]), tcp_acceleration=TCP_ACCELERATION),
         ]
         if lift_hold:
             lifting.append(Phase(closed(carry[0]), dwell=LIFT_HOLD, finger=FINGER_CLOSED))
         placing = [
-            Phase(closed(*carry), tcp_acceleration=load),
-            Phase(closed(carry[-1], at_release), tcp_acceleration=load),
+            Phase(closed(*carry), tcp_acceleration=TCP_ACCELERATION),
+            Phase(closed(carry[-1], at_release), tcp_acceleration=TCP_ACCELERATION),
             Phase(closed(at_release), dwell=RELEASE_HOLD, finger=FINGER_CLOSED),
             Phase(closed(at_release), dwell=FINGER_SECONDS, finger=FINGER_OPEN),
             Phase(opened(at_release, retreat, HOME_Q)),
