@@ -18,12 +18,12 @@ from pydrake.trajectories import PiecewisePolynomial
 # UR10 datasheet: 120 deg/s at the base and shoulder, 180 deg/s at the elbow and wrists.
 JOINT_VELOCITY = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi])
 # The datasheet gives no acceleration limit; the fixed-duration trajectories this replaced
-# peaked at 7-23 rad/s^2 (median actions), so 8 is no harder on the arm than before.
-JOINT_ACCELERATION = np.full(6, 15.0)
+# peaked at 7-23 rad/s^2 per joint (medians over random actions; 34 at wrist 1 at most).
+JOINT_ACCELERATION = np.full(6, 20.0)
 # Near the boxes and holding one, the TCP's acceleration (each world axis): a box stacked
 # on the load rides along up to mu * g = 5.9 m/s^2 (mu 0.6), the PD's lag behind a harder
-# stop brings the fingers 1 cm low at the grasp, and on 120 random actions placements
-# are 0.2 cm from their aim (median; p90 0.5) where 6 m/s^2 gives 0.3 (p90 0.9).
+# stop brings the fingers 1 cm low at the grasp, and on 120 random actions a box lands
+# 0.27 cm from its aim (median; p90 0.6) where 6 m/s^2 while carrying gives 0.30 (0.9).
 TCP_ACCELERATION = 4.0  # m/s^2
 FINGER_VELOCITY = 1.0  # m/s, finger joints (they stay put along a path)
 SAMPLE_PERIOD = 0.02  # s between samples of the tracked trajectory
