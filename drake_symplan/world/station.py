@@ -58,7 +58,8 @@ FINGER_CLOSED = 0.0  # commanded when grasping; contact stops the fingers earlie
 ROBOTS = ("ur10", "hand")  # StationConfig.robot
 # 10 ms, Hunt-Crossley contact (robot/backends.py): half the steps of 5 ms, the same
 # outcomes on 117 of 120 random arm pick/places and 180 of 180 with the hand, placements
-# 0.3 cm from their aim (median; 0.15 at 5 ms), hand-arm parity kept (docs/speed.md).
+# 0.2-0.3 cm from their aim (median; 0.1-0.17 at 5 ms), hand-arm parity kept
+# (docs/speed.md).
 TIME_STEP = 1e-2  # s
 
 
