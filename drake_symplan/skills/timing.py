@@ -18,7 +18,8 @@ from pydrake.trajectories import PiecewisePolynomial
 # UR10 datasheet: 120 deg/s at the base and shoulder, 180 deg/s at the elbow and wrists.
 JOINT_VELOCITY = np.array([2.09, 2.09, np.pi, np.pi, np.pi, np.pi])
 # The datasheet gives no acceleration limit; the fixed-duration trajectories this replaced
-# peaked at 7-23 rad/s^2 per joint (medians over random actions; 34 at wrist 1 at most).
+# peaked at 7-23 rad/s^2 per joint (medians over random actions; 34 at wrist 1 at most):
+# 20 asks no more of the arm than they did.
 JOINT_ACCELERATION = np.full(6, 20.0)
 # Near the boxes and holding one, the TCP's acceleration (each world axis): a box stacked
 # on the load rides along up to mu * g = 5.9 m/s^2 (mu 0.6), the PD's lag behind a harder
@@ -36,7 +37,6 @@ GRID = CalcGridPointsOptions(max_err=1e-2, max_iter=20, max_seg_length=0.2, min_
 class Phase:
     """A joint path through `waypoints` (plant positions: arm and fingers), from rest to rest,
     or with one waypoint held for `dwell` seconds while the fingers move to `finger`."""
-
 
     waypoints: list[np.ndarray]
     tcp_acceleration: float | None = None  # m/s^2 at the TCP (TCP_ACCELERATION), if limited
