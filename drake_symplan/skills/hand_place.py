@@ -26,7 +26,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.skills.pick_place import action_geometry, carry_duration
+from drake_symplan.skills.pick_place import action_geometry
 from drake_symplan.structs import Action, ObjectState
 from drake_symplan.world.hand import grasp_catches, hand_q_of_pose
 from drake_symplan.world.settling import settle_until_rest
@@ -52,6 +52,12 @@ class HandMotion:
     t_release: float = 0.0
     t_above: float = 0.0  # end of the lateral carry, above the release point
     kinematic: bool = False  # nothing rides on the held box: skip simulating the carry
+
+
+def carry_duration(distance: float, steps: int) -> float:
+    """Minimum carry time: >= 0.6 s per 30 cm so that boxes stacked on the load ride along
+    (no faster than the arm's carry at its TCP acceleration limit, skills/timing.py)."""
+    return 0.6 * distance / 0.3 + 0.05 * steps
 
 
 def plan_hand(

@@ -123,11 +123,6 @@ def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGe
     return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
 
 
-def carry_duration(distance: float, steps: int) -> float:
-    """Minimum carry time: >= 0.6 s per 30 cm so that boxes stacked on the load ride along."""
-    return 0.6 * distance / 0.3 + 0.05 * steps
-
-
 class PickPlacePlanner:
     """Turns an action and the caller's object states into a joint trajectory."""
 

@@ -60,8 +60,7 @@ class PathTimer:
             return self._dwell(phase)
         path = self._path(phase.waypoints)
         if path is None:  # the waypoints coincide: nothing to move
-            q = phase.waypoints[0]
-            return np.zeros(1), q[None, :], np.zeros((1, len(q)))
+            return _still(phase.waypoints[0])
         s_of_t = self._parametrise(path, phase)
         n = max(2, int(np.ceil(s_of_t.end_time() / SAMPLE_PERIOD)) + 1)
         times = np.linspace(0.0, s_of_t.end_time(), n)
@@ -75,8 +74,7 @@ class PathTimer:
 
     def _dwell(self, phase: Phase):
         if phase.dwell <= 0.0:
-            q = phase.waypoints[0]
-            return np.zeros(1), q[None, :], np.zeros((1, len(q)))
+            return _still(phase.waypoints[0])
         q0 = phase.waypoints[0]
         q1 = q0.copy()
         q1[6:] = phase.finger
@@ -128,3 +126,8 @@ class PathTimer:
         trajectory = PiecewisePolynomial.CubicHermite(
             np.array(times), np.column_stack(qs), np.column_stack(vs))
         return trajectory, ends
+
+
+def _still(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A phase that takes no time: the one sample q, at rest."""
+    return np.zeros(1), q[None, :], np.zeros((1, len(q)))

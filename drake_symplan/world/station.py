@@ -62,7 +62,6 @@ ROBOTS = ("ur10", "hand")  # StationConfig.robot
 # (docs/speed.md).
 TIME_STEP = 1e-2  # s
 
-
 # Home: TCP at (0.35, 0, 0.30) pointing down, behind the workspace (x >= 0.45): the
 # cameras see every object unoccluded, and every pick starts close by.
 HOME_Q = np.array([-0.4757, -2.1928, 2.4549, -1.8312, -1.5838, -2.0314])
