@@ -137,3 +137,61 @@ def test_with_nothing_verified_the_first_skeleton_runs_on_its_symbols():
     assert found.solved and found.level == "symbolic" and found.steps == on_b.steps
     assert "runs on its symbols" in found.message
     assert [c.accepted for c in found.candidates] == [False, False, False]
+
+
+class Staying(torch.nn.Module):
+    """An effect model that says: nothing moves (the grasp missed)."""
+
+    def forward(self, state, action, mask):
+        return torch.zeros(*state.shape[:2], 6)
+
+
+def test_an_ensemble_predicts_its_members_mean_and_their_disagreement():
+    model = ContinuousModel([Lifting(), Staying()])
+    after = model.predict(START, [Action("a", "center", "c", "left")])[0]
+    lifted, stayed = np.array([0.7, -0.075, 0.075]), np.array([0.5, 0.2, 0.025])
+    assert np.allclose(after.where()["a"], (lifted + stayed) / 2, atol=1e-6)
+    half = np.linalg.norm(lifted - stayed) / 2
+    assert np.allclose(after.uncertainty(), [half, 0.0, 0.0], atol=1e-6)
+    # Along a rollout the spreads add up as independent errors do.
+    again = model.predict(after, [Action("a", "center", "c", "left")])[0]
+    assert again.uncertainty()[0] > half
+    assert ContinuousModel(Lifting()).predict(START, [Action("a", "center", "c", "left")]
+                                              )[0].spread is None
+
+
+class Unsure(Stacking):
+    """Stacking, but unsure by 5 cm where a box released on the left lands."""
+
+    def predict(self, scene: Boxes, actions: list[Action]) -> list[Boxes]:
+        out = super().predict(scene, actions)
+        return [after.moved(after.positions, np.where(
+            np.array(scene.names) == a.source, 0.05 if a.release == "left" else 0.0, 0.0))
+                for after, a in zip(out, actions, strict=True)]
+
+
+def test_a_plan_whose_end_is_uncertain_is_not_accepted_however_close_its_mean():
+    goal = boxes(a=(0.7, release_shift(Action("a", "center", "c", "left")), 0.075),
+                 b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    left = Plan("solved", [Step(STACK["left"], ("a", "c"))])
+    sure = plan_bilevel(Skeletons(left), Refiner(list(STACK.values()), Stacking(),
+                                                 extra_moves=0), None, None, START, goal,
+                        budget=Budget(10.0, 30.0))
+    assert sure.level == "bilevel" and sure.candidates[0].errors_cm["a"] == 0.0
+    unsure = plan_bilevel(Skeletons(left), Refiner(list(STACK.values()), Unsure(),
+                                                   extra_moves=0, max_depth=0),
+                          None, None, START, goal, budget=Budget(10.0, 30.0))
+    assert unsure.level == "symbolic"  # nothing verified: the skeleton runs on its symbols
+    assert unsure.candidates[0].errors_cm["a"] == 5.0  # the mean on the goal, 5 cm unsure
+
+
+def test_when_nothing_reaches_the_goal_the_steps_predicted_nearest_it_run():
+    tower = boxes(a=(0.7, 0.0, 0.125), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
+    refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=0, max_depth=1)
+    found = plan_bilevel(Skeletons(Plan("solved", [])), refiner, None, None, START, tower,
+                         budget=Budget(10.0, 30.0))  # the goal's symbols hold already
+    assert found.solved and found.level == "continuous" and "nearest" in found.message
+    assert [s.action for s in found.steps] == [Action("b", "center", "c", "center")]
+    # Nothing nearer than the start: the empty plan stands (the agent then fails honestly).
+    assert not plan_bilevel(Skeletons(Plan("solved", [])), refiner, None, None, START,
+                            START, budget=Budget(10.0, 30.0)).steps

@@ -182,7 +182,9 @@ def test_solves_a_one_action_goal_and_reports_the_documented_json():
     assert [str(s) for s in result.plan] == [str(s) for s in result.executed] == [STEP]
     assert backend.executed == [Action("a", "center", "b", "center")]
     out = result.to_json()
-    assert set(out) == {"status", "plan", "executed", "replans", "objects", "seconds"}
+    assert set(out) == {"status", "plan", "executed", "replans", "objects", "level",
+                        "seconds"}
+    assert out["level"] == "symbolic"  # the level that found the first plan
     assert set(out["seconds"]) == {"perceive", "symbols", "plan", "execute", "total"}
     assert set(out["objects"]["a"]) == {"goal", "final", "final_true", "error_cm"}
     assert out["objects"]["a"]["error_cm"] == 0.0

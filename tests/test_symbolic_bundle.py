@@ -175,11 +175,20 @@ def test_a_continuous_model_is_added_to_a_bundle_and_loaded_beside_its_symbol_mo
     from drake_symplan.cli import main as cli_main
 
     path = bundle.bundle.path
-    assert bundle.bundle.continuous is bundle.bundle.model  # none: the symbol model rolls
+    assert bundle.bundle.continuous == [bundle.bundle.model]  # none: the symbol model rolls
     run = path.parent / "run"
     assert cli_main.main(["bundle", "--continuous", str(run), "--out", str(path)]) == 0
     again = ModelBundle.load(path)
-    assert (path / "continuous.pt").is_file() and again.continuous is not again.model
-    assert type(again.continuous) is type(again.model)
+    assert (path / "continuous.pt").is_file() and len(again.continuous) == 1
+    assert again.continuous[0] is not again.model
+    assert type(again.continuous[0]) is type(again.model)
+    # Several runs: an ensemble's members in one file, each with the run's weights.
+    assert cli_main.main(["bundle", "--continuous", str(run), str(run), "--out",
+                          str(path)]) == 0
+    members = ModelBundle.load(path).continuous
+    assert len(members) == 2
+    for member in members:
+        for key, value in member.state_dict().items():
+            assert torch.equal(value, again.continuous[0].state_dict()[key])
     assert cli_main.main(["bundle", "--out", str(path)]) == 2  # neither --run nor --continuous
     assert "give --run and --data" in capsys.readouterr().err

@@ -12,7 +12,8 @@ of its goal position; otherwise the search backtracks over choices, then skeleto
 no skeleton refines (or the planner finds none) a weighted best-first search over all
 pick/place actions, with the same model and the summed predicted distance to the goal as
 its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap, so a problem
-gets the same answer on a busy host as on a quiet one.
+gets the same answer on a busy host as on a quiet one: one budget per plan, of which the
+skeletons (planner calls and refinement) may use half, the continuous search the rest.
 """
 
 from __future__ import annotations
@@ -28,11 +29,17 @@ from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.features import box_of
+from drake_symplan.planning.planners import children_cpu
 from drake_symplan.structs import GOAL_TOLERANCE, OFFSET_METRES, OFFSETS, Action
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
 MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
+# Of the CPU budget left: the symbolic planner's call for a skeleton, then the share kept for
+# the continuous search when no skeleton refines (so a planner timeout leaves it time).
+SKELETON_SHARE = 0.5
+SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
+NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 
 
 def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
@@ -49,15 +56,29 @@ def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> lis
 
 
 class Budget:
-    """CPU seconds with a wall-clock cap, counted from construction."""
+    """CPU seconds with a wall-clock cap, counted from construction; the CPU is this
+    process's and its finished children's (the symbolic planner runs in child processes)."""
 
     def __init__(self, cpu_seconds: float, wall_seconds: float):
         self.cpu, self.wall = cpu_seconds, wall_seconds
-        self.cpu0, self.wall0 = time.process_time(), time.perf_counter()
+        self.cpu0, self.wall0 = _cpu(), time.perf_counter()
+
+    def left(self) -> float:
+        """CPU seconds left (the wall-clock cap counted as CPU when it is nearer)."""
+        return min(self.cpu - (_cpu() - self.cpu0),
+                   self.wall - (time.perf_counter() - self.wall0))
 
     def spent(self) -> bool:
-        return (time.process_time() - self.cpu0 > self.cpu
-                or time.perf_counter() - self.wall0 > self.wall)
+        return self.left() <= 0
+
+    def share(self, fraction: float) -> Budget:
+        """A budget of `fraction` of what is left, from now."""
+        left = max(self.left(), 0.0)
+        return Budget(fraction * left, fraction * left * self.wall / max(self.cpu, 1e-9))
+
+
+def _cpu() -> float:
+    return time.process_time() + children_cpu()
 
 
 @dataclass
@@ -85,8 +106,11 @@ class Refined:
 
 
 def goal_errors(boxes: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
+    """Each box's distance (m) to its goal position, as far as it may be: the predicted
+    distance plus the prediction's spread (zero for a perceived scene)."""
     where = boxes.where()
-    return {n: float(np.linalg.norm(where[n] - goal[n])) for n in goal}
+    spread = dict(zip(boxes.names, boxes.uncertainty(), strict=True))
+    return {n: float(np.linalg.norm(where[n] - goal[n]) + spread[n]) for n in goal}
 
 
 def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> bool:
@@ -163,19 +187,22 @@ class Refiner:
         return None
 
     def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget
-               ) -> Refined | None:
+               ) -> tuple[Refined | None, Refined]:
         """Weighted best-first search over pick/place moves in predicted space: f = steps
-        + weight * (summed distance to the goal) / STEP_SCALE."""
+        + weight * (summed distance to the goal) / STEP_SCALE. (the plan that reaches the
+        goal or None, the plan predicted to end nearest it, by the summed distance)."""
         def h(boxes):
             return sum(goal_errors(boxes, goal).values()) / STEP_SCALE
 
         tie = itertools.count()
         frontier = [(self.weight * h(start), next(tie), start, Refined([], []))]
+        nearest = (h(start), Refined([], []))
         seen = set()
         while frontier and not budget.spent():
             _, _, boxes, done = heapq.heappop(frontier)
             if reaches_goal(boxes, goal, self.limit):
-                return done
+                return done, done
+            nearest = min(nearest, (h(boxes), done), key=lambda pair: pair[0])
             key = tuple(np.round(boxes.positions, 2).ravel())
             if key in seen or len(done.steps) >= self.max_depth:
                 continue
@@ -186,7 +213,7 @@ class Refiner:
                 heapq.heappush(frontier, (steps + self.weight * h(after), next(tie), after,
                                           Refined(done.steps + [option],
                                                   done.predicted + [after])))
-        return None
+        return None, nearest[1]
 
 
 def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
@@ -203,45 +230,71 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
     unverified = None  # the first skeleton, run on its symbols if nothing else is found
     if planning == "bilevel":
         believed, goal_atoms = abstraction.believed(start), abstraction.goal_atoms(goal)
-        for i, found in enumerate(skeletons(abstraction, start, goal, planner, timeout), 1):
+        symbolic = budget.share(1 - SEARCH_SHARE)
+        for i, found in enumerate(skeletons(abstraction, start, goal, planner, symbolic), 1):
             if not found.solved:
                 candidates.append(Candidate(f"skeleton {i}", [], False,
                                             f"planner: {found.status}"))
                 continue
             unverified = unverified or found
             refined = refiner.refine(found.steps, start_boxes, believed, goal_atoms, target,
-                                     budget)
+                                     symbolic)
             candidates.append(_candidate(f"skeleton {i}", found.steps, refined, refiner,
                                          start_boxes, target))
             if refined is not None:
                 return Plan("solved", refined.steps, time.perf_counter() - t0, "", planner,
                             level="bilevel", predicted=refined.predicted,
                             candidates=candidates)
-            if budget.spent():
+            if symbolic.spent():
                 break
-    refined = refiner.search(start_boxes, target, Budget(budget.cpu, budget.wall))
+    refined, nearest = refiner.search(start_boxes, target, budget)
     candidates.append(_candidate("continuous", [], refined, refiner, start_boxes, target))
-    if refined is None and unverified is not None:
+    seconds = time.perf_counter() - t0
+    if refined is not None:
+        return Plan("solved", refined.steps, seconds, "", planner, level="continuous",
+                    predicted=refined.predicted, candidates=candidates)
+    missed = "no plan reaches the goal positions in prediction"
+    if unverified is not None and unverified.steps:
         # Predictions are not the world (`symplan eval rollout`): the symbolic plan still
         # has its chance, completed and monitored as a symbolic plan is.
-        return Plan("solved", unverified.steps, time.perf_counter() - t0,
-                    "no plan reaches the goal positions in prediction; the first skeleton "
+        return Plan("solved", unverified.steps, seconds, f"{missed}; the first skeleton "
                     "runs on its symbols", planner, level="symbolic", candidates=candidates)
-    if refined is None:
-        return Plan("timeout", [], time.perf_counter() - t0,
-                    "no plan reaches the goal positions in prediction", planner,
-                    level=planning, candidates=candidates)
-    return Plan("solved", refined.steps, time.perf_counter() - t0, "", planner,
-                level="continuous", predicted=refined.predicted, candidates=candidates)
+    if _nearer(nearest, start_boxes, target):
+        # Nothing reaches the goal, but these steps are predicted to bring the boxes
+        # nearer it; the monitor replans from what is perceived at their end.
+        return Plan("solved", nearest.steps, seconds, f"{missed}; the steps predicted "
+                    "nearest it run, then a replan", planner, level="continuous",
+                    predicted=nearest.predicted, candidates=candidates)
+    if unverified is not None:  # the goal's symbols hold already: nothing to run
+        return Plan("solved", [], seconds, missed, planner, level="symbolic",
+                    candidates=candidates)
+    return Plan("timeout", [], seconds, missed, planner, level=planning,
+                candidates=candidates)
 
 
-def skeletons(abstraction, start, goal, planner: str, timeout: float):
+def _nearer(plan: Refined, start: Boxes, goal: dict[str, np.ndarray]) -> bool:
+    """Is `plan` predicted to end at least NEARER (summed over the boxes) closer to the
+    goal than `start` is?"""
+    if not plan.steps:
+        return False
+    before = sum(goal_errors(start, goal).values())
+    return sum(goal_errors(plan.predicted[-1], goal).values()) <= before - NEARER
+
+
+def skeletons(abstraction, start, goal, planner: str, budget: Budget):
     """The symbolic planner's plans: the focus objects' first, then over every object
-    when that gives another."""
-    wall = 3 * timeout
-    first = abstraction.plan(start, goal, planner, wall, cpu_seconds=timeout)
+    when that gives another. Each call has SKELETON_SHARE of the budget left; after a
+    timeout there is no second call (a larger task would not be faster)."""
+    def call(**options):
+        share = budget.share(SKELETON_SHARE)
+        return abstraction.plan(start, goal, planner, share.wall, cpu_seconds=share.cpu,
+                                **options)
+
+    first = call()
     yield first
-    every = abstraction.plan(start, goal, planner, wall, focus=False, cpu_seconds=timeout)
+    if first.status == "timeout" or budget.spent():
+        return
+    every = call(focus=False)
     if [str(s) for s in every.steps] != [str(s) for s in first.steps] or not first.solved:
         yield every
 

@@ -33,11 +33,17 @@ from drake_symplan.structs import (
 @dataclass(frozen=True)
 class Boxes:
     """A scene as the continuous model sees it: named objects, their features [n, d_o]
-    (position first, features.py) and the pairs in contact."""
+    (position first, features.py), the pairs in contact, and how uncertain each position
+    is (`spread` [n], m: the ensemble's disagreement accumulated along a rollout; zero for
+    a perceived scene)."""
 
     names: tuple[str, ...]
     features: np.ndarray
     contacts: frozenset
+    spread: np.ndarray | None = None
+
+    def uncertainty(self) -> np.ndarray:
+        return np.zeros(len(self.names)) if self.spread is None else self.spread
 
     @classmethod
     def of(cls, scene) -> Boxes:
@@ -52,15 +58,19 @@ class Boxes:
     def where(self) -> dict[str, np.ndarray]:
         return {n: self.features[i, :3].astype(float) for i, n in enumerate(self.names)}
 
-    def moved(self, positions: np.ndarray) -> Boxes:
-        """The same boxes at `positions` [n, 3], their contacts from the geometry."""
+    def moved(self, positions: np.ndarray, spread: np.ndarray | None = None) -> Boxes:
+        """The same boxes at `positions` [n, 3], their contacts from the geometry; `spread`
+        [n] is added to the uncertainty they had (root sum of squares)."""
         features = self.features.copy()
         features[:, :3] = positions
         geometry = {}
         for name, row in zip(self.names, features, strict=True):
             kind, centre, R = box_of(row)
             geometry[name] = (centre, R, np.asarray(HALF_EXTENTS[kind]))
-        return Boxes(self.names, features, frozenset(contact_graph(geometry)))
+        if spread is not None:
+            spread = np.sqrt(self.uncertainty() ** 2 + np.asarray(spread) ** 2)
+        return Boxes(self.names, features, frozenset(contact_graph(geometry)),
+                     spread if spread is not None else self.spread)
 
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves
@@ -69,11 +79,17 @@ class Boxes:
 
 
 class ContinuousModel:
-    """`predict(boxes, actions)`: the scene after each action, from a trained effect
-    model (learning/models.py) run without sampling (its bits read by their sign)."""
+    """`predict(boxes, actions)`: the scene after each action, from trained effect models
+    (learning/models.py) run without sampling (bits read by their sign). With several
+    (an ensemble trained on other seeds) the positions are the members' mean and each
+    box's spread is the members' largest distance from it: where the robot's data leave
+    the outcome open, the members disagree."""
 
-    def __init__(self, model: torch.nn.Module):
-        self.model = model.eval()
+    def __init__(self, models: torch.nn.Module | list[torch.nn.Module]):
+        members = models if isinstance(models, (list, tuple)) else [models]
+        if not members:
+            raise ValueError("a continuous model needs at least one effect model")
+        self.members = [m.eval() for m in members]
 
     def predict(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
         """The predicted scene after each of `actions` from `boxes`, in one batch."""
@@ -90,10 +106,17 @@ class ContinuousModel:
             code[b, :len(row)] = encode_action(action, [boxes.names[i] for i in row])
             mask[b, :len(row)] = True
         with torch.no_grad():
-            effect = self.model(torch.from_numpy(state), torch.from_numpy(code),
-                                torch.from_numpy(mask)).numpy()
-        return [boxes.moved(self._positions(boxes, action, row, effect[b, :len(row)]))
-                for b, (action, row) in enumerate(zip(actions, rows, strict=True))]
+            inputs = (torch.from_numpy(state), torch.from_numpy(code), torch.from_numpy(mask))
+            effects = [m(*inputs).numpy() for m in self.members]
+        out = []
+        for b, (action, row) in enumerate(zip(actions, rows, strict=True)):
+            each = np.stack([self._positions(boxes, action, row, e[b, :len(row)])
+                             for e in effects])
+            mean = each.mean(axis=0)
+            spread = np.linalg.norm(each - mean, axis=-1).max(axis=0) \
+                if len(effects) > 1 else None
+            out.append(boxes.moved(mean, spread))
+        return out
 
     def rollout(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
         """The scenes after each action of a sequence, one applied after the other."""
@@ -117,8 +140,3 @@ class ContinuousModel:
             out[i] = out[i] + e[:3] + e[3:] + (carry if lifted else 0.0)
         return out
 
-
-def errors(predicted: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
-    """Each object's predicted distance (m) to its goal position."""
-    where = predicted.where()
-    return {n: float(np.linalg.norm(where[n] - np.asarray(goal[n], float))) for n in goal}

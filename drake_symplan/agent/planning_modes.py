@@ -19,7 +19,9 @@ from drake_symplan.agent.config import SolveConfig
 from drake_symplan.structs import GOAL_TOLERANCE, Action
 from drake_symplan.symbolic.structs import PlanStep, Reposition, reaches
 
-DEVIATION = 0.03  # m: a box perceived this far from its predicted position departs the plan
+# m: a box perceived this far from its predicted position (beyond the prediction's spread)
+# departs the plan
+DEVIATION = 0.03
 WALL_FACTOR = 3.0  # the wall-clock cap of a CPU-second budget, as a multiple of it
 
 
@@ -68,7 +70,8 @@ class Planner:
             if predicted is None:
                 return False
             where = predicted.where()
-            return any(np.linalg.norm(o.position - where[o.name]) > DEVIATION
+            spread = dict(zip(predicted.names, predicted.uncertainty(), strict=True))
+            return any(np.linalg.norm(o.position - where[o.name]) > DEVIATION + spread[o.name]
                        for o in seen_scene.objects if o.name in where)
         if isinstance(step, Reposition):  # no symbolic prediction: the rest must apply
             return not reaches(rest, believed, goal_atoms)

@@ -73,6 +73,8 @@ class SolveResult:
     # The first plan's candidates (bilevel and continuous planning): the plans looked at,
     # the rejected ones with why (abstraction/bilevel.py: Candidate).
     candidates: list = dc.field(default_factory=list)
+    # Which level found the first plan: "symbolic", "bilevel", "continuous" or "oracle".
+    level: str = ""
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -85,7 +87,7 @@ class SolveResult:
     def to_json(self) -> dict:
         out = {"status": self.status, "plan": [str(s) for s in self.plan],
                "executed": [str(s) for s in self.executed], "replans": self.replans,
-               "objects": self.objects,
+               "objects": self.objects, "level": self.level,
                "seconds": {k: round(v, 4) for k, v in self.seconds.items()}}
         if self.candidates:
             out["candidates"] = [c.to_json() for c in self.candidates]
@@ -199,7 +201,7 @@ class _Run:
             first = self._search()
             if self.on_plan is not None:
                 self.on_plan(first, start, goal)
-            self.result.candidates = first.candidates
+            self.result.candidates, self.result.level = first.candidates, first.level
             self.steps = self._steps(first)
             self.result.plan = list(self.steps)
             while True:

@@ -65,9 +65,10 @@ def _register_bundle(subparsers) -> None:
     b.add_argument("--data", type=Path,
                    help="data set collected with whole scenes (the run's training set)")
     b.add_argument("--out", type=Path, required=True, help="bundle directory to write")
-    b.add_argument("--continuous", type=Path, default=None, metavar="RUN",
-                   help="a trained run whose model bilevel planning rolls forward "
-                   "(continuous.pt); without --run, added to the bundle in --out as it is")
+    b.add_argument("--continuous", type=Path, nargs="+", default=None, metavar="RUN",
+                   help="trained runs whose models bilevel planning rolls forward "
+                   "(continuous.pt; several: an ensemble, its disagreement the uncertainty); "
+                   "without --run, added to the bundle in --out as it is")
     b.add_argument("--learner", choices=LEARNERS, default="effect", metavar="LEARNER",
                    help="one of %(choices)s: effect, effect-first operators with "
                    "reliabilities; paper, the paper's method as implemented (default effect)")
@@ -118,9 +119,9 @@ def _register_eval_rollout(subparsers) -> None:
     add_heldout_arguments(e)
     e.add_argument("--k", type=positive_int, nargs="+", default=[1, 2, 3, 4, 5],
                    help="actions rolled forward, one table row each")
-    e.add_argument("--run", type=Path, default=None,
-                   help="a trained run's model instead of the bundle's (its continuous.pt "
-                   "if it has one, else its model.pt)")
+    e.add_argument("--run", type=Path, nargs="+", default=None,
+                   help="trained runs' models (several: an ensemble) instead of the "
+                   "bundle's (its continuous.pt if it has one, else its model.pt)")
     e.add_argument("--max-starts", type=positive_int, default=200,
                    help="rollouts per k, sampled with --seed (default 200)")
     e.add_argument("--seed", type=int, default=0, help="seed of the choice of rollouts")
@@ -223,7 +224,8 @@ def cmd_bundle(args) -> dict:
 
     if args.run is None and args.continuous is not None:
         ModelBundle.load(args.out)  # an existing bundle, or a one-line error
-        load_run(args.continuous)
+        for run in args.continuous:
+            load_run(run)
         path = copy_model(args.continuous, args.out / CONTINUOUS)
         return {"out": str(args.out), "continuous": str(path)}
     if args.run is None or args.data is None:
@@ -270,11 +272,13 @@ def cmd_eval_rollout(args) -> dict:
     if args.run is not None:
         from drake_symplan.learning.checkpoint import load_run
 
-        model, source = load_run(args.run)[0], str(args.run)
+        model = [load_run(run)[0] for run in args.run]
+        source = " ".join(str(run) for run in args.run)
     else:
         bundle = ModelBundle.load(args.model)
         model = bundle.continuous
-        source = str(bundle.path / (CONTINUOUS if model is not bundle.model else "model.pt"))
+        source = str(bundle.path / (CONTINUOUS if (bundle.path / CONTINUOUS).is_file()
+                                    else "model.pt"))
     report = evaluate_rollouts(model, args.data,
                                RolloutConfig(tuple(args.k), args.max_starts, args.seed))
     report["model"] = source
@@ -282,5 +286,6 @@ def cmd_eval_rollout(args) -> dict:
         for k, row in report["by_k"].items():
             print(f"k={k}: {row['rollouts']} rollouts, error median {row['error_cm']['median']}"
                   f" cm (moved objects {row['moved_error_cm']['median']} cm), scenes within "
-                  f"5 cm {row['scenes_within_5cm']:.0%}")
+                  f"5 cm {row['scenes_within_5cm']:.0%}; sure of {row['sure_share']:.0%}, "
+                  f"of those within 5 cm {row['sure_within_5cm'] or 0:.0%}")
     return report

@@ -68,6 +68,13 @@ def model_from_checkpoint(ckpt: dict) -> EffectModel:
     return model
 
 
+def models_from_file(path: str | Path) -> list[EffectModel]:
+    """The models of a checkpoint file, in eval mode: one, or an ensemble's members (a file
+    of {"members": [checkpoint, ...]})."""
+    ckpt = read_checkpoint(path)
+    return [model_from_checkpoint(c).eval() for c in ckpt.get("members", [ckpt])]
+
+
 def load_run(run_dir: str | Path, which: str = BEST) -> tuple[EffectModel, dict]:
     """(model in eval mode, config) from the `best.pt` checkpoint of `run_dir`.
 

@@ -8,8 +8,9 @@ Layout of a bundle directory (`models/learned/` is the shipped default):
 - `domain.pddl` (with `:action-costs`, for Fast Downward) and `domain_strips.pddl` (the
   same actions without costs, for pyperplan);
 - `provenance.json`: commands, seeds, data fingerprints and the bundle's measured figures;
-- `continuous.pt` (optional): an effect model that bilevel planning rolls forward instead
-  of the symbol model (abstraction/continuous.py), e.g. one without the bottleneck.
+- `continuous.pt` (optional): the effect models that bilevel planning rolls forward instead
+  of the symbol model (abstraction/continuous.py): one, or an ensemble's members (models
+  without the bottleneck trained on other seeds; their disagreement is the uncertainty).
 
 What a bundle does with scenes (read symbols, plan, check steps) is the abstraction layer's
 (drake_symplan/abstraction/).
@@ -27,6 +28,7 @@ from drake_symplan.learning.checkpoint import (
     BEST,
     load_run,
     model_from_checkpoint,
+    models_from_file,
     read_checkpoint,
     save_checkpoint,
 )
@@ -104,8 +106,8 @@ class ModelBundle:
                  semantics: Semantics, info: dict, provenance: dict,
                  margin: float = DEFAULT_MARGIN, continuous=None):
         self.path, self.model, self.operators = path, model, operators
-        # The effect model bilevel planning rolls forward: continuous.pt, else the model.
-        self.continuous = continuous if continuous is not None else model
+        # The effect models bilevel planning rolls forward: continuous.pt's, else the model.
+        self.continuous = continuous if continuous is not None else [model]
         self.semantics, self.info, self.provenance, self.margin = (
             semantics, info, provenance, margin)
         self.by_name = {op.name: op for op in operators}
@@ -127,7 +129,7 @@ class ModelBundle:
             operators, semantics, info = read_operators_json(
                 json.loads((path / "operators.json").read_text()))
             model = model_from_checkpoint(read_checkpoint(path / "model.pt")).eval()
-            continuous = model_from_checkpoint(read_checkpoint(path / CONTINUOUS)).eval() \
+            continuous = models_from_file(path / CONTINUOUS) \
                 if (path / CONTINUOUS).is_file() else None
         except (ValueError, KeyError, TypeError, OSError, RuntimeError) as e:
             raise BundleError(f"model directory {path}: cannot read it ({e})") from e
@@ -142,13 +144,17 @@ class ModelBundle:
 # --- making a bundle --------------------------------------------------------------------
 
 
-def copy_model(run_dir: str | Path, path: Path) -> Path:
-    """A run's best checkpoint as a bundle's model file: what rebuilds the model and says
-    where it came from, no optimizer state."""
-    ckpt = read_checkpoint(Path(run_dir) / BEST)
-    return save_checkpoint(path, {k: ckpt[k] for k in (
-        "model", "model_config", "model_state", "epoch", "train_config", "data_fingerprint",
-        "metrics") if k in ckpt})
+def copy_model(run_dirs: str | Path | list, path: Path) -> Path:
+    """Runs' best checkpoints as a bundle's model file: what rebuilds each model and says
+    where it came from, no optimizer state. Several runs: an ensemble's members."""
+    runs = run_dirs if isinstance(run_dirs, (list, tuple)) else [run_dirs]
+    kept = []
+    for run in runs:
+        ckpt = read_checkpoint(Path(run) / BEST)
+        kept.append({k: ckpt[k] for k in ("model", "model_config", "model_state", "epoch",
+                                          "train_config", "data_fingerprint", "metrics")
+                     if k in ckpt})
+    return save_checkpoint(path, kept[0] if len(kept) == 1 else {"members": kept})
 
 
 def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
@@ -168,9 +174,9 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
 
 def write_bundle(out: str | Path, run_dir: str | Path, operators, semantics: Semantics,
                  info: dict, provenance: dict, margin: float = DEFAULT_MARGIN,
-                 continuous_run: str | Path | None = None) -> Path:
+                 continuous_run: str | Path | list | None = None) -> Path:
     """Writes a bundle directory (every file atomically) from a run's best checkpoint, and
-    `continuous_run`'s as continuous.pt."""
+    `continuous_run`'s (one run or several) as continuous.pt."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     model, _ = load_run(run_dir)
