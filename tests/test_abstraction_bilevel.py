@@ -4,12 +4,15 @@ continuous search where the symbols find nothing; the continuous model's arithme
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import torch
 
 from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.agent.planning_modes import Planner
 from drake_symplan.features import object_features
 from drake_symplan.structs import Action, release_shift
 from drake_symplan.symbolic.structs import LiftedOperator, Reposition, Step
@@ -195,3 +198,41 @@ def test_when_nothing_reaches_the_goal_the_steps_predicted_nearest_it_run():
     # Nothing nearer than the start: the empty plan stands (the agent then fails honestly).
     assert not plan_bilevel(Skeletons(Plan("solved", [])), refiner, None, None, START,
                             START, budget=Budget(10.0, 30.0)).steps
+
+
+class Seen:
+    """A perceived scene as the agent's monitor gets it (names, features(), contacts,
+    objects with name and position), made from Boxes."""
+
+    def __init__(self, scene: Boxes):
+        self.names, self.contacts, self._features = scene.names, scene.contacts, scene.features
+        self.objects = [SimpleNamespace(name=n, position=scene.features[i, :3].astype(float))
+                        for i, n in enumerate(scene.names)]
+
+    def features(self):
+        return self._features
+
+
+def test_a_miss_the_rest_of_the_plan_absorbs_costs_no_replan():
+    planner = object.__new__(Planner)  # the monitor alone: no abstraction needed
+    planner.refiner, planner.level = Refiner(list(STACK.values()), Stacking()), "bilevel"
+    tower = boxes(a=(0.7, 0.0, 0.075), b=(0.7, 0.0, 0.125), c=(0.7, 0.0, 0.025))
+    steps = [Reposition(Action("a", "center", "c", "center"), "move"),
+             Reposition(Action("b", "center", "a", "center"), "move")]
+    predicted = Stacking().predict(START, [steps[0].action])[0]
+
+    def seen(dx):
+        where = predicted.positions.astype(float).copy()
+        where[0, 0] += dx  # a landed dx off along x
+        return Seen(predicted.moved(where))
+
+    def departs(scene):
+        return planner.departs(steps[0], predicted, None, scene, steps[1:], None, None,
+                               Seen(tower))
+
+    assert not departs(seen(0.0))
+    # 3.5 cm off: over the 3 cm deviation, but b follows a and both end within 4 cm.
+    assert not departs(seen(0.035))
+    assert departs(seen(0.06))  # 6 cm off: the rest cannot make up for it; replan
+    assert not planner.departs(steps[1], predicted, None, seen(0.06), [], None, None,
+                               Seen(tower))  # the last step: the goal check decides

@@ -146,6 +146,12 @@ class Refiner:
         self.predictions += len(steps)
         return self.continuous.predict(boxes, [s.action for s in steps])
 
+    def rollout(self, boxes: Boxes, steps: list[PlanStep]) -> Boxes:
+        """The scene predicted after `steps`, one after the other, from `boxes`."""
+        for step in steps:
+            boxes = self._predict(boxes, [step])[0]
+        return boxes
+
     def refine(self, skeleton: list[Step], start: Boxes, believed, goal_atoms,
                goal: dict[str, np.ndarray], budget: Budget) -> Refined | None:
         """The skeleton's offsets chosen and extra moves added so that the predicted end
@@ -309,11 +315,7 @@ def _candidate(source: str, skeleton, refined: Refined | None, refiner: Refiner,
                          _cm(goal_errors(end, target)))
     if not skeleton:
         return Candidate(source, [], False, "no plan within the budget")
-    ends = refiner.continuous.predict(start, [skeleton[0].action]) if skeleton else [start]
-    end = ends[0]
-    for step in skeleton[1:]:
-        end = refiner.continuous.predict(end, [step.action])[0]
-    errors = _cm(goal_errors(end, target))
+    errors = _cm(goal_errors(refiner.rollout(start, skeleton), target))
     far = {n: e for n, e in errors.items() if e > 100 * refiner.limit}
     return Candidate(source, [str(s) for s in skeleton], False,
                      f"predicted off the goal by more than {100 * refiner.limit:g} cm: "

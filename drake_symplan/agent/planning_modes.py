@@ -64,15 +64,22 @@ class Planner:
         return self.level in ("bilevel", "continuous")
 
     def departs(self, step: PlanStep, predicted: Boxes | None, seen: Reading, seen_scene,
-                rest: list[PlanStep], believed, goal_atoms) -> bool:
-        """Has the scene perceived after `step` left the plan?"""
+                rest: list[PlanStep], believed, goal_atoms, goal_scene=None) -> bool:
+        """Has the scene perceived after `step` left the plan? A plan checked in continuous
+        space has left it when a box is off its predicted position and the rest of the
+        plan, predicted again from what is seen, no longer reaches the goal (a small
+        miss that the rest absorbs costs no replan); at its end the goal check decides."""
         if self.predicts_positions:
-            if predicted is None:
+            if predicted is None or not rest:
                 return False
             where = predicted.where()
             spread = dict(zip(predicted.names, predicted.uncertainty(), strict=True))
-            return any(np.linalg.norm(o.position - where[o.name]) > DEVIATION + spread[o.name]
-                       for o in seen_scene.objects if o.name in where)
+            off = any(np.linalg.norm(o.position - where[o.name]) > DEVIATION + spread[o.name]
+                      for o in seen_scene.objects if o.name in where)
+            if not off or goal_scene is None:
+                return off
+            end = self.refiner.rollout(Boxes.of(seen_scene), rest)
+            return not reaches_goal(end, Boxes.of(goal_scene).where(), self.refiner.limit)
         if isinstance(step, Reposition):  # no symbolic prediction: the rest must apply
             return not reaches(rest, believed, goal_atoms)
         return bool(self.abs.mismatches(seen, step))

@@ -299,7 +299,7 @@ class _Run:
         with self.clock("symbols"):
             self._perceived(self.now)
             wrong = self.planner.departs(step, predicted, self.reading, self.now, self.steps,
-                                         self.believed, self.goal_atoms)
+                                         self.believed, self.goal_atoms, self.goal)
         if wrong and self.result.replans < self.config.max_replans:
             try:
                 self.steps = self._replan()
