@@ -71,6 +71,7 @@ MODELS = {  # Table I's three models; RelationalDeepSym in its permutation-invar
     "deepsym": ["--model", "deepsym"],
 }
 LEARNERS = {"relational": ("effect", "paper"), "attentive": ("effect",)}
+MODE_ROWS = ("bilevel", "symbolic", "continuous", "oracle")  # compared on seed 0's problems
 
 
 class StageFailed(RuntimeError):
@@ -192,6 +193,25 @@ class Reproduction:
                       *self._ray()],
                      self.results / "planning.json", stdout=self.results / "planning.json")
 
+    def mode_stages(self) -> list[Stage]:
+        """The comparison rows on the same problems, with the first seed's Relational
+        bundle: the other planning modes monitored, and the oracle (the problems' own
+        actions replayed open loop, the ceiling exact replay reaches)."""
+        run = self.planning_runs()[0]
+        stages = []
+        for mode in MODE_ROWS:
+            if mode == self.solve.planning:
+                continue  # the main stage has it
+            out = self.results / f"planning_{mode}"
+            stages.append(Stage(
+                f"eval planning {mode}",
+                ["eval", "planning", "--runs", run, "--problems", self.out / "problems",
+                 "--records", out.with_suffix(".jsonl"), "--json",
+                 *self.solve.replace(planning=mode).flags(),
+                 "--monitor", "off" if mode == "oracle" else "on", *self._ray()],
+                out.with_suffix(".json"), stdout=out.with_suffix(".json")))
+        return stages
+
     # --- running ----------------------------------------------------------------
 
     def run(self) -> Path:
@@ -209,6 +229,8 @@ class Reproduction:
         for stage in self.problem_stages():
             self._run(stage)
         self._run(self.planning_stage())
+        for stage in self.mode_stages():
+            self._run(stage)
         path = write_results(self)
         self._write_provenance(time.perf_counter() - t0)
         self.say(f"done in {time.perf_counter() - t0:.0f} s: {path}")

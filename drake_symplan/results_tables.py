@@ -182,18 +182,37 @@ def finished_planning(rep) -> tuple[dict, str]:
     return {"runs": summary}, note
 
 
+def modes_planning(rep, planning_result: dict) -> dict:
+    """The planning modes compared on the same problems with the first seed's Relational
+    bundle: its row of the main evaluation (monitored) and the finished mode stages
+    (reproduce.Reproduction.mode_stages), as planning rows {mode: {execution: entry}}."""
+    first = run_label(rep.planning_runs()[0])
+    runs = {}
+    if first in planning_result["runs"]:
+        runs[rep.solve.planning] = {k: v for k, v in planning_result["runs"][first].items()
+                                    if k == MODES[True]}
+    for stage in rep.mode_stages():
+        if stage.done.exists():
+            for summary in json.loads(stage.done.read_text())["runs"].values():
+                runs[stage.name.rsplit(" ", 1)[-1]] = summary
+    return summarise_planning({"runs": runs}) if len(runs) > 1 else {}
+
+
 # --- a reproduction's results.md --------------------------------------------------------
 
 
 def write_results(rep) -> Path:
-    """results.md (and operators_table.json, planning_table.json) of a reproduce.Reproduction."""
+    """results.md (and operators_table.json, planning_table.json, planning_modes_table.json)
+    of a reproduce.Reproduction."""
     res = rep.results
     effects = json.loads((res / "effects.json").read_text())
     operators = summarise_operators(collect_operator_reports(rep.out / "runs"))
     planning_result, planning_note = finished_planning(rep)
     planning = summarise_planning(planning_result)
+    modes = modes_planning(rep, planning_result)
     write_atomic(res / "operators_table.json", json.dumps(operators, indent=1))
     write_atomic(res / "planning_table.json", json.dumps(planning, indent=1))
+    write_atomic(res / "planning_modes_table.json", json.dumps(modes, indent=1))
     s = rep.scale
     text = "\n".join([
         f"# Results: `symplan reproduce --scale {rep.name}`", "",
@@ -206,7 +225,10 @@ def write_results(rep) -> Path:
         operators_markdown(operators), "",
         f"## Planning in the arm, {s.planning_problems} problems per object count "
         f"(% within 5 cm)", "", *([planning_note, ""] if planning_note else []),
-        planning_markdown(planning), "", "![planning](planning.png)", ""])
+        planning_markdown(planning), "", "![planning](planning.png)", "",
+        *([f"### Planning modes on the same problems, Relational seed {s.planning_seeds[0]} "
+           "(oracle: the problems' own actions replayed open loop)", "",
+           planning_markdown(modes), ""] if modes else [])])
     path = res / "results.md"
     write_atomic(path, text)
     return path

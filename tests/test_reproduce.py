@@ -33,6 +33,16 @@ def test_the_stages_of_a_scale(tmp_path):
     bilevel = Reproduction("small", tmp_path, solve=SolveConfig(planning="bilevel", refine=False))
     argv = bilevel.planning_stage().argv
     assert argv[argv.index("--planning") + 1] == "bilevel" and "--no-refine" in argv
+    # The other planning modes on the same problems, seed 0's Relational bundle only.
+    modes = bilevel.mode_stages()
+    assert [st.name for st in modes] == ["eval planning symbolic", "eval planning continuous",
+                                         "eval planning oracle"]
+    for st in modes:
+        runs = st.argv[st.argv.index("--runs") + 1:st.argv.index("--problems")]
+        assert [r.parent.name for r in runs] == ["relational_s0"]
+        mode = st.name.rsplit(" ", 1)[-1]
+        assert st.argv[st.argv.index("--planning") + 1] == mode
+        assert st.argv[st.argv.index("--monitor") + 1] == ("off" if mode == "oracle" else "on")
     on_ray = Reproduction("small", tmp_path, ray="10.0.0.1:6379")
     assert on_ray.collect_stages()[0].argv[-2:] == ["--ray", "10.0.0.1:6379"]
 
@@ -71,6 +81,7 @@ def test_a_failing_stage_is_one_line_and_exit_1(tmp_path, capsys):
 def test_an_unfinished_planning_evaluation_reports_its_whole_runs(tmp_path):
     from drake_symplan.results_tables import (
         finished_planning,
+        modes_planning,
         planning_markdown,
         summarise_planning,
     )
@@ -109,6 +120,15 @@ def test_an_unfinished_planning_evaluation_reports_its_whole_runs(tmp_path):
     text = planning_markdown(table)
     assert "| relational | monitor | 1 | 2 | 50 ± 0 | 100 ± 0 | 0 ± 0 |" in text
     assert text.endswith("| execution 1 (1 with the goal's symbols) |")
+    # A finished mode stage makes the modes table: seed 0's main row beside it.
+    assert modes_planning(rep, result) == {}
+    oracle = next(st for st in rep.mode_stages() if st.name.endswith("oracle"))
+    oracle.done.write_text(json.dumps({"runs": {"relational_s0/bundle_effect": {
+        "open_loop": result["runs"]["relational_s0/bundle_effect"]["monitor"]}}}))
+    modes = modes_planning(rep, result)
+    assert list(modes) == [rep.solve.planning, "oracle"]
+    assert list(modes["oracle"]) == ["open_loop"]
+    assert modes["oracle"]["open_loop"]["success"]["mean"] == 0.5
 
 
 @pytest.mark.slow
