@@ -168,7 +168,7 @@ GOAL = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.6, 0.
 def solve(abstraction, monitor=True, max_replans=2, start=START, goal=GOAL
           ) -> tuple[SolveResult, FakeBackend]:
     backend = FakeBackend()
-    config = SolveConfig("fd", 20.0, monitor, max_replans, refine=False)
+    config = SolveConfig("fd", 20.0, monitor, max_replans, refine=False, planning="symbolic")
     result = Agent(backend).solve(start, goal, abstraction, config)
     return result, backend
 
@@ -265,7 +265,7 @@ def test_an_object_left_short_of_its_goal_is_an_execution_failure():
             return Execution("ok", None, self.perceive(before))
 
     backend = Nudging()
-    config = SolveConfig("fd", 20.0, monitor=False, refine=False)
+    config = SolveConfig("fd", 20.0, monitor=False, refine=False, planning="symbolic")
     result = Agent(backend).solve(START, GOAL, OracleAbstraction(), config)
     assert result.status == "failure" and result.failure_cause == "execution"
     assert result.objects["c"]["error_cm"] == pytest.approx(8.0)
@@ -311,12 +311,13 @@ def test_evaluate_planning_on_a_fake_world(tmp_path):
     records = tmp_path / "records.jsonl"
     kwargs = dict(agent=Agent(FakeBackend()), load=lambda run: OracleAbstraction(),
                   records_path=records)
-    result = evaluate_planning([tmp_path / "oracle"], tmp_path, **kwargs)
+    symbolic = SolveConfig(planning="symbolic")
+    result = evaluate_planning([tmp_path / "oracle"], tmp_path, symbolic, **kwargs)
     summary = result["runs"][f"{tmp_path.name}/oracle"]
     assert summary["monitor"]["success"] == summary["open_loop"]["success"] == 1.0
     assert summary["monitor"]["by_k"]["1"]["plan_length_mean"] == 1.0
     assert len(records.read_text().splitlines()) == 2
-    again = evaluate_planning([tmp_path / "oracle"], tmp_path, **kwargs)  # resumes
+    again = evaluate_planning([tmp_path / "oracle"], tmp_path, symbolic, **kwargs)  # resumes
     assert len(records.read_text().splitlines()) == 2
     assert again["runs"] == result["runs"]
 

@@ -175,6 +175,8 @@ def test_every_option_has_help_that_tells_its_default_and_the_exit_codes(capsys)
                 assert "default" in sub._get_formatter()._expand_help(action), (words, name)
     code, out, _ = run(["solve", "--help"], capsys)
     assert code == 0 and "symplan problems make" in out and "(default: fd)" not in out
+    assert "--timeout TIMEOUT     CPU seconds per plan" in out and "(default 10)" in out
+    code, out, _ = run(["plan", "--help"], capsys)  # a planner call, not a solve
     assert "--timeout TIMEOUT     planner seconds per call (default 10)" in out
 
 

@@ -29,12 +29,13 @@ def test_the_stages_of_a_scale(tmp_path):
     runs = planning[planning.index("--runs") + 1:planning.index("--problems")]
     assert [r.parent.name for r in runs] == ["relational_s0", "attentive_s0"]
     assert "--ray" not in planning
-    assert planning[planning.index("--planning") + 1] == "symbolic"  # SolveConfig's flags
-    bilevel = Reproduction("small", tmp_path, solve=SolveConfig(planning="bilevel", refine=False))
+    assert planning[planning.index("--planning") + 1] == "bilevel"  # SolveConfig's flags
+    bilevel = Reproduction("small", tmp_path, solve=SolveConfig(planning="symbolic",
+                                                                 refine=False))
     argv = bilevel.planning_stage().argv
-    assert argv[argv.index("--planning") + 1] == "bilevel" and "--no-refine" in argv
+    assert argv[argv.index("--planning") + 1] == "symbolic" and "--no-refine" in argv
     # The other planning modes on the same problems, seed 0's Relational bundle only.
-    modes = bilevel.mode_stages()
+    modes = rep.mode_stages()
     assert [st.name for st in modes] == ["eval planning symbolic", "eval planning continuous",
                                          "eval planning oracle"]
     for st in modes:

@@ -110,7 +110,7 @@ def main(argv=None) -> int:
     parser.add_argument("--planning", nargs="+", choices=PLANNING,
                         default=["bilevel", "continuous", "symbolic"],
                         help="the planning modes to time, on the same perceived scenes")
-    add_planner_arguments(parser)
+    add_planner_arguments(parser, per_plan=True)
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)

@@ -9,7 +9,7 @@ from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PLANNERS
 
 # How a plan is had (agent/planning_modes.py), and "oracle": the problem's recorded actions
 # replayed open loop, the evaluation's ceiling row.
-PLANNING = ("symbolic", "bilevel", "continuous")
+PLANNING = ("bilevel", "symbolic", "continuous")
 PLANNING_MODES = (*PLANNING, "oracle")
 
 
@@ -27,7 +27,7 @@ class SolveConfig:
     monitor: bool = True
     max_replans: int = 2
     refine: bool = True
-    planning: str = "symbolic"
+    planning: str = "bilevel"
 
     def __post_init__(self):
         if self.planner not in PLANNERS:

@@ -42,12 +42,15 @@ def add_json_argument(p: argparse.ArgumentParser) -> None:
                    help="print the result as JSON on stdout (messages go to stderr)")
 
 
-def add_planner_arguments(p: argparse.ArgumentParser) -> None:
+def add_planner_arguments(p: argparse.ArgumentParser, per_plan: bool = False) -> None:
+    """--planner and --timeout; `per_plan`: the timeout is a solve's budget per plan."""
     p.add_argument("--planner", choices=PLANNERS, default=DEFAULT_SOLVE.planner,
                    metavar="PLANNER", help="planner back-end, one of %(choices)s: fd (Fast "
                    f"Downward, A* with LM-cut), pyperplan (default {DEFAULT_SOLVE.planner})")
     p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.timeout,
-                   help=f"planner seconds per call (default {DEFAULT_SOLVE.timeout:g})")
+                   help=("CPU seconds per plan (bilevel and continuous: the whole search's), "
+                         "with a wall-clock cap of three times that" if per_plan else
+                         "planner seconds per call") + f" (default {DEFAULT_SOLVE.timeout:g})")
 
 
 def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None:
@@ -60,18 +63,18 @@ def add_planning_argument(p: argparse.ArgumentParser, oracle: bool = False) -> N
     """--planning; with `oracle` it may replay the problems' recorded actions."""
     p.add_argument("--planning", choices=PLANNING_MODES if oracle else PLANNING,
                    default=DEFAULT_SOLVE.planning,
-                   help="symbolic: plans from the symbols alone; bilevel: symbolic skeletons "
-                   "checked and completed with the learned continuous model, a continuous "
-                   "search as the fallback; continuous: that search alone"
+                   help="bilevel: symbolic skeletons checked and completed with the learned "
+                   "continuous model, a continuous search as the fallback; symbolic: plans "
+                   "from the symbols alone; continuous: that search alone"
                    + ("; oracle: replay the actions that made the problem, open loop"
-                      if oracle else ""))
+                      if oracle else "") + f" (default {DEFAULT_SOLVE.planning})")
 
 
 def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
                         oracle: bool = False) -> None:
     """The SolveConfig flags; `monitor_flag`: --no-monitor (eval planning has --monitor);
     `oracle`: --planning may replay the problems' recorded actions (eval planning)."""
-    add_planner_arguments(p)
+    add_planner_arguments(p, per_plan=True)
     add_planning_argument(p, oracle)
     if monitor_flag:
         p.add_argument("--no-monitor", action="store_true",
