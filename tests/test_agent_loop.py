@@ -316,6 +316,7 @@ def test_evaluate_planning_on_a_fake_world(tmp_path):
     summary = result["runs"][f"{tmp_path.name}/oracle"]
     assert summary["monitor"]["success"] == summary["open_loop"]["success"] == 1.0
     assert summary["monitor"]["by_k"]["1"]["plan_length_mean"] == 1.0
+    assert summary["monitor"]["by_level"]["symbolic"]["problems"] == 1  # who found the plan
     assert len(records.read_text().splitlines()) == 2
     again = evaluate_planning([tmp_path / "oracle"], tmp_path, symbolic, **kwargs)  # resumes
     assert len(records.read_text().splitlines()) == 2

@@ -203,6 +203,8 @@ def summarise(records: list[dict]) -> dict:
             "success_true": round(_rate(rs, "success_true"), 4),
             "by_objects": _group(rs, "n_objects"),
             "by_k": _group(rs, "k"),
+            # Which level found the first plan (records from before it say nothing).
+            "by_level": _group([r for r in rs if r.get("level")], "level"),
             "by_band": {band: {"problems": len(b), "success": round(_rate(b), 4)}
                         for band, (ns, ks) in BANDS.items()
                         for b in [[r for r in rs if r["n_objects"] in ns and r["k"] in ks]]
