@@ -7,6 +7,7 @@ from drake_symplan.world.scenes import (
     ObjectSpec,
     Scene,
     SceneError,
+    as_saved,
     load_scene,
     sample_scene,
     save_scene,
@@ -68,3 +69,12 @@ def test_sampler_is_seeded_and_valid():
         assert len(a.objects) == n
         assert [o.position for o in a.objects] == [o.position for o in b.objects]
         validate_scene(a)
+
+
+def test_a_scene_is_checked_as_its_file_reads_back(tmp_path):
+    scene = Scene([ObjectSpec("a", "cube", [0.612345678, -0.1, 0.025], 0.123456789)])
+    saved = as_saved(scene)  # numbers rounded as written, then validated
+    assert saved.objects[0].position == [0.6123, -0.1, 0.025]
+    assert saved.objects[0].yaw == 0.1235
+    save_scene(scene, tmp_path / "s.yaml")
+    assert load_scene(tmp_path / "s.yaml") == saved

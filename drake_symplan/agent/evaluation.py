@@ -90,6 +90,9 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     if not runs:
         raise ValueError("give at least one run (a model bundle directory)")
     problems = load_problems(problems_dir)[:limit]
+    for problem in problems:  # bad scene files fail up front, naming the file
+        for name in ("start.yaml", "goal.yaml"):
+            load_scene(Path(problem["dir"]) / name)
     # Bad runs fail up front.
     load = load or (lambda run: Abstraction(ModelBundle.load(run)))
     abstractions = {run_label(run): load(run) for run in runs}

@@ -197,7 +197,11 @@ def load_scene(path: str | Path) -> Scene:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as e:
         raise SceneError(f"malformed scene file {path}: {e}") from e
-    return validate_scene(scene_from_dict(data, f"scene file {path}"))
+    scene = scene_from_dict(data, f"scene file {path}")
+    try:
+        return validate_scene(scene)
+    except SceneError as e:
+        raise SceneError(f"scene file {path}: {e}") from e
 
 
 def scene_to_yaml(scene: Scene) -> str:
@@ -213,11 +217,20 @@ def scene_to_yaml(scene: Scene) -> str:
     return "\n".join(lines) + "\n"
 
 
+def as_saved(scene: Scene) -> Scene:
+    """`scene` as its file reads back (numbers rounded as written), validated: a scene
+    valid in memory can overlap once rounded (SceneError)."""
+    import yaml
+
+    return validate_scene(scene_from_dict(yaml.safe_load(scene_to_yaml(scene))))
+
+
 def save_scene(scene: Scene, path: str | Path) -> None:
-    """Writes `scene` as YAML to `path` (its folder made if need be), atomically."""
+    """Writes `scene` as YAML to `path` (its folder made if need be), atomically; what is
+    written must read back valid (`as_saved`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, scene_to_yaml(validate_scene(scene)))
+    write_atomic(path, scene_to_yaml(as_saved(scene)))
 
 
 def sample_scene(
