@@ -244,6 +244,23 @@ def explain_no_plan(abstraction, plan, start, goal, timeout: float) -> str:
     return f"no plan: {why}; goal atoms to reach: {missing or 'none'}"
 
 
+def plan_quality(plan, goal_seen) -> str:
+    """What speaks for a plan: its operators' reliability (symbolic steps) and, for a
+    plan checked in continuous space, how near the goal its end is predicted."""
+    from drake_symplan.abstraction.abstraction import reliability
+    from drake_symplan.abstraction.bilevel import goal_errors
+    from drake_symplan.abstraction.continuous import Boxes
+    from drake_symplan.symbolic.structs import Step
+
+    parts = []
+    if any(isinstance(s, Step) for s in plan.steps):
+        parts.append(f"reliability {reliability(plan.steps):.0%}")
+    if plan.predicted:
+        far = max(goal_errors(plan.predicted[-1], Boxes.of(goal_seen.scene).where()).values())
+        parts.append(f"every box predicted within {100 * far:.1f} cm of its goal")
+    return ", ".join(parts)
+
+
 def panel(result: dict, demo: dict) -> str:
     """The recording's panel: problem, plan, executed steps, distances, verdict."""
     from drake_symplan.agent.inspection import panel_html
@@ -288,7 +305,7 @@ def main(argv=None) -> int:
             say(f"from scratch: {e}" + ("; the data set is too small: give more "
                                         "--budget-minutes" if "no operators" in str(e) else ""))
             return 1
-    from drake_symplan.abstraction.abstraction import Abstraction, reliability
+    from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.inspection import (
         annotate_html,
         draw_goal_scene,
@@ -350,9 +367,11 @@ def main(argv=None) -> int:
         if not plan.steps:
             say("plan: empty, the goal's symbols already hold in the start scene")
         else:
-            say(f"plan ({len(plan.steps)} step(s), reliability "
-                f"{reliability(plan.steps):.0%}, {plan.seconds:.1f} s"
-                + ("" if plan.level == "symbolic" else f", {plan.level}") + "):")
+            say(f"plan ({len(plan.steps)} step(s), {plan_quality(plan, goal_seen)}, "
+                f"{plan.seconds:.1f} s" + ("" if plan.level == "symbolic"
+                                           else f", {plan.level}") + "):")
+        if plan.message:
+            say(f"  ({plan.message})")
         for i, step in enumerate(plan.steps, 1):
             say(f"  {i}. {readable_step(step)}    {step}")
         say("executing with the UR10 in full physics, perceiving after each step ...")
