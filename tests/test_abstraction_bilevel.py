@@ -193,7 +193,7 @@ def test_when_nothing_reaches_the_goal_the_steps_predicted_nearest_it_run():
     refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=0, max_depth=1)
     found = plan_bilevel(Skeletons(Plan("solved", [])), refiner, None, None, START, tower,
                          budget=Budget(10.0, 30.0))  # the goal's symbols hold already
-    assert found.solved and found.level == "continuous" and "nearest" in found.message
+    assert found.solved and found.level == "nearest" and "nearest" in found.message
     assert [s.action for s in found.steps] == [Action("b", "center", "c", "center")]
     # Nothing nearer than the start: the empty plan stands (the agent then fails honestly).
     assert not plan_bilevel(Skeletons(Plan("solved", [])), refiner, None, None, START,

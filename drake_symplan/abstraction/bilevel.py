@@ -269,7 +269,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
         # Nothing reaches the goal, but these steps are predicted to bring the boxes
         # nearer it; the monitor replans from what is perceived at their end.
         return Plan("solved", nearest.steps, seconds, f"{missed}; the steps predicted "
-                    "nearest it run, then a replan", planner, level="continuous",
+                    "nearest it run, then a replan", planner, level="nearest",
                     predicted=nearest.predicted, candidates=candidates)
     if unverified is not None:  # the goal's symbols hold already: nothing to run
         return Plan("solved", [], seconds, missed, planner, level="symbolic",

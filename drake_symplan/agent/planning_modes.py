@@ -61,7 +61,7 @@ class Planner:
     @property
     def predicts_positions(self) -> bool:
         """Was the last plan checked in continuous space (else: on its symbols)?"""
-        return self.level in ("bilevel", "continuous")
+        return self.level in ("bilevel", "continuous", "nearest")
 
     def departs(self, step: PlanStep, predicted: Boxes | None, seen: Reading, seen_scene,
                 rest: list[PlanStep], believed, goal_atoms, goal_scene=None) -> bool:

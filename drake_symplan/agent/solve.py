@@ -73,7 +73,8 @@ class SolveResult:
     # The first plan's candidates (bilevel and continuous planning): the plans looked at,
     # the rejected ones with why (abstraction/bilevel.py: Candidate).
     candidates: list = dc.field(default_factory=list)
-    # Which level found the first plan: "symbolic", "bilevel", "continuous" or "oracle".
+    # Which level found the first plan: "symbolic", "bilevel", "continuous", "nearest" (no
+    # plan reaches the goal in prediction: the steps predicted nearest it) or "oracle".
     level: str = ""
 
     def __post_init__(self):
