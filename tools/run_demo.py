@@ -244,23 +244,6 @@ def explain_no_plan(abstraction, plan, start, goal, timeout: float) -> str:
     return f"no plan: {why}; goal atoms to reach: {missing or 'none'}"
 
 
-def plan_quality(plan, goal_seen) -> str:
-    """What speaks for a plan: its operators' reliability (symbolic steps) and, for a
-    plan checked in continuous space, how near the goal its end is predicted."""
-    from drake_symplan.abstraction.abstraction import reliability
-    from drake_symplan.abstraction.bilevel import goal_errors
-    from drake_symplan.abstraction.continuous import Boxes
-    from drake_symplan.symbolic.structs import Step
-
-    parts = []
-    if any(isinstance(s, Step) for s in plan.steps):
-        parts.append(f"reliability {reliability(plan.steps):.0%}")
-    if plan.predicted:
-        far = max(goal_errors(plan.predicted[-1], Boxes.of(goal_seen.scene).where()).values())
-        parts.append(f"every box predicted within {100 * far:.1f} cm of its goal")
-    return ", ".join(parts)
-
-
 def panel(result: dict, demo: dict) -> str:
     """The recording's panel: problem, plan, executed steps, distances, verdict."""
     from drake_symplan.agent.inspection import panel_html
@@ -310,6 +293,7 @@ def main(argv=None) -> int:
         annotate_html,
         draw_goal_scene,
         look_at,
+        plan_quality,
         readable_step,
     )
     from drake_symplan.agent.solve import Agent

@@ -28,12 +28,14 @@ import numpy as np
 from pydrake.geometry import Box, Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from drake_symplan.abstraction.abstraction import Abstraction
+from drake_symplan.abstraction.abstraction import Abstraction, reliability
+from drake_symplan.abstraction.bilevel import goal_errors
+from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import Planner
 from drake_symplan.agent.solve import Agent
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.symbolic.structs import PlanStep, Reposition
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
 PREFIX = "/symplan"
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#edc948", "#76b7b2",
@@ -55,6 +57,18 @@ def readable_step(step: PlanStep) -> str:
     if isinstance(step, Reposition):
         return f"{text} ({'repositioning' if step.kind == 'reposition' else 'continuous'})"
     return text
+
+
+def plan_quality(plan, goal_seen) -> str:
+    """What speaks for a plan: its operators' reliability (symbolic steps) and, for a
+    plan checked in continuous space, how near its goal every box is predicted to end."""
+    parts = []
+    if any(isinstance(s, Step) for s in plan.steps):
+        parts.append(f"reliability {reliability(plan.steps):.0%}")
+    if plan.predicted:
+        far = max(goal_errors(plan.predicted[-1], Boxes.of(goal_seen.scene).where()).values())
+        parts.append(f"every box predicted within {100 * far:.1f} cm of its goal")
+    return ", ".join(parts)
 
 
 def pattern(bits, uncertain) -> str:
