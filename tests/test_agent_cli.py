@@ -68,7 +68,8 @@ def test_unreadable_scene_and_model_directories(scenes, tmp_path, capsys):
 
 
 def test_a_model_without_operators(scenes, tmp_path, capsys):
-    pytest.importorskip("drake_symplan.symbolic.bundle")
+    bundle = pytest.importorskip("drake_symplan.symbolic.bundle")
+    default_bundle_dir = bundle.default_bundle_dir
     start, goal = scenes("start.yaml", A, B), scenes("goal.yaml", A_ON_B, B)
     empty = tmp_path / "empty_model"
     empty.mkdir()
@@ -82,6 +83,10 @@ def test_a_model_without_operators(scenes, tmp_path, capsys):
     code, out, err = run(["eval", "planning", "--runs", empty, "--problems", tmp_path / "set"],
                          capsys)
     assert_bad_input(code, out, err, str(empty), "operators.json")
+    # A good model: the problem's missing scene files fail before anything is solved.
+    code, out, err = run(["eval", "planning", "--runs", default_bundle_dir(), "--problems",
+                          tmp_path / "set"], capsys)
+    assert_bad_input(code, out, err, str(tmp_path / "set" / "p000" / "start.yaml"))
 
 
 def test_problem_and_evaluation_arguments(tmp_path, capsys):

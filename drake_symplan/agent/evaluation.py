@@ -90,12 +90,12 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     if not runs:
         raise ValueError("give at least one run (a model bundle directory)")
     problems = load_problems(problems_dir)[:limit]
-    for problem in problems:  # bad scene files fail up front, naming the file
-        for name in ("start.yaml", "goal.yaml"):
-            load_scene(Path(problem["dir"]) / name)
-    # Bad runs fail up front.
+    # Bad runs fail up front, then bad scene files (naming the file).
     load = load or (lambda run: Abstraction(ModelBundle.load(run)))
     abstractions = {run_label(run): load(run) for run in runs}
+    for problem in problems:
+        for name in ("start.yaml", "goal.yaml"):
+            load_scene(Path(problem["dir"]) / name)
     done, records = _resume(records_path)
     # Monitoring mode by mode, run by run: an unfinished evaluation has whole runs of the
     # first mode (the headline) before any of the second.
