@@ -201,22 +201,23 @@ class Refiner:
             return sum(goal_errors(boxes, goal).values()) / STEP_SCALE
 
         tie = itertools.count()
-        frontier = [(self.weight * h(start), next(tie), start, Refined([], []))]
+        frontier = [(self.weight * h(start), next(tie), h(start), start, Refined([], []))]
         nearest = (h(start), Refined([], []))
         seen = set()
         while frontier and not budget.spent():
-            _, _, boxes, done = heapq.heappop(frontier)
+            _, _, distance, boxes, done = heapq.heappop(frontier)
             if reaches_goal(boxes, goal, self.limit):
                 return done, done
-            nearest = min(nearest, (h(boxes), done), key=lambda pair: pair[0])
+            nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
             key = tuple(np.round(boxes.positions, 2).ravel())
             if key in seen or len(done.steps) >= self.max_depth:
                 continue
             seen.add(key)
             options = moves(boxes, set(boxes.names), "move")
             for after, option in zip(self._predict(boxes, options), options, strict=True):
-                steps = len(done.steps) + 1
-                heapq.heappush(frontier, (steps + self.weight * h(after), next(tie), after,
+                distance = h(after)
+                heapq.heappush(frontier, (len(done.steps) + 1 + self.weight * distance,
+                                          next(tie), distance, after,
                                           Refined(done.steps + [option],
                                                   done.predicted + [after])))
         return None, nearest[1]

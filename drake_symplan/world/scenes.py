@@ -186,22 +186,28 @@ def scene_from_dict(data: object, source: str = "scene") -> Scene:
     return Scene(objects)
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Loads and validates a scene YAML file."""
+def scene_from_yaml(text: str, source: str | None = None) -> Scene:
+    """A validated Scene from YAML text; `source` (e.g. "scene file F") prefixes errors."""
     import yaml
 
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"scene file {path} does not exist")
+    where = source or "scene"
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(text)
     except yaml.YAMLError as e:
-        raise SceneError(f"malformed scene file {path}: {e}") from e
-    scene = scene_from_dict(data, f"scene file {path}")
+        raise SceneError(f"malformed {where}: {e}") from e
+    scene = scene_from_dict(data, where)
     try:
         return validate_scene(scene)
     except SceneError as e:
-        raise SceneError(f"scene file {path}: {e}") from e
+        raise SceneError(f"{source}: {e}" if source else str(e)) from e
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Loads and validates a scene YAML file."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"scene file {path} does not exist")
+    return scene_from_yaml(path.read_text(), f"scene file {path}")
 
 
 def scene_to_yaml(scene: Scene) -> str:
@@ -220,9 +226,7 @@ def scene_to_yaml(scene: Scene) -> str:
 def as_saved(scene: Scene) -> Scene:
     """`scene` as its file reads back (numbers rounded as written), validated: a scene
     valid in memory can overlap once rounded (SceneError)."""
-    import yaml
-
-    return validate_scene(scene_from_dict(yaml.safe_load(scene_to_yaml(scene))))
+    return scene_from_yaml(scene_to_yaml(scene))
 
 
 def save_scene(scene: Scene, path: str | Path) -> None:
@@ -230,7 +234,9 @@ def save_scene(scene: Scene, path: str | Path) -> None:
     written must read back valid (`as_saved`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, scene_to_yaml(as_saved(scene)))
+    text = scene_to_yaml(scene)
+    scene_from_yaml(text)
+    write_atomic(path, text)
 
 
 def sample_scene(
