@@ -13,7 +13,7 @@ LAYERS = (
     ("drake_symplan", "structs", "boxes", "features", "atomic", "typed_yaml", "shards",
      "cluster"),
     ("world",), ("perception",), ("skills",), ("robot",), ("data",), ("learning",),
-    ("symbolic",), ("planning",), ("abstraction",), ("agent",),
+    ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",),
     ("results_tables", "reproduce"), ("cli",),
 )
 RANK = {name: i for i, names in enumerate(LAYERS) for name in names}

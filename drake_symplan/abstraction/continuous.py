@@ -93,6 +93,22 @@ class ContinuousModel:
 
     def predict(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
         """The predicted scene after each of `actions` from `boxes`, in one batch."""
+        out = []
+        for each in self._member_positions(boxes, actions):
+            mean = each.mean(axis=0)
+            spread = np.linalg.norm(each - mean, axis=-1).max(axis=0) \
+                if len(each) > 1 else None
+            out.append(boxes.moved(mean, spread))
+        return out
+
+    def disagreement(self, boxes: Boxes, actions: list[Action]) -> np.ndarray:
+        """[len(actions)] m: for each action, the largest distance of a member's predicted
+        position of a box from the members' mean (0 with one member)."""
+        return np.array([np.linalg.norm(each - each.mean(axis=0), axis=-1).max()
+                         for each in self._member_positions(boxes, actions)])
+
+    def _member_positions(self, boxes: Boxes, actions: list[Action]) -> list[np.ndarray]:
+        """Per action, each member's predicted positions [members, n, 3], in one batch."""
         if not actions:
             return []
         rows = [boxes.involved(a) for a in actions]
@@ -108,15 +124,9 @@ class ContinuousModel:
         with torch.no_grad():
             inputs = (torch.from_numpy(state), torch.from_numpy(code), torch.from_numpy(mask))
             effects = [m(*inputs).numpy() for m in self.members]
-        out = []
-        for b, (action, row) in enumerate(zip(actions, rows, strict=True)):
-            each = np.stack([self._positions(boxes, action, row, e[b, :len(row)])
-                             for e in effects])
-            mean = each.mean(axis=0)
-            spread = np.linalg.norm(each - mean, axis=-1).max(axis=0) \
-                if len(effects) > 1 else None
-            out.append(boxes.moved(mean, spread))
-        return out
+        return [np.stack([self._positions(boxes, action, row, e[b, :len(row)])
+                          for e in effects])
+                for b, (action, row) in enumerate(zip(actions, rows, strict=True))]
 
     def rollout(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
         """The scenes after each action of a sequence, one applied after the other."""

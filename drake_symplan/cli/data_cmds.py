@@ -10,7 +10,7 @@ from drake_symplan.cli.options import add_json_argument, add_robot_argument
 
 def register(subparsers) -> None:
     collect = subparsers.add_parser(
-        "collect", help="collect random-exploration transitions (resumable, parallel)")
+        "collect", help="collect exploration transitions (random or active; resumable, parallel)")
     add_robot_argument(collect, default="hand")
     collect.add_argument("--transitions", type=int, required=True, help="how many in all (exactly); rerun with a larger N to extend a collection")
     collect.add_argument("--workers", type=positive_int, default=None,
@@ -34,6 +34,25 @@ def register(subparsers) -> None:
     collect.add_argument("--time-step", type=float, default=0.01,
                          help="physics step (s); 0.005 extends a collection made before 10 ms "
                               "became the step")
+    explore = collect.add_argument_group(
+        "exploration", "how actions are chosen (explorers/active.py); random stays the "
+        "default, and held-out sets stay random")
+    explore.add_argument("--explorer", choices=("random", "active"), default="random",
+                         help="random: uniform actions; active: rounds of actions chosen "
+                         "where the robot expects to learn most")
+    explore.add_argument("--warmup", type=positive_int, default=1000,
+                         help="active: random transitions before the first round")
+    explore.add_argument("--round-size", type=positive_int, default=1000,
+                         help="active: transitions per round (the explorer is learned "
+                         "again after each)")
+    explore.add_argument("--mix", type=float, nargs=2, default=(0.2, 0.4),
+                         metavar=("P_RANDOM", "P_GOAL"),
+                         help="active: shares of random actions and babbled goals; the "
+                         "rest by ensemble disagreement")
+    explore.add_argument("--members", type=positive_int, default=3,
+                         help="active: effect models in the ensemble (>= 2)")
+    explore.add_argument("--round-epochs", type=positive_int, default=30,
+                         help="active: training epochs per round (warm start)")
     collect.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_json_argument(collect)
     collect.set_defaults(func=cmd_collect)
@@ -56,18 +75,35 @@ def parse_objects(text: str) -> tuple[int, int]:
 
 
 def cmd_collect(args: argparse.Namespace) -> dict:
+    import dataclasses
+    import sys
+
     from drake_symplan.data.collect import CollectConfig, collect
     from drake_symplan.data.stats import format_stats
 
     lo, hi = parse_objects(args.objects)
+    active = {}
+    if args.explorer == "active":
+        from drake_symplan.explorers.active import ActiveConfig
+
+        active = dataclasses.asdict(ActiveConfig(
+            warmup=args.warmup, round_size=args.round_size, p_random=args.mix[0],
+            p_goal=args.mix[1], members=args.members, epochs=args.round_epochs))
     config = CollectConfig(
         backend=args.backend, transitions=args.transitions, seed=args.seed,
         min_objects=lo, max_objects=hi, episode_length=args.episode_length,
         long_fraction=args.long_fraction, chunk_size=args.chunk_size,
         noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout,
-        time_step=args.time_step)
-    summary = collect(args.out, config, workers=args.workers, progress=not args.no_progress,
-                      ray_address=args.ray)
+        time_step=args.time_step, explorer=args.explorer, active=active)
+    if args.explorer == "active":
+        from drake_symplan.explorers.rounds import collect_active
+
+        summary = collect_active(args.out, config, workers=args.workers,
+                                 progress=not args.no_progress, ray_address=args.ray,
+                                 say=lambda text: print(text, file=sys.stderr))
+    else:
+        summary = collect(args.out, config, workers=args.workers,
+                          progress=not args.no_progress, ray_address=args.ray)
     if not args.json:
         run = summary["this_run"]
         print(format_stats(summary))

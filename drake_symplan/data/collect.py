@@ -41,7 +41,7 @@ from tqdm import tqdm
 
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
 from drake_symplan.data import storage
-from drake_symplan.data.exploration import OUTCOMES, EpisodeConfig, run_episode
+from drake_symplan.data.exploration import OUTCOMES, EpisodeConfig, random_choice, run_episode
 from drake_symplan.data.stats import dataset_stats
 from drake_symplan.robot.backends import BACKENDS, make_backend
 from drake_symplan.structs import TransitionArrays
@@ -68,6 +68,10 @@ class CollectConfig:
     noise_sigma: float = 0.0  # depth noise (m) along camera rays
     noise_dropout: float = 0.0
     time_step: float = TIME_STEP  # s of physics per step (world/station.py)
+    # How actions are chosen: "random", or "active" with its settings (explorers/active.py,
+    # ActiveConfig as a dict); the data layer records them, the explorers layer acts on them.
+    explorer: str = "random"
+    active: dict = dc.field(default_factory=dict)
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -116,8 +120,9 @@ def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
 # --- one chunk -------------------------------------------------------------------------
 
 
-def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
-    """Produces chunk c: (TransitionArrays, extra arrays, bookkeeping dict)."""
+def run_chunk(backend, config: CollectConfig, c: int, on_transition=None, choose=None):
+    """Produces chunk c: (TransitionArrays, extra arrays, bookkeeping dict); `choose` is
+    the explorer (exploration.random_choice when None)."""
     target = config.chunk_count(c)
     rng = np.random.default_rng([config.seed, c])
     backend.rng = np.random.default_rng([config.seed, c, 1])  # perception noise
@@ -132,7 +137,7 @@ def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
                                f"transitions (ends: {dict(ends)})")
         episode = c * EPISODE_STRIDE + episodes
         log = run_episode(backend, rng, config.episode_config(), episode,
-                          target - len(transitions), on_transition)
+                          target - len(transitions), on_transition, choose or random_choice)
         episodes += 1
         transitions.extend(log.transitions)
         ends[log.end] += 1
@@ -141,19 +146,24 @@ def run_chunk(backend, config: CollectConfig, c: int, on_transition=None):
         infeasible += log.infeasible
         if log.error:
             errors.append(f"episode {episode}: {log.error}")
-    arrays, extra = pack(transitions)
+    arrays, extra = pack(transitions, modes=config.explorer != "random")
     info = {"chunk": c, "transitions": len(transitions), "episodes": episodes,
             "episode_ends": dict(ends), "executed_outcomes": dict(outcomes),
             "skipped_transitions": dict(skipped), "infeasible_actions": infeasible,
             "perception_errors": errors,
+            "explore_modes": dict(Counter(t.mode for t in transitions)),
             "seconds": round(time.perf_counter() - t0, 3),
             "phase_seconds": {k: round(v - phases0[k], 3)
                               for k, v in backend.seconds().items()}}
     return arrays, extra, info
 
 
-def pack(transitions) -> tuple[TransitionArrays, dict[str, np.ndarray]]:
-    """Transitions padded to their largest object count, plus per-transition extras."""
+EXPLORE_MODES = ("random", "disagreement", "goal", "uncovered")  # explorers/active.py
+
+
+def pack(transitions, modes: bool = False) -> tuple[TransitionArrays, dict[str, np.ndarray]]:
+    """Transitions padded to their largest object count, plus per-transition extras (with
+    `modes`, "explore_mode": the index in EXPLORE_MODES of how each action was chosen)."""
     n = max(len(t.names) for t in transitions)
     d = transitions[0].state.shape[1]
     T = len(transitions)
@@ -170,6 +180,9 @@ def pack(transitions) -> tuple[TransitionArrays, dict[str, np.ndarray]]:
                               np.array([t.episode for t in transitions], np.int64), next_state)
     extra = {"outcome": np.array([OUTCOMES.index(t.outcome) for t in transitions], np.int8),
              "step": np.array([t.step for t in transitions], np.int32)}
+    if modes:
+        extra["explore_mode"] = np.array([EXPLORE_MODES.index(t.mode) for t in transitions],
+                                         np.int8)
     if all(t.scene is not None for t in transitions):
         extra.update(scene_extras([t.scene for t in transitions], n))
     return arrays, extra
@@ -212,19 +225,20 @@ def _tick() -> None:
         _worker["progress"].put(1)
 
 
-def _run_chunk_task(out_dir: str, c: int) -> None:
+def _run_chunk_task(out_dir: str, c: int, choose) -> None:
     storage.write_shard(out_dir, c, *chunk_shard(_worker["backend"], _worker["config"], c,
-                                                 _tick))
+                                                 choose, _tick))
 
 
-def chunk_shard(backend, config: CollectConfig, c: int, on_transition=None, tick=None):
+def chunk_shard(backend, config: CollectConfig, c: int, choose=None, on_transition=None,
+                tick=None):
     """Chunk c as `storage.write_shard(out_dir, c, arrays, extra)` takes it: (arrays, extra
     with the bookkeeping under "info"). `tick(n)`, if given, is told the transitions so far
     (a Ray job's progress, cluster.run_jobs)."""
     if tick is not None:
         count = itertools.count(1)
         on_transition = lambda: tick(next(count))  # noqa: E731
-    arrays, extra, info = run_chunk(backend, config, c, on_transition)
+    arrays, extra, info = run_chunk(backend, config, c, on_transition, choose)
     return arrays, {**extra, "info": np.array(json.dumps(info))}
 
 
@@ -232,10 +246,17 @@ def chunk_shard(backend, config: CollectConfig, c: int, on_transition=None, tick
 
 
 def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
-            progress: bool = True, ray_address: str | None = None) -> dict:
+            progress: bool = True, ray_address: str | None = None, explorer=None,
+            upto: int | None = None) -> dict:
     """Collects (or finishes collecting) `config.transitions` into `out_dir`; the summary.
     `workers` None: one per CPU (of the Ray cluster with `ray_address`). `ray_address`
-    None: local worker processes; "" Ray on this machine; else the Ray cluster there."""
+    None: local worker processes; "" Ray on this machine; else the Ray cluster there.
+    `explorer(c)`: the explorer chunk c acts with (None: random); `upto`: collect only
+    the chunks before it (one round of active exploration, explorers/rounds.py)."""
+    if config.explorer != "random" and explorer is None:
+        raise ValueError(f"a {config.explorer!r} collection needs its explorer "
+                         f"(explorers/rounds.py collects it)")
+    explorer = explorer or (lambda c: None)
     out_dir = Path(out_dir)
     t0 = time.perf_counter()
     with contextlib.ExitStack() as stack:
@@ -245,20 +266,24 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
             workers = min(workers or cluster_cpus(ray), cluster_cpus(ray))
         workers = max(1, int(workers or os.cpu_count() or 1))
         manifest, todo, already = _prepare(out_dir, config)
+        if upto is not None:
+            todo = [c for c in todo if c < upto]
         bar = stack.enter_context(contextlib.closing(
             _progress_bar(config.transitions, already, progress)))
         if not todo:
             started = time.perf_counter()
         elif ray is not None:
-            started = _run_ray(ray, out_dir, config, todo, min(workers, len(todo)), bar)
+            started = _run_ray(ray, out_dir, config, todo, min(workers, len(todo)), bar,
+                               explorer)
         elif workers == 1:
             backend = collection_backend(config.backend, config.time_step)
             started = time.perf_counter()
             for c in todo:
-                storage.write_shard(out_dir, c, *chunk_shard(backend, config, c,
+                storage.write_shard(out_dir, c, *chunk_shard(backend, config, c, explorer(c),
                                                              lambda: bar.update(1)))
         else:
-            started = _run_pool(out_dir, config, todo, min(workers, len(todo)), bar)
+            started = _run_pool(out_dir, config, todo, min(workers, len(todo)), bar,
+                                explorer)
     wall = time.perf_counter() - t0
 
     summary = dataset_stats(out_dir)
@@ -267,7 +292,9 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
                            "workers": workers, "engine": "local" if ray is None else "ray",
                            "startup_seconds": round(started - t0, 2),
                            "rate_per_s": round(new / wall, 3) if wall > 0 else None}
-    manifest.update(status="complete", counts={
+    if storage.existing_shards(out_dir).keys() >= set(range(config.num_chunks)):
+        manifest["status"] = "complete"
+    manifest.update(counts={
         k: summary[k] for k in ("transitions", "episodes", "shards", "dropped_episodes")})
     storage.write_manifest(out_dir, manifest)
     storage.write_json(out_dir, "summary.json", summary)
@@ -281,8 +308,9 @@ def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int
     if (out_dir / storage.MANIFEST).exists():
         manifest = storage.read_manifest(out_dir)
         stored = manifest.get("config")
-        if isinstance(stored, dict) and "time_step" not in stored:
-            stored = {**stored, "time_step": LEGACY_TIME_STEP}
+        if isinstance(stored, dict):  # settings added since: what such a set was made with
+            stored = {"time_step": LEGACY_TIME_STEP, "explorer": "random", "active": {},
+                      **stored}
         if stored != identity:
             if not _extends(stored, identity):
                 raise ValueError(
@@ -321,14 +349,15 @@ def _extends(stored: dict | None, identity: dict) -> bool:
 
 
 def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: int,
-              bar) -> float:
+              bar, explorer) -> float:
     """The chunks on local worker processes; returns when they had all started."""
     ctx = mp.get_context("spawn")  # Drake and forked children do not mix
     progress = ctx.Queue()
     started, ready = time.perf_counter(), 0
     with ctx.Pool(workers, initializer=_init_worker,
                   initargs=(dc.asdict(config), progress, os.getpid())) as pool:
-        pending = [pool.apply_async(_run_chunk_task, (str(out_dir), c)) for c in todo]
+        pending = [pool.apply_async(_run_chunk_task, (str(out_dir), c, explorer(c)))
+                   for c in todo]
         while pending:
             try:
                 while True:
@@ -352,7 +381,7 @@ def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: in
 
 
 def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers: int,
-             bar) -> float:
+             bar, explorer) -> float:
     """The chunks on Ray worker actors (cluster.run_jobs); the driver writes each shard as
     it comes. The bar counts, per chunk, the most transitions any attempt reached, so a
     retried chunk is not counted twice. Returns when the workers had all started."""
@@ -370,7 +399,7 @@ def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers
         written.add(c)
 
     return run_jobs(ray, collection_backend, (config.backend, config.time_step), chunk_shard,
-                    [(c, config, c) for c in todo], workers, write, advance)
+                    [(c, config, c, explorer(c)) for c in todo], workers, write, advance)
 
 
 class _NoBar:

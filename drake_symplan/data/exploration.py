@@ -1,8 +1,8 @@
 """Random exploration: episodes of random actions, recorded as perceived transitions.
 
-An episode puts a random scene on the table and executes up to `length` random actions
-(source != target, grasp and release offsets uniform), each chosen over the objects the
-robot perceives. Each action is perceived before, at the end of the lift and after; the
+An episode puts a random scene on the table and executes up to `length` actions chosen by
+an explorer over the objects the robot perceives: by default random ones (source !=
+target, grasp and release offsets uniform); `explorers/` has the active one. Each action is perceived before, at the end of the lift and after; the
 'after' scene of one action is the 'before' of the next. A transition records the
 *relevant* objects only (paper, Experiment Setup):
 
@@ -106,6 +106,7 @@ class Transition:
     episode: int
     step: int
     scene: SceneRecord | None = None
+    mode: str = "random"  # how the explorer chose the action
 
 
 @dc.dataclass
@@ -125,6 +126,12 @@ class EpisodeLog:
 def random_action(rng: np.random.Generator, names: list[str]) -> Action:
     s, t = rng.choice(len(names), size=2, replace=False)
     return Action(names[s], OFFSETS[rng.integers(3)], names[t], OFFSETS[rng.integers(3)])
+
+
+def random_choice(rng: np.random.Generator, scene) -> tuple[Action, str]:
+    """The random explorer: a uniform action over the perceived objects. An explorer is a
+    callable (rng, perceived scene) -> (action, how it was chosen)."""
+    return random_action(rng, scene.names), "random"
 
 
 def scene_record(before, after, after_map, ids: dict[str, int], names: list[str],
@@ -205,21 +212,23 @@ def run_episode(
     episode: int,
     budget: int,
     on_transition: Callable[[], None] | None = None,
+    choose: Callable = random_choice,
 ) -> EpisodeLog:
-    """Runs one episode on `backend`, recording at most `budget` transitions.
+    """Runs one episode on `backend`, recording at most `budget` transitions; `choose` is
+    the explorer (random_choice's contract).
 
     Perception raising on a scene (PerceptionFailure) ends the episode as dropped
     ("perception_error"); the transitions recorded before it are kept."""
     log = EpisodeLog()
     try:
-        _act(backend, rng, config, episode, budget, on_transition, log)
+        _act(backend, rng, config, episode, budget, on_transition, log, choose)
     except PerceptionFailure as e:
         log.end, log.error = "perception_error", str(e)
     return log
 
 
 def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_transition,
-         log: EpisodeLog) -> None:
+         log: EpisodeLog, choose: Callable) -> None:
     """run_episode's actions: records into `log` and sets how the episode ended."""
     n = int(rng.integers(config.min_objects, config.max_objects + 1))
     backend.reset(sample_scene(rng, n, long_fraction=config.long_fraction))
@@ -236,10 +245,10 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
         if len(before.objects) < 2:  # lost track, and no action to try on what is seen
             log.end = "perception_unrecovered"
             return
-        executed = _execute_random_action(backend, rng, config, before, log)
+        executed = _execute_chosen_action(backend, rng, config, before, log, choose)
         if executed is None:
             return
-        action, result = executed
+        action, result, mode = executed
         step += 1
         lift, after = result.lift, result.after
         if lost:
@@ -260,19 +269,21 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
         if ids is None:
             ids, chain = {k: i for i, k in enumerate(before.names)}, chain + 1
         _record(log, action, before, lift, after, after_map, ids=ids, chain=chain,
-                episode=episode, step=step - 1, on_transition=on_transition)
+                episode=episode, step=step - 1, mode=mode, on_transition=on_transition)
         ids = {after_map[k]: i for k, i in ids.items()}
         before = after
     if lost:
         log.end = "length_unrecovered"
 
 
-def _execute_random_action(backend, rng, config: EpisodeConfig, before, log: EpisodeLog):
-    """Executes random actions on the `before` scene until one is feasible; returns it and its
-    result, or None when the episode ends (too many infeasible in a row, or a sim failure)."""
+def _execute_chosen_action(backend, rng, config: EpisodeConfig, before, log: EpisodeLog,
+                           choose: Callable):
+    """Executes the explorer's actions on the `before` scene until one is feasible; returns
+    it, its result and how it was chosen, or None when the episode ends (too many
+    infeasible in a row, or a sim failure)."""
     infeasible_run = 0
     while True:
-        action = random_action(rng, before.names)
+        action, mode = choose(rng, before)
         result = backend.execute(action, before)
         if result.status != "infeasible":
             break
@@ -284,11 +295,12 @@ def _execute_random_action(backend, rng, config: EpisodeConfig, before, log: Epi
     if result.status != "ok":
         log.end = "sim_failure"
         return None
-    return action, result
+    return action, result, mode
 
 
 def _record(log: EpisodeLog, action: Action, before, lift, after, after_map: dict, *,
-            ids: dict[str, int], chain: int, episode: int, step: int, on_transition) -> None:
+            ids: dict[str, int], chain: int, episode: int, step: int, mode: str,
+            on_transition) -> None:
     """Counts the action's outcome and records its transition (unless the lift scene lost
     one of the relevant objects)."""
     lift_map = associate(before, lift, action) if lift is not before else \
@@ -307,7 +319,7 @@ def _record(log: EpisodeLog, action: Action, before, lift, after, after_map: dic
         effect=effects(before, lift, after, lift_map, after_map, names, carry_xy),
         next_state=np.stack([after.object(after_map[k]).features for k in names]),
         outcome=outcome, episode=episode, step=step,
-        scene=scene_record(before, after, after_map, ids, names, chain),
+        scene=scene_record(before, after, after_map, ids, names, chain), mode=mode,
     ))
     if on_transition:
         on_transition()

@@ -42,7 +42,7 @@ def dataset_stats(data_dir: str | Path) -> dict:
     outcomes, executed, ends, skipped, hist = Counter(), Counter(), Counter(), Counter(), Counter()
     episodes: set[int] = set()
     transitions, infeasible, seconds = 0, 0, 0.0
-    phases, untimed = Counter(), 0
+    phases, untimed, modes = Counter(), 0, Counter()
     for path in paths:
         z = storage.read_shard_arrays(path, ("mask", "episode", "outcome", "info"))
         transitions += len(z["episode"])
@@ -57,6 +57,7 @@ def dataset_stats(data_dir: str | Path) -> dict:
             skipped.update(info["skipped_transitions"])
             infeasible += info["infeasible_actions"]
             seconds += info["seconds"]
+            modes.update(info.get("explore_modes", {}))
             if "phase_seconds" in info:
                 phases.update(info["phase_seconds"])
             else:
@@ -87,6 +88,7 @@ def dataset_stats(data_dir: str | Path) -> dict:
         "perception_failures_per_action": round(failures / actions, 4) if actions else 0.0,
         "perception_unrecorded_per_action": round(unrecorded / actions, 4) if actions else 0.0,
         "infeasible_actions": infeasible,
+        "explore_modes": dict(sorted(modes.items())),  # how the recorded actions were chosen
         "worker_seconds": round(seconds, 1),
         "worker_seconds_by_phase": None if untimed or not phases else {
             "physics": round(phases["physics"], 1),
@@ -107,6 +109,9 @@ def format_stats(stats: dict) -> str:
              f"perception failures per action: {stats['perception_failures_per_action']:.2%} "
              f"(skipped, recovered); actions unrecorded because of perception: "
              f"{stats['perception_unrecorded_per_action']:.2%}"]
+    if stats.get("explore_modes"):
+        lines.append("actions chosen by: " + ", ".join(
+            f"{k} {v}" for k, v in stats["explore_modes"].items()))
     phases = stats["worker_seconds_by_phase"]
     if phases:
         total = stats["worker_seconds"] or 1.0

@@ -55,6 +55,7 @@ class TrainConfig:
     hard: bool = DEFAULT_HARD
     model_kwargs: dict = field(default_factory=dict)
     progress: bool = True
+    init: str | None = None  # a checkpoint whose weights training starts from (warm start)
 
     def __post_init__(self):
         if self.model not in MODELS:
@@ -274,6 +275,8 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
 
     torch.manual_seed(cfg.seed)
     model = make_model(cfg, arrays.state.shape[2], int(arrays.mask.sum(axis=1).max()))
+    if cfg.init is not None:  # the weights of an earlier run; normalised for this data
+        model.load_state_dict(ckpt_io.read_checkpoint(cfg.init)["model_state"])
     model.set_normalization(**normalization_stats(arrays.subset(splits["train"])))
     run = _Run(cfg, out, data_fp, model, make_optimizer(model, cfg.lr),
                shuffle=torch.Generator().manual_seed(cfg.seed),

@@ -118,7 +118,9 @@ class ModelBundle:
                                          costs=False)
 
     @classmethod
-    def load(cls, path: str | Path | None = None) -> ModelBundle:
+    def load(cls, path: str | Path | None = None, allow_empty: bool = False) -> ModelBundle:
+        """The bundle in `path` (the shipped one when None); `allow_empty`: one without
+        operators too (an explorer's early round, explorers/rounds.py)."""
         path = Path(path) if path is not None else default_bundle_dir()
         if not path.is_dir():
             raise BundleError(f"model directory {path} does not exist")
@@ -133,7 +135,7 @@ class ModelBundle:
                 if (path / CONTINUOUS).is_file() else None
         except (ValueError, KeyError, TypeError, OSError, RuntimeError) as e:
             raise BundleError(f"model directory {path}: cannot read it ({e})") from e
-        if not operators:
+        if not operators and not allow_empty:
             raise BundleError(f"model directory {path}: operators.json holds no operators")
         prov = path / "provenance.json"
         provenance = json.loads(prov.read_text()) if prov.is_file() else {}
