@@ -20,6 +20,7 @@ ensemble of effect models as continuous.pt) and mixes three ways of choosing an 
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,8 +37,8 @@ from drake_symplan.symbolic.structs import Atom, LiftedOperator, Step
 class ActiveConfig:
     """The rounds and the mix. `warmup` random transitions come first; every `round_size`
     after them the explorer is learned again from all the data so far: `members` effect
-    models (the first is the symbol model) trained `epochs` from the previous round's
-    weights, effect-first operators of `min_count`; `goals` babbled per goal choice."""
+    models (the first is the symbol model) trained from the previous round's weights
+    (`epochs_for`), effect-first operators of `min_count`; `goals` babbled per goal choice."""
 
     warmup: int = 1000
     round_size: int = 1000
@@ -61,10 +62,12 @@ class ActiveConfig:
         if min(self.epochs, self.patience, self.min_count, self.goals) < 1:
             raise ValueError("epochs, patience, min_count and goals must be positive")
 
-    def round_of(self, transitions: int) -> int:
-        """The round that collects transition number `transitions` (0: the random warm-up)."""
-        return 0 if transitions < self.warmup else 1 + (transitions - self.warmup) // \
-            self.round_size
+    def epochs_for(self, transitions: int) -> int:
+        """Training epochs of a round that learns from `transitions`: `epochs` over the
+        warm-up, then as many gradient steps as `epochs` over one round (the warm start
+        holds the rest), at least 3: a round costs the same however much data there is."""
+        return max(3, math.ceil(self.epochs * min(self.warmup, self.round_size)
+                                / transitions)) if transitions > self.warmup else self.epochs
 
     def round_end(self, r: int) -> int:
         """The number of transitions collected when round r ends."""

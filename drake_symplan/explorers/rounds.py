@@ -106,7 +106,7 @@ def learn_round(out_dir: Path, r: int, config: CollectConfig, active: ActiveConf
         before = round_dir(out_dir, r - 1) / "runs" / f"m{m}" / BEST
         say(f"round {r}: training member {m} on {n} transitions")
         metrics.append(train(TrainConfig(
-            **SYMBOL_MODEL, data=str(data), out=str(run), seed=m, epochs=active.epochs,
+            **SYMBOL_MODEL, data=str(data), out=str(run), seed=m, epochs=active.epochs_for(n),
             patience=active.patience, threads=1, progress=False,
             init=str(before) if r > 1 else None)))
     model, _ = load_run(runs[0])
