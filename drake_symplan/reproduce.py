@@ -17,10 +17,7 @@ import dataclasses as dc
 import json
 import os
 import platform
-import subprocess
-import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 # `symplan` imports this module to build its parser, so the stages' code (results tables,
@@ -28,6 +25,9 @@ from pathlib import Path
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.atomic import write_atomic
 from drake_symplan.shards import fingerprint
+from drake_symplan.stages import Stage, StageFailed, StageRunner
+
+__all__ = ["SCALES", "Reproduction", "Stage", "StageFailed"]
 
 
 @dc.dataclass(frozen=True)
@@ -74,36 +74,18 @@ LEARNERS = {"relational": ("effect", "paper"), "attentive": ("effect",)}
 MODE_ROWS = ("bilevel", "symbolic", "continuous", "oracle")  # compared on seed 0's problems
 
 
-class StageFailed(RuntimeError):
-    """A stage's command exited non-zero; the message names it and ends with its stderr."""
-
-
-@dc.dataclass
-class Stage:
-    """One command; `done` exists once it has finished. With `stdout`, what it prints is
-    written there (atomically, on success). `resume`: arguments added when `partial`
-    exists (a stage interrupted before)."""
-
-    name: str
-    argv: list
-    done: Path
-    stdout: Path | None = None
-    partial: Path | None = None
-    resume: tuple = ()
-
-
-class Reproduction:
+class Reproduction(StageRunner):
     """The stages of one scale in `out`; `run()` runs what is not done yet."""
 
     def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
                  say=print, solve: SolveConfig = DEFAULT_SOLVE):
         if scale not in SCALES:
             raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
-        self.name, self.scale, self.out = scale, SCALES[scale], Path(out)
-        self.jobs, self.ray, self.say, self.solve = jobs, ray, say, solve
+        super().__init__(out, jobs, say)
+        self.name, self.scale = scale, SCALES[scale]
+        self.ray, self.solve = ray, solve
         self.train_data, self.heldout_data = self.out / "data/train", self.out / "data/heldout"
         self.results = self.out / "results"
-        self.log: list[dict] = []
 
     # --- the stages -------------------------------------------------------------
 
@@ -242,40 +224,6 @@ class Reproduction:
         from drake_symplan.results_tables import write_results  # Drake, torch: see top
 
         return write_results(self)
-
-    def _parallel(self, stages: list) -> None:
-        """Runs `stages` (each a Stage or a tuple run in order) `jobs` at a time."""
-        def go(item):
-            for stage in item if isinstance(item, tuple) else (item,):
-                self._run(stage)
-
-        with ThreadPoolExecutor(max_workers=self.jobs) as pool:
-            for future in [pool.submit(go, item) for item in stages]:
-                future.result()
-
-    def _run(self, stage: Stage) -> None:
-        argv = [str(a) for a in stage.argv]
-        if stage.partial is not None and stage.partial.exists() and not stage.done.exists():
-            argv += list(stage.resume)
-        entry = {"stage": stage.name, "command": "symplan " + " ".join(argv)}
-        if stage.done.exists():
-            self.log.append({**entry, "skipped": True})
-            return
-        self.say(f"  {stage.name}: {entry['command']}")
-        logs = self.out / "logs"
-        logs.mkdir(parents=True, exist_ok=True)
-        t0 = time.perf_counter()
-        err_path = logs / (stage.name.replace(" ", "_").replace("/", "_") + ".err")
-        with open(err_path, "w") as err:
-            proc = subprocess.run([sys.executable, "-m", "drake_symplan.cli.main", *argv],
-                                  stdout=subprocess.PIPE, stderr=err, text=True)
-        if proc.returncode != 0:
-            tail = err_path.read_text().strip().splitlines()[-1:] or ["(no message)"]
-            raise StageFailed(f"{stage.name} failed (exit {proc.returncode}; log "
-                              f"{err_path}): {tail[0]}")
-        if stage.stdout is not None:
-            write_atomic(stage.stdout, proc.stdout)
-        self.log.append({**entry, "seconds": round(time.perf_counter() - t0, 1)})
 
     def _write_provenance(self, seconds: float) -> None:
         path = self.out / "provenance.json"

@@ -14,7 +14,7 @@ LAYERS = (
      "cluster"),
     ("world",), ("perception",), ("skills",), ("robot",), ("data",), ("learning",),
     ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",),
-    ("results_tables", "reproduce"), ("cli",),
+    ("results_tables", "reproduce", "stages", "learning_curve"), ("cli",),
 )
 RANK = {name: i for i, names in enumerate(LAYERS) for name in names}
 

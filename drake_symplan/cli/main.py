@@ -39,7 +39,7 @@ PIPELINE = (
     ("scene sample", "write a random valid scene file (YAML)"),
     ("act", "execute one pick/place on a scene in full physics"),
     ("perceive", "perceive a scene with the depth cameras"),
-    ("collect", "collect random-exploration transitions into a data set"),
+    ("collect", "collect exploration transitions (random or active) into a data set"),
     ("data stats", "summarise a data set"),
     ("train", "train an effect model (RelationalDeepSym or a baseline) on a data set"),
     ("eval effects", "test-set effect error of trained runs"),
@@ -55,6 +55,7 @@ PIPELINE = (
     ("problems make", "planning problems: random starts, goals k arm actions away"),
     ("eval planning", "models on a problem set in full physics"),
     ("reproduce", "all of the above at a scale, every results table into one directory"),
+    ("curve", "random against active exploration by data size: the learning curve"),
 )
 DESCRIPTION = "\n\n".join([
     textwrap.fill("A UR10 in Drake explores pick/place actions on blocks it perceives with "

@@ -1,12 +1,14 @@
 """`symplan reproduce --scale small|paper [--out DIR] [--ray [ADDRESS]] [--report]`: the whole
 pipeline and every results table, resumable (drake_symplan/reproduce.py); `--report` writes
-the tables of the stages done so far.
+the tables of the stages done so far. `symplan curve --scale small|session|paper`: the
+learning curve of random against active exploration (drake_symplan/learning_curve.py).
 
 Exit status: 0 done, 1 a stage failed (one line on stderr naming it and its log), 2 bad
 input."""
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -37,6 +39,27 @@ def register(subparsers) -> None:
     add_json_argument(p)
     p.set_defaults(func=run_reproduce)
 
+    from drake_symplan.learning_curve import CURVE_SCALES
+
+    c = subparsers.add_parser(
+        "curve", help="random against active exploration by data size: coverage, "
+        "precision and symbolic planning on one held-out set (and the arm at paper scale)",
+        description="Collects a random and an active data set size by size, trains and "
+        "evaluates a model at every size (DIR/runs), writes DIR/results/curve.md, .json "
+        "and .png. Re-running the same command resumes.")
+    c.add_argument("--scale", choices=sorted(CURVE_SCALES), required=True,
+                   help="small: toy (minutes); session: 5k and 10k (about 80 min on 2 "
+                   "cores); paper: 5k-50k, random to 100k, 3 seeds at 25k/50k, the arm")
+    c.add_argument("--out", type=Path, default=None, help="directory (default out/curve_<scale>)")
+    c.add_argument("--jobs", type=positive_int, default=2,
+                   help="training runs at a time, and local collection workers (default 2)")
+    c.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                   help="collect and solve on Ray (no address: this machine)")
+    c.add_argument("--report", action="store_true",
+                   help="run nothing: write the table from the points done so far")
+    add_json_argument(c)
+    c.set_defaults(func=run_curve)
+
 
 def run_reproduce(args):
     from drake_symplan.reproduce import Reproduction, StageFailed
@@ -59,3 +82,22 @@ def run_reproduce(args):
         return NegativeAnswer({"status": "failed", "message": str(e), "out": str(out)})
     return {"status": "done", "results": str(path), "out": str(out),
             "provenance": str(out / "provenance.json")}
+
+
+def run_curve(args):
+    from drake_symplan.learning_curve import LearningCurve
+    from drake_symplan.stages import StageFailed
+
+    out = args.out or Path("out") / f"curve_{args.scale}"
+    if out.exists() and not out.is_dir():
+        raise CommandError(f"--out {out} is a file, not a directory")
+    curve = LearningCurve(args.scale, out, jobs=args.jobs, ray=args.ray,
+                          say=lambda text: print(text, file=sys.stderr, flush=True))
+    try:
+        path = curve.report() if args.report else curve.run()
+    except StageFailed as e:
+        print(f"symplan curve: {e}", file=sys.stderr)
+        return NegativeAnswer({"status": "failed", "message": str(e), "out": str(out)})
+    return {"status": "report" if args.report else "done", "results": str(path),
+            "out": str(out), "points": json.loads((out / "results/curve.json").read_text())[
+                "points"]}

@@ -6,6 +6,7 @@ temporary files: `atomic.remove_stale_tmp`, re-exported) and its summary file.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -50,3 +51,29 @@ def shard_length(path: str | Path) -> int:
 def write_json(out_dir: str | Path, name: str, data: dict) -> Path:
     """Writes `data` as `out_dir/name` atomically."""
     return write_atomic(Path(out_dir) / name, json.dumps(data, indent=2))
+
+
+def link_head(data_dir: str | Path, view: str | Path, transitions: int) -> Path:
+    """A data set `view` of the first `transitions` of `data_dir`: links to its first
+    shards (which must hold exactly that many) and a manifest naming where they are from.
+    An earlier view there is replaced."""
+    data_dir, view = Path(data_dir), Path(view)
+    shards, total = [], 0
+    for c, path in sorted(existing_shards(data_dir).items()):
+        if total >= transitions:
+            break
+        if c != len(shards):
+            break  # a gap: the head ends before it
+        shards.append(path)
+        total += shard_length(path)
+    if total != transitions:
+        raise ValueError(f"the first shards of {data_dir} do not hold exactly {transitions} "
+                         f"transitions (they hold {total} up to that count)")
+    view.mkdir(parents=True, exist_ok=True)
+    for old in view.glob(SHARD_GLOB):
+        old.unlink()
+    for path in shards:
+        (view / path.name).symlink_to(os.path.relpath(path.resolve(), view.resolve()))
+    write_manifest(view, {"head_of": str(data_dir), "transitions": transitions,
+                          "config": read_manifest(data_dir).get("config")})
+    return view

@@ -16,7 +16,6 @@ transitions, holds the same data as one run straight through. The manifest's
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import time
 from pathlib import Path
@@ -28,7 +27,7 @@ from drake_symplan.explorers.active import ActiveConfig, ActiveExplorer
 from drake_symplan.learning.checkpoint import BEST, load_run
 from drake_symplan.learning.readout import readout_scenes
 from drake_symplan.learning.trainer import TrainConfig, train
-from drake_symplan.shards import fingerprint, shard_path
+from drake_symplan.shards import fingerprint
 from drake_symplan.symbolic.bundle import ModelBundle, learn_bundle_operators, write_bundle
 from drake_symplan.symbolic.effect_operators import EFFECT, changes, lift_transitions
 
@@ -93,13 +92,8 @@ def learn_round(out_dir: Path, r: int, config: CollectConfig, active: ActiveConf
     where = round_dir(out_dir, r)
     if where.exists():  # a round a kill interrupted: learned again, the same way
         shutil.rmtree(where)
-    data = where / "data"
-    data.mkdir(parents=True)
     n = active.round_end(r - 1)
-    for c in range(n // config.chunk_size):
-        os.symlink(os.path.relpath(shard_path(out_dir, c), data), shard_path(data, c))
-    storage.write_manifest(data, {"view_of": "../../..", "transitions": n,
-                                  "config": storage.read_manifest(out_dir)["config"]})
+    data = storage.link_head(out_dir, where / "data", n)
     runs = [where / "runs" / f"m{m}" for m in range(active.members)]
     metrics = []
     for m, run in enumerate(runs):
