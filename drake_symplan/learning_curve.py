@@ -53,8 +53,8 @@ CURVE_SCALES = {
                         patience=5, min_count=3, operator_problems=4,
                         active=("--warmup", "100", "--round-size", "100", "--members", "2",
                                 "--round-epochs", "5")),
-    # What one 2-core session measures (about 80 minutes).
-    "session": CurveScale(sizes=(5000, 10000)),
+    # What one 2-core session measures (about 100 minutes).
+    "session": CurveScale(sizes=(5000, 10000, 25000)),
     # The issue's curve: hours on one machine, `--ray` spreads the collections.
     "paper": CurveScale(sizes=(5000, 10000, 25000, 50000), random_only=(100000,),
                         multi_seed=(25000, 50000), arm=(25000, 50000)),
@@ -152,8 +152,9 @@ class LearningCurve(StageRunner):
         self.results.mkdir(parents=True, exist_ok=True)
         self.say(f"curve --scale {self.name} in {self.out}")
         self._run(self.collect_stage(None, self.scale.heldout))
-        for explorer in EXPLORERS:
-            for size in self.sizes(explorer):
+        sizes = sorted(set(self.sizes("random")) | set(self.sizes("active")))
+        for size in sizes:  # both explorers' points, size by size
+            for explorer in (e for e in EXPLORERS if size in self.sizes(e)):
                 if self._collected(explorer) < size:
                     self._run(self.collect_stage(explorer, size))
                 points = []

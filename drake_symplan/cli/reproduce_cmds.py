@@ -48,8 +48,8 @@ def register(subparsers) -> None:
         "evaluates a model at every size (DIR/runs), writes DIR/results/curve.md, .json "
         "and .png. Re-running the same command resumes.")
     c.add_argument("--scale", choices=sorted(CURVE_SCALES), required=True,
-                   help="small: toy (minutes); session: 5k and 10k (about 80 min on 2 "
-                   "cores); paper: 5k-50k, random to 100k, 3 seeds at 25k/50k, the arm")
+                   help="small: toy (minutes); session: 5k, 10k and 25k (about 100 min "
+                   "on 2 cores); paper: 5k-50k, random to 100k, 3 seeds at 25k/50k, the arm")
     c.add_argument("--out", type=Path, default=None, help="directory (default out/curve_<scale>)")
     c.add_argument("--jobs", type=positive_int, default=2,
                    help="training runs at a time, and local collection workers (default 2)")
