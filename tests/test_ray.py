@@ -155,3 +155,25 @@ def test_eval_planning_on_ray_gives_the_local_records(local_ray, tmp_path):
     again = evaluate_planning(runs, problems, robot="hand", monitor=(True,),
                               records_path=records, ray_address="")  # resumes: no solve
     assert again["records"] == on_ray["records"]
+
+
+@pytest.mark.slow
+def test_an_active_collection_on_ray_gives_the_local_data(local_ray, tmp_path):
+    import dataclasses as dc
+
+    from drake_symplan.explorers.active import ActiveConfig
+    from drake_symplan.explorers.rounds import collect_active
+
+    active = CollectConfig(backend="hand", transitions=20, seed=SEED, min_objects=2,
+                           max_objects=3, chunk_size=CHUNK, episode_length=2,
+                           explorer="active", active=dc.asdict(ActiveConfig(
+                               warmup=12, round_size=8, members=2, epochs=3)))
+    local, on_ray = tmp_path / "local", tmp_path / "ray"
+    collect_active(local, active, workers=1, progress=False)
+    collect_active(on_ray, active, workers=2, progress=False, ray_address="")
+    ours, theirs = existing_shards(on_ray), existing_shards(local)
+    assert sorted(ours) == sorted(theirs) == list(range(5))
+    for c in ours:
+        assert_same_shards(ours[c], theirs[c])
+    with np.load(ours[4]) as z:  # round 1 chose with its explorer
+        assert set(np.unique(z["explore_mode"])) - {0}
