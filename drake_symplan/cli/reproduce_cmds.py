@@ -27,16 +27,9 @@ def register(subparsers) -> None:
         "Re-running the same command resumes: finished stages are skipped.")
     p.add_argument("--scale", choices=sorted(SCALES), required=True,
                    help="small: a toy run (~10 min on 2 cores); paper: the README's run")
-    p.add_argument("--out", type=Path, default=None,
-                   help="directory (default out/reproduce_<scale>)")
-    p.add_argument("--jobs", type=positive_int, default=2,
-                   help="training runs at a time, and local collection workers (default 2)")
-    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                   help="collect and solve the arm problems on Ray (no address: this machine)")
-    add_solve_arguments(p, monitor_flag=False)
-    p.add_argument("--report", action="store_true",
-                   help="run nothing: write results.md from the stages done so far")
-    add_json_argument(p)
+    add_run_arguments(p, "reproduce", "collect and solve the arm problems on Ray",
+                      "write results.md from the stages done so far",
+                      extra=lambda: add_solve_arguments(p, monitor_flag=False))
     p.set_defaults(func=run_reproduce)
 
     from drake_symplan.learning_curve import CURVE_SCALES
@@ -50,15 +43,23 @@ def register(subparsers) -> None:
     c.add_argument("--scale", choices=sorted(CURVE_SCALES), required=True,
                    help="small: toy (minutes); session: 5k, 10k and 25k (about 100 min "
                    "on 2 cores); paper: 5k-50k, random to 100k, 3 seeds at 25k/50k, the arm")
-    c.add_argument("--out", type=Path, default=None, help="directory (default out/curve_<scale>)")
-    c.add_argument("--jobs", type=positive_int, default=2,
-                   help="training runs at a time, and local collection workers (default 2)")
-    c.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                   help="collect and solve on Ray (no address: this machine)")
-    c.add_argument("--report", action="store_true",
-                   help="run nothing: write the table from the points done so far")
-    add_json_argument(c)
+    add_run_arguments(c, "curve", "collect and solve on Ray",
+                      "write the table from the points done so far")
     c.set_defaults(func=run_curve)
+
+
+def add_run_arguments(p, name: str, ray_help: str, report_help: str, extra=None) -> None:
+    """--out, --jobs, --ray, (extra), --report and --json of a resumable multi-stage run."""
+    p.add_argument("--out", type=Path, default=None,
+                   help=f"directory (default out/{name}_<scale>)")
+    p.add_argument("--jobs", type=positive_int, default=2,
+                   help="training runs at a time, and local collection workers (default 2)")
+    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                   help=f"{ray_help} (no address: this machine)")
+    if extra is not None:
+        extra()
+    p.add_argument("--report", action="store_true", help=f"run nothing: {report_help}")
+    add_json_argument(p)
 
 
 def run_reproduce(args):
@@ -93,6 +94,8 @@ def run_curve(args):
         raise CommandError(f"--out {out} is a file, not a directory")
     curve = LearningCurve(args.scale, out, jobs=args.jobs, ray=args.ray,
                           say=lambda text: print(text, file=sys.stderr, flush=True))
+    if args.report and not list((out / "runs").glob("*/bundle_effect/eval.json")):
+        raise CommandError(f"nothing to report in {out}: no point has been evaluated yet")
     try:
         path = curve.report() if args.report else curve.run()
     except StageFailed as e:
