@@ -69,6 +69,27 @@ def test_collect_refuses_workers_below_one(workers, tmp_path, capsys):
     assert not out_dir.exists()
 
 
+@pytest.mark.parametrize("options, message", [
+    (["--mix", "0.7", "0.5"], "p_random + p_goal must be within [0, 1], got 0.7 + 0.5"),
+    (["--members", "1"], "disagreement needs at least 2 ensemble members, got 1"),
+    (["--warmup", "150"], "--warmup (150) and --round-size (1000) must be multiples of "
+                          "--chunk-size (100)"),
+])
+def test_active_collection_refuses_bad_settings_and_writes_nothing(options, message, tmp_path,
+                                                                   capsys):
+    out_dir = tmp_path / "data"
+    code, out, err = run(["collect", "--explorer", "active", "--transitions", "300",
+                          "--out", out_dir, *options], capsys)
+    assert_bad_input(code, out, err, f"symplan collect: error: {message}")
+    assert not out_dir.exists()
+
+
+def test_a_curve_report_with_nothing_evaluated_is_bad_input(tmp_path, capsys):
+    code, out, err = run(["curve", "--scale", "small", "--out", tmp_path, "--report"], capsys)
+    assert_bad_input(code, out, err, f"symplan curve: error: nothing to report in {tmp_path}: "
+                     "no point has been evaluated yet")
+
+
 def test_malformed_pddl_is_bad_input_naming_the_file(tmp_path, capsys):
     (tmp_path / "d.pddl").write_text(DOMAIN)
     (tmp_path / "p.pddl").write_text("(define (problem u) (:domain d)")
