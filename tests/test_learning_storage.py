@@ -96,3 +96,18 @@ def test_errors_name_the_path(tmp_path):
     (tmp_path / "manifest.json").write_text("{}")
     with pytest.raises(ValueError, match="schema_version"):
         load_transitions(tmp_path)
+
+
+def test_a_head_view_is_the_first_shards_of_a_set_and_nothing_else(tmp_path):
+    from drake_symplan.data.storage import link_head
+
+    data = tmp_path / "data"
+    write_manifest(data, {"config": {"transitions": 7}})
+    for c, (t, episode0) in enumerate([(2, 0), (3, 10), (2, 20)]):
+        write_shard(data, c, _arrays(t, 3, seed=c, episode0=episode0))
+    view = link_head(data, tmp_path / "head", 5)
+    np.testing.assert_array_equal(load_transitions(view).episode, [0, 1, 10, 11, 12])
+    assert link_head(data, view, 7) == view  # replaced: now the whole set
+    assert fingerprint(view) == fingerprint(data)
+    with pytest.raises(ValueError, match="do not hold exactly 4 transitions"):
+        link_head(data, tmp_path / "other", 4)  # inside a shard
