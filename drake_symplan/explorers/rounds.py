@@ -56,16 +56,20 @@ def collect_active(out_dir: str | Path, config: CollectConfig, workers: int | No
                          f"{config.explorer!r}")
     out_dir, active = Path(out_dir), ActiveConfig(**config.active)
     check_rounds(config, active)
-    r = 0
+    r, new, t0 = 0, 0, time.perf_counter()
     while True:
         end = min(active.round_end(r), config.transitions)
         explorer = None if r == 0 else load_explorer(out_dir, r, config, active, say)
         say(f"round {r}: transitions {0 if r == 0 else active.round_end(r - 1)}-{end}")
         summary = collect(out_dir, config, workers, progress, ray_address,
                           explorer=lambda c, e=explorer: e, upto=end // config.chunk_size)
+        new += summary["this_run"]["new_transitions"]
         if end >= config.transitions:
             break
         r += 1
+    wall = time.perf_counter() - t0  # the rounds' collection and learning
+    summary["this_run"].update(new_transitions=new, wall_seconds=round(wall, 2),
+                               rate_per_s=round(new / wall, 3) if wall > 0 else None)
     manifest = storage.read_manifest(out_dir)
     manifest["active_rounds"] = [
         json.loads((round_dir(out_dir, k) / "explorer.json").read_text())
