@@ -287,7 +287,7 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
     wall = time.perf_counter() - t0
 
     summary = dataset_stats(out_dir)
-    new = config.transitions - already
+    new = sum(config.chunk_count(c) for c in todo)
     summary["this_run"] = {"new_transitions": new, "wall_seconds": round(wall, 2),
                            "workers": workers, "engine": "local" if ray is None else "ray",
                            "startup_seconds": round(started - t0, 2),
