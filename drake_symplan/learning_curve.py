@@ -53,8 +53,8 @@ CURVE_SCALES = {
                         patience=5, min_count=3, operator_problems=4,
                         active=("--warmup", "100", "--round-size", "100", "--members", "2",
                                 "--round-epochs", "5")),
-    # What one 2-core session measures (about 100 minutes): seeds 0-2 at 10k.
-    "session": CurveScale(sizes=(5000, 10000, 25000), multi_seed=(10000,)),
+    # What one 2-core session measures (about 2 hours): seeds 0-2 at 10k and 25k.
+    "session": CurveScale(sizes=(5000, 10000, 25000), multi_seed=(10000, 25000)),
     # The curve: hours on one machine, `--ray` spreads the collections.
     "paper": CurveScale(sizes=(5000, 10000, 25000, 50000), random_only=(100000,),
                         multi_seed=(25000, 50000), arm=(25000, 50000)),

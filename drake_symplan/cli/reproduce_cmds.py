@@ -41,7 +41,7 @@ def register(subparsers) -> None:
         "evaluates a model at every size (DIR/runs), writes DIR/results/curve.md, .json "
         "and .png. Re-running the same command resumes.")
     c.add_argument("--scale", choices=sorted(CURVE_SCALES), required=True,
-                   help="small: toy (minutes); session: 5k, 10k (3 seeds) and 25k (about 100 min "
+                   help="small: toy (minutes); session: 5k, 10k and 25k, 3 seeds at 10k and 25k (about 2 h "
                    "on 2 cores); paper: 5k-50k, random to 100k, 3 seeds at 25k/50k, the arm")
     add_run_arguments(c, "curve", "collect and solve on Ray",
                       "write the table from the points done so far")
