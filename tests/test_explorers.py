@@ -100,7 +100,7 @@ def test_ensemble_disagreement_ranks_the_action_the_members_dispute_first():
     assert ContinuousModel([Shifts(0.04)]).disagreement(boxes, actions).max() == 0.0
 
 
-def test_rounds_split_the_transitions_and_cost_the_same_however_much_data():
+def test_rounds_split_the_transitions_and_train_fewer_epochs_as_data_grows():
     c = ActiveConfig(warmup=1000, round_size=500, epochs=30)
     assert [c.round_end(r) for r in range(3)] == [1000, 1500, 2000]
     assert c.epochs_for(1000) == 30  # round 1 learns the warm-up from scratch

@@ -65,7 +65,7 @@ class ActiveConfig:
     def epochs_for(self, transitions: int) -> int:
         """Training epochs of a round that learns from `transitions`: `epochs` over the
         warm-up, then as many gradient steps as `epochs` over one round (the warm start
-        holds the rest), at least 3: a round costs the same however much data there is."""
+        holds the rest), at least 3."""
         return max(3, math.ceil(self.epochs * min(self.warmup, self.round_size)
                                 / transitions)) if transitions > self.warmup else self.epochs
 
