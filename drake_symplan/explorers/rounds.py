@@ -24,7 +24,7 @@ from drake_symplan.atomic import write_atomic
 from drake_symplan.data import storage
 from drake_symplan.data.collect import CollectConfig, collect
 from drake_symplan.explorers.active import ActiveConfig, ActiveExplorer
-from drake_symplan.learning.checkpoint import BEST, load_run
+from drake_symplan.learning.checkpoint import BEST, LAST, load_run
 from drake_symplan.learning.readout import readout_scenes
 from drake_symplan.learning.trainer import TrainConfig, train
 from drake_symplan.shards import fingerprint
@@ -119,6 +119,8 @@ def learn_round(out_dir: Path, r: int, config: CollectConfig, active: ActiveConf
                  continuous_run=runs)
     record["seconds"] = round(time.perf_counter() - t0, 2)
     write_atomic(where / "explorer.json", json.dumps(record, indent=1))
+    for run in runs:  # the next round starts from best.pt; a resumed round trains anew
+        (run / LAST).unlink()
     return record
 
 
