@@ -103,3 +103,28 @@ def test_problem_seeds_and_loading(tmp_path):
         load_problems(tmp_path / "empty")
     with pytest.raises(FileNotFoundError):
         load_problems(tmp_path / "absent")
+
+
+@pytest.mark.slow
+def test_reproducible_problems_replay_from_their_files(tmp_path):
+    from drake_symplan.agent import beliefs
+    from drake_symplan.agent.problems import make_problems, replay
+    from drake_symplan.agent.solve import Agent
+    from drake_symplan.structs import GOAL_TOLERANCE, Action
+
+    agent = Agent("hand")
+    summary = make_problems(tmp_path, 3, [2], 2, seed=7, backend="hand", agent=agent,
+                            reproducible=True)
+    assert summary["kept"] == 2 and summary["settings"]["reproducible"] is True
+    for problem in load_problems(tmp_path):
+        folder = tmp_path / problem["dir"]
+        actions = [Action.from_text(a) for a in problem["actions"]]
+        goal = beliefs.positions(agent.look(load_scene(folder / "goal.yaml")).scene)
+        start = load_scene(folder / "start.yaml")
+        assert displacement(goal, beliefs.positions(replay(agent, start, actions))) \
+            <= GOAL_TOLERANCE
+        # Nothing replayed leaves the start, which is more than 5 cm off (non-trivial).
+        assert displacement(goal, beliefs.positions(replay(agent, start, []))) \
+            > GOAL_TOLERANCE
+    with pytest.raises(ValueError, match="reproducible"):  # a set keeps its settings
+        make_problems(tmp_path, 3, [2], 3, seed=7, backend="hand", agent=agent)

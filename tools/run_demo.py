@@ -8,8 +8,11 @@
    cubes and two long blocks, the goal two arm actions away), the same on every machine.
    `--seed N` samples a new one: a random scene with `--objects` boxes, then k = 2 or 3
    random pick/place actions executed by the UR10; the scene they leave is the goal
-   (agent/problems.py, as the planning evaluation makes them). Sampled goals come from simulated physics, which
-   differs slightly between machines, so the same seed can give another goal elsewhere.
+   (agent/problems.py, as the planning evaluation makes them), kept only if the same
+   actions replayed from the start as saved reach it again (`symplan problems make
+   --reproducible`: a goal that a tenth of a millimetre turns into another is dropped).
+   Sampled goals come from simulated physics, which differs slightly between machines, so
+   the same seed can give another goal elsewhere.
    Or `--start/--goal` files.
 2. The model bundle (default: the shipped models/learned/) reads both perceived scenes into
    symbols and the planner plans once, printed step by step ("pick o3 at its centre,
@@ -220,7 +223,7 @@ def make_goal(agent, args, say):
     k = args.k or int(np.random.default_rng(args.seed).integers(2, 4))
     for attempt in range(MAX_ATTEMPTS):
         seed = problem_seed(args.seed, attempt)
-        made = make_problem(agent, seed, args.objects, k)
+        made = make_problem(agent, seed, args.objects, k, reproducible=True)
         if not isinstance(made, str):
             start, goal, info = made
             return start, goal, {"seed": args.seed, "problem_seed": seed, "k": k, **info}

@@ -63,6 +63,9 @@ def register(subparsers) -> None:
     add_robot_argument(p)
     p.add_argument("--max-attempts", type=positive_int, default=None,
                    help="give up after this many attempts (default 20 x count)")
+    p.add_argument("--reproducible", action="store_true",
+                   help="keep a goal only if its actions, replayed from the start as saved, "
+                   "reach it again (drops chaotic goals; the oracle then solves every one)")
     add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)
 
@@ -140,7 +143,8 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
     if not 2 <= args.objects <= MAX_OBJECTS:
         raise CommandError(f"--objects must be in [2, {MAX_OBJECTS}], got {args.objects}")
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
-                            args.backend, args.max_attempts)
+                            args.backend, args.max_attempts,
+                            reproducible=args.reproducible)
     out = {"out": str(args.out), **summary}
     if not args.json:
         print(f"{summary['kept']} problem(s) in {args.out} after {summary['attempts']} "
