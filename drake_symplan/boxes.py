@@ -29,26 +29,31 @@ def fold_yaw(yaw: float, period: float) -> float:
 CONTACT_TOLERANCE = 0.006  # m; perceived boxes are a few mm off, sampled objects >= 2 cm apart
 
 
-def _surface_samples(center, R, half, n=7) -> np.ndarray:
+def _unit_surface(n: int = 7) -> np.ndarray:
+    """Points on the surface of the cube [-1, 1]^3: an n x n grid on each face."""
     g = np.linspace(-1.0, 1.0, n)
-    pts = []
+    uu, vv = np.meshgrid(g, g)
+    faces = []
     for axis in range(3):
         a, b = [i for i in range(3) if i != axis]
         for sign in (-1.0, 1.0):
-            uu, vv = np.meshgrid(g, g)
             local = np.zeros((uu.size, 3))
             local[:, axis] = sign
             local[:, a], local[:, b] = uu.ravel(), vv.ravel()
-            pts.append(local * half)
-    return center + np.vstack(pts) @ R.T
+            faces.append(local)
+    return np.vstack(faces)
+
+
+_UNIT_SURFACE = _unit_surface()  # made once: the planner's search asks for many contacts
 
 
 def box_distance(c1, R1, h1, c2, R2, h2) -> float:
-    """Approximate surface distance between two boxes (0 when they overlap)."""
+    """Approximate surface distance between two boxes (0 when they overlap): the nearest
+    of each box's surface samples to the other box."""
     best = np.inf
     for (ca, Ra, ha), (cb, Rb, hb) in (((c1, R1, h1), (c2, R2, h2)),
                                          ((c2, R2, h2), (c1, R1, h1))):
-        local = (_surface_samples(ca, Ra, ha) - cb) @ Rb
+        local = ((_UNIT_SURFACE * ha) @ np.asarray(Ra).T + (ca - cb)) @ Rb
         outside = np.maximum(np.abs(local) - hb, 0.0)
         best = min(best, float(np.sqrt((outside ** 2).sum(axis=1)).min()))
     return best

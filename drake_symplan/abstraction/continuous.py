@@ -35,11 +35,12 @@ class Boxes:
     """A scene as the continuous model sees it: named objects, their features [n, d_o]
     (position first, features.py), the pairs in contact, and how uncertain each position
     is (`spread` [n], m: the ensemble's disagreement accumulated along a rollout; zero for
-    a perceived scene)."""
+    a perceived scene). A predicted scene's contacts come from the geometry when first
+    asked for: a search predicts many scenes and looks into few."""
 
     names: tuple[str, ...]
     features: np.ndarray
-    contacts: frozenset
+    known_contacts: frozenset | None = None  # None: from the box geometry, when asked
     spread: np.ndarray | None = None
 
     def uncertainty(self) -> np.ndarray:
@@ -50,6 +51,17 @@ class Boxes:
         """From a perceived scene (names, features(), contacts)."""
         return cls(tuple(scene.names), np.asarray(scene.features(), np.float32),
                    frozenset(tuple(sorted(p)) for p in scene.contacts))
+
+    @property
+    def contacts(self) -> frozenset:
+        """The sorted name pairs in contact."""
+        if self.known_contacts is None:
+            geometry = {}
+            for name, row in zip(self.names, self.features, strict=True):
+                kind, centre, R = box_of(row)
+                geometry[name] = (centre, R, np.asarray(HALF_EXTENTS[kind]))
+            object.__setattr__(self, "known_contacts", frozenset(contact_graph(geometry)))
+        return self.known_contacts
 
     @property
     def positions(self) -> np.ndarray:
@@ -63,14 +75,9 @@ class Boxes:
         [n] is added to the uncertainty they had (root sum of squares)."""
         features = self.features.copy()
         features[:, :3] = positions
-        geometry = {}
-        for name, row in zip(self.names, features, strict=True):
-            kind, centre, R = box_of(row)
-            geometry[name] = (centre, R, np.asarray(HALF_EXTENTS[kind]))
         if spread is not None:
             spread = np.sqrt(self.uncertainty() ** 2 + np.asarray(spread) ** 2)
-        return Boxes(self.names, features, frozenset(contact_graph(geometry)),
-                     spread if spread is not None else self.spread)
+        return Boxes(self.names, features, None, spread if spread is not None else self.spread)
 
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves

@@ -11,6 +11,7 @@ positions against the predicted ones (DEVIATION) for plans checked in continuous
 from __future__ import annotations
 
 import numpy as np
+import torch
 
 from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
 from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel, reaches_goal
@@ -35,6 +36,9 @@ class Planner:
         self.given = given
         self.level = "symbolic"  # of the plan returned last
         self.refiner = None
+        # The networks see batches of tens of actions, where more threads spin more than
+        # they compute: one thread spends about a seventh of the CPU budget per prediction.
+        torch.set_num_threads(1)
         if config.planning in ("bilevel", "continuous"):
             self.refiner = Refiner(abstraction.bundle.operators,
                                    ContinuousModel(abstraction.bundle.continuous))
