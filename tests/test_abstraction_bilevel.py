@@ -236,3 +236,21 @@ def test_a_miss_the_rest_of_the_plan_absorbs_costs_no_replan():
     assert departs(seen(0.06))  # 6 cm off: the rest cannot make up for it; replan
     assert not planner.departs(steps[1], predicted, None, seen(0.06), [], None, None,
                                Seen(tower))  # the last step: the goal check decides
+
+
+def test_the_plans_end_is_checked_on_positions_unless_planning_is_symbolic():
+    from drake_symplan.agent.config import SolveConfig
+
+    goal = boxes(a=(0.7, 0.0, 0.075), b=(0.7, 0.0, 0.025))
+    off = boxes(a=(0.7, 0.08, 0.075), b=(0.7, 0.0, 0.025))  # a on b, 8 cm along it
+
+    class AtomsHold:
+        def goal_holds(self, reading, atoms):
+            return True  # the symbols say "a on b" for both scenes
+
+    planner = object.__new__(Planner)
+    planner.abs, planner.level = AtomsHold(), "symbolic"  # a skeleton run on its symbols
+    for planning, seen in (("symbolic", True), ("bilevel", False), ("continuous", False)):
+        planner.config = SolveConfig(planning=planning)
+        assert planner.goal_seen(None, frozenset(), Seen(off), Seen(goal)) is seen, planning
+        assert planner.goal_seen(None, frozenset(), Seen(goal), Seen(goal))

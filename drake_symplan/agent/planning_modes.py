@@ -89,8 +89,9 @@ class Planner:
         return bool(self.abs.mismatches(seen, step))
 
     def goal_seen(self, reading: Reading, goal_atoms, scene, goal_scene) -> bool:
-        """At the plan's end: the goal's atoms seen (symbolic plans), or every box seen
-        within the tolerance of its goal (plans checked in continuous space)."""
-        if not self.predicts_positions:
+        """At the plan's end: the goal's atoms seen (symbolic planning), or every box seen
+        within the tolerance of its goal (bilevel and continuous planning: also after a
+        skeleton that ran on its symbols, whose atoms can hold with a box far off)."""
+        if self.config.planning == "symbolic":
             return self.abs.goal_holds(reading, goal_atoms)
         return reaches_goal(Boxes.of(scene), Boxes.of(goal_scene).where(), GOAL_TOLERANCE)
