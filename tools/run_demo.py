@@ -35,7 +35,7 @@ printed with `--meshcat`, which keeps it serving until Enter). `--json` prints t
 object of `symplan solve --json` (plus "demo": the problem and the readable plan) and
 nothing else on stdout.
 
-Exit status: 0 success, 1 a verdict that is not success, no plan, or no non-trivial goal
+Exit status: 0 success, 1 a verdict that is not success, no plan, or no goal
 could be made, 2 bad input (one line on stderr).
 """
 
@@ -56,7 +56,7 @@ from drake_symplan.cli.options import add_solve_arguments, solve_config
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / "models" / "demo"  # the default problem: start.yaml, goal.yaml, problem.json
-MAX_ATTEMPTS = 12  # random problems tried before giving up on a non-trivial goal
+MAX_ATTEMPTS = 12  # random problems tried before giving up (non-trivial, reproducible)
 # --from-scratch: shares of the budget by which collection and training must end.
 COLLECT_SHARE, TRAIN_SHARE = 0.4, 0.85
 FIRST_ROUND = 100  # transitions collected first, to measure the rate
@@ -317,7 +317,8 @@ def main(argv=None) -> int:
         say(f"making a goal: {args.objects} objects, random actions by the UR10 ...")
         made = make_goal(agent, args, say)
         if made is None:
-            say(f"no non-trivial goal in {MAX_ATTEMPTS} attempts; try another --seed")
+            say(f"no non-trivial, reproducible goal in {MAX_ATTEMPTS} attempts; "
+                "try another --seed")
             return 1
         start, goal, info = made
         demo.update(info)
