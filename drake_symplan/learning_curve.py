@@ -120,7 +120,8 @@ class LearningCurve(StageRunner):
                   bundle / "eval.json"))
 
     def arm_stages(self) -> list[Stage]:
-        """Problems of 2, 3, 4 objects, k = 1-3, solved with both compared sizes' bundles."""
+        """Problems of 2, 3, 4 objects, k = 1-3, solved with both compared sizes' bundles;
+        reproducible goals only, so that every failure is the model's (docs/planning.md)."""
         s = self.scale
         if s.arm is None:
             return []
@@ -130,7 +131,8 @@ class LearningCurve(StageRunner):
             stages.append(Stage(f"problems {n} objects",
                                 ["problems", "make", "--out", folder, "--objects", n, "--k",
                                  1, 2, 3, "--count", s.arm_problems, "--seed",
-                                 s.problem_seed + n, "--backend", "arm", "--json"],
+                                 s.problem_seed + n, "--backend", "arm", "--reproducible",
+                                 "--json"],
                                 folder / "done.json", stdout=folder / "done.json"))
         runs = [self.run_dir(e, size, seed) / "bundle_effect"
                 for e, size in zip(EXPLORERS[::-1], s.arm, strict=True)
