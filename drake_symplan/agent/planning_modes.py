@@ -37,7 +37,8 @@ class Planner:
         self.level = "symbolic"  # of the plan returned last
         self.refiner = None
         # The networks see batches of tens of actions, where more threads spin more than
-        # they compute: one thread spends about a seventh of the CPU budget per prediction.
+        # they compute: one thread makes 1.2x the predictions per CPU second of torch's
+        # default on a quiet 2-core host, up to 7x beside other work (tools/bench_search.py).
         torch.set_num_threads(1)
         if config.planning in ("bilevel", "continuous"):
             self.refiner = Refiner(abstraction.bundle.operators,
