@@ -22,9 +22,9 @@ goal is not a valid scene; `problems.json` counts the reasons.
 With `reproducible`, a goal is kept only if the same actions, replayed from the start as
 its file reads back (positions rounded to 0.1 mm), bring every object within 5 cm of the
 perceived goal again (`replay`): the `oracle` of `eval planning` then reaches every kept
-goal. Without it, about one random goal in six is chaotic: a box that tumbled or slid
-lands elsewhere when the start moves by a tenth of a millimetre, a goal no planner can
-aim for (docs/planning.md).
+goal. Without it, about one goal in eight 1-3 actions away is chaotic, and nearly half of
+those 4-5 away: a box that tumbled or slid lands elsewhere when the start moves by a
+tenth of a millimetre, a goal no planner can aim for (docs/planning.md).
 """
 
 from __future__ import annotations
