@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.abstraction.operator_eval import EvalConfig, make_problems
+from drake_symplan.abstraction import operator_eval
+from drake_symplan.abstraction.operator_eval import EvalConfig, make_problems, solve_problems
+from drake_symplan.planning.planners import PlanResult
 from drake_symplan.structs import SceneSymbols
 from drake_symplan.symbolic.effect_operators import EFFECT
 
@@ -50,3 +52,20 @@ def test_problems_never_span_two_chains():
     sc = scenes([[1, 1], [1, 1], [1, 0]], [APART, TOUCH, TOUCH], chain=[0, 1])
     problems = make_problems(sc, EFFECT, EvalConfig(ks=(1, 2)))
     assert [p.k for p in problems] == [1, 1]
+
+
+def test_each_planner_call_gets_cpu_seconds_with_a_wall_clock_cap(monkeypatch):
+    # A busy host must give the planner the same work as a quiet one: the budget is CPU
+    # seconds (--timeout), wall-clock time only its cap (three times that).
+    calls = []
+
+    def plan_task(domain, task, planner, timeout, cpu_seconds=None):
+        calls.append((planner, timeout, cpu_seconds))
+        return PlanResult("timeout", planner=planner)
+
+    monkeypatch.setattr(operator_eval, "plan_task", plan_task)
+    sc = scenes([[1, 1], [1, 1], [1, 0]], [APART, TOUCH, TOUCH])
+    config = EvalConfig(ks=(1,), timeout=2.0, workers=1)
+    results = solve_problems([], 1, 1, make_problems(sc, EFFECT, config), config)
+    assert [r["status"] for r in results] == ["timeout", "timeout"]
+    assert calls == [("fd", 6.0, 2.0), ("fd", 6.0, 2.0)]

@@ -29,7 +29,7 @@ from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.features import box_of
-from drake_symplan.planning.planners import children_cpu
+from drake_symplan.planning.planners import WALL_FACTOR, children_cpu
 from drake_symplan.structs import GOAL_TOLERANCE, OFFSET_METRES, OFFSETS, Action
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
@@ -231,7 +231,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
     An abstraction.Plan whose `level` says which found it, with the scene predicted after
     each step and the candidates looked at (the rejected ones with why)."""
     t0 = time.perf_counter()
-    budget = budget or Budget(timeout, 3 * timeout)
+    budget = budget or Budget(timeout, WALL_FACTOR * timeout)
     target = goal_boxes.where()
     candidates: list[Candidate] = []
     unverified = None  # the first skeleton, run on its symbols if nothing else is found

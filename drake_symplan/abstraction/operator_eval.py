@@ -25,7 +25,7 @@ import numpy as np
 from drake_symplan.abstraction.abstraction import plan_task, reliability
 from drake_symplan.atomic import save_figure
 from drake_symplan.learning.readout import readout_scenes
-from drake_symplan.planning.planners import DEFAULT_TIMEOUT
+from drake_symplan.planning.planners import DEFAULT_TIMEOUT, WALL_FACTOR
 from drake_symplan.shards import fingerprint, load_extra
 from drake_symplan.structs import OFFSETS, SceneSymbols, SymbolDataset
 from drake_symplan.symbolic.effect_operators import (
@@ -106,7 +106,9 @@ def solve_problems(operators: list[LiftedOperator], n_unary: int, n_relations: i
     by_name = {op.name: op for op in operators}
 
     def one(p: Problem) -> dict:
-        r = plan_task(domain, p.task, config.planner, config.timeout)
+        # CPU seconds, so that a problem gets the same answer on a busy host as on a quiet one
+        r = plan_task(domain, p.task, config.planner, WALL_FACTOR * config.timeout,
+                      cpu_seconds=config.timeout)
         steps = [parse_step(s, by_name) for s in r.plan]
         return {"k": p.k, "objects": p.n_objects, "status": r.status, "length": len(r.plan),
                 "seconds": r.seconds, "reliability": reliability(steps) if r.solved else 0.0}

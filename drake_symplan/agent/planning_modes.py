@@ -17,13 +17,13 @@ from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
 from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel, reaches_goal
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
 from drake_symplan.agent.config import SolveConfig
+from drake_symplan.planning.planners import WALL_FACTOR
 from drake_symplan.structs import GOAL_TOLERANCE, Action
 from drake_symplan.symbolic.structs import PlanStep, Reposition, reaches
 
 # m: a box perceived this far from its predicted position (beyond the prediction's spread)
 # departs the plan
 DEVIATION = 0.03
-WALL_FACTOR = 3.0  # the wall-clock cap of a CPU-second budget, as a multiple of it
 
 
 class Planner:

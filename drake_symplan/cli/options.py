@@ -42,15 +42,19 @@ def add_json_argument(p: argparse.ArgumentParser) -> None:
                    help="print the result as JSON on stdout (messages go to stderr)")
 
 
-def add_planner_arguments(p: argparse.ArgumentParser, per_plan: bool = False) -> None:
-    """--planner and --timeout; `per_plan`: the timeout is a solve's budget per plan."""
+def add_planner_arguments(p: argparse.ArgumentParser, per_plan: bool = False,
+                          cpu: bool = False) -> None:
+    """--planner and --timeout; `per_plan`: the timeout is a solve's budget per plan;
+    `cpu`: each planner call's CPU seconds (else its wall-clock seconds)."""
     p.add_argument("--planner", choices=PLANNERS, default=DEFAULT_SOLVE.planner,
                    metavar="PLANNER", help="planner back-end, one of %(choices)s: fd (Fast "
                    f"Downward, A* with LM-cut), pyperplan (default {DEFAULT_SOLVE.planner})")
     p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.timeout,
                    help=("CPU seconds per plan (bilevel and continuous: the whole search's), "
                          "with a wall-clock cap of three times that" if per_plan else
-                         "planner seconds per call") + f" (default {DEFAULT_SOLVE.timeout:g})")
+                         "CPU seconds per planner call, with a wall-clock cap of three times "
+                         "that" if cpu else "planner seconds per call")
+                   + f" (default {DEFAULT_SOLVE.timeout:g})")
 
 
 def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None:

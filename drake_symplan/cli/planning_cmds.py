@@ -101,7 +101,7 @@ def _register_eval_operators(subparsers) -> None:
                    help="steps between start and goal, one problem set each")
     e.add_argument("--max-problems", type=positive_int, default=50,
                    help="problems per k and object count (default 50)")
-    add_planner_arguments(e)
+    add_planner_arguments(e, cpu=True)
     e.add_argument("--seed", type=int, default=0,
                    help="seed of the choice of problems among the held-out chains")
     e.add_argument("--out", type=Path, help="also write the report as JSON here")

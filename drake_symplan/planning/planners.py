@@ -41,6 +41,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 STATUSES = ("solved", "unsolvable", "timeout", "error")
+WALL_FACTOR = 3.0  # the wall-clock cap of a CPU-second budget, as a multiple of it
 DEFAULT_TIMEOUT = 10.0
 FD_SEARCH = "astar(lmcut())"
 FD_ENV = "SYMPLAN_FAST_DOWNWARD"  # overrides the driver path
