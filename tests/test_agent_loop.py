@@ -308,7 +308,7 @@ def test_evaluate_planning_on_a_fake_world(tmp_path):
     save_scene(START, folder / "start.yaml")
     save_scene(GOAL, folder / "goal.yaml")
     (folder / "problem.json").write_text(json.dumps({"k": 1, "seed": 0, "n_objects": 3}))
-    records = tmp_path / "records.jsonl"
+    records = tmp_path / "results" / "records.jsonl"  # a folder not made yet
     kwargs = dict(agent=Agent(FakeBackend()), load=lambda run: OracleAbstraction(),
                   records_path=records)
     symbolic = SolveConfig(planning="symbolic")

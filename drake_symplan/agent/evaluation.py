@@ -97,6 +97,8 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
         for name in ("start.yaml", "goal.yaml"):
             load_scene(Path(problem["dir"]) / name)
     done, records = _resume(records_path)
+    if records_path is not None:
+        Path(records_path).parent.mkdir(parents=True, exist_ok=True)
     # Monitoring mode by mode, run by run: an unfinished evaluation has whole runs of the
     # first mode (the headline) before any of the second.
     todo = [(label, config.replace(monitor=bool(mode)), problem) for mode in monitor
