@@ -27,10 +27,11 @@ from pathlib import Path
 def search_rate(refiner_for, start, goal, budget_s: float) -> dict:
     """One search: predictions, CPU seconds, whether it reached the goal."""
     from drake_symplan.abstraction.bilevel import Budget
+    from drake_symplan.planning.planners import WALL_FACTOR
 
     refiner = refiner_for()
     t = time.process_time()
-    found, _ = refiner.search(start, goal.where(), Budget(budget_s, 3 * budget_s))
+    found, _ = refiner.search(start, goal.where(), Budget(budget_s, WALL_FACTOR * budget_s))
     cpu = time.process_time() - t
     return {"predictions": refiner.predictions, "cpu_s": round(cpu, 4),
             "per_cpu_s": round(refiner.predictions / max(cpu, 1e-9), 1),
