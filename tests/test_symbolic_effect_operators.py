@@ -122,3 +122,19 @@ def test_an_uncertain_bit_is_read_by_its_sign_for_applicability_only():
 
     strict = Semantics(**{**EFFECT.__dict__, "guess_uncertain": False})
     assert predicts(op, lift_transitions(dataset([stack(1, True, unsure_b)]), strict)[0]) is None
+
+
+def test_without_contact_degrees_the_same_groups_make_operators_with_no_touching_atoms():
+    from drake_symplan.symbolic.bundle import learn_bundle_operators
+
+    rows = [stack(1, True)] * 20 + [stack(0, False)] * 20 + [stack(1, False)] * 5
+    operators, semantics, info = learn_bundle_operators(dataset(rows), "effect", 3, 0.95,
+                                                        degree=False)
+    assert not semantics.degree and info["degree"] is False and len(operators) == 1
+    op = operators[0]
+    assert sorted(" ".join(a) for a in op.preconditions()) == [
+        "different ?o0 ?o1", "p0 ?o0", "p0 ?o1"]
+    add, delete = op.effects()
+    assert sorted(" ".join(a) for a in add) == ["not_r0 ?o1 ?o0", "r0 ?o0 ?o1"]
+    assert not list(delete)
+    assert (op.applicable, op.succeeded) == (25, 20)

@@ -76,6 +76,10 @@ def _register_bundle(subparsers) -> None:
                    help="transitions an operator needs (default 10)")
     b.add_argument("--support", type=float, default=0.95,
                    help="effect learner: share of a group a precondition holds in (0.95)")
+    b.add_argument("--contact-degree", choices=("on", "off"), default="on",
+                   help="effect learner: states hold each object's contact degree "
+                   "(touching0..3: 'nothing else touches ?o0'); off: coverage and "
+                   "precision up, a rider no operator states (default on)")
     b.add_argument("--margin", type=float, default=3.0,
                    help="a bit is uncertain when |logit| < margin (default 3)")
     add_json_argument(b)
@@ -233,8 +237,8 @@ def cmd_bundle(args) -> dict:
                            "the bundle in --out)")
     model, _ = load_run(args.run)
     data, _ = readout_scenes(model, args.data, args.margin)
-    operators, semantics, info = learn_bundle_operators(data, args.learner, args.min_count,
-                                                        args.support)
+    operators, semantics, info = learn_bundle_operators(
+        data, args.learner, args.min_count, args.support, args.contact_degree == "on")
     run_config = json.loads((args.run / "config.json").read_text()) \
         if (args.run / "config.json").is_file() else {}
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]),

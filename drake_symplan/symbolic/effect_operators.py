@@ -276,11 +276,13 @@ def _compatible(add, delete, unknown, group_add, group_delete) -> bool:
 
 
 def learn_effect_operators(data: SymbolDataset, config: EffectLearnConfig | None = None,
-                           lifted: list[Lifted] | None = None) -> EffectOperatorSet:
-    """Effect-first operators of a symbolic data set with contacts (module docstring)."""
+                           lifted: list[Lifted] | None = None,
+                           semantics: Semantics = EFFECT) -> EffectOperatorSet:
+    """Effect-first operators of a symbolic data set with contacts (module docstring), its
+    states read under `semantics` (unless `lifted` gives them already)."""
     config = config or EffectLearnConfig()
     t0 = time.perf_counter()
-    lifted = lifted if lifted is not None else lift_transitions(data)
+    lifted = lifted if lifted is not None else lift_transitions(data, semantics)
     if not lifted:
         raise ValueError("no transitions to learn operators from")
     t1 = time.perf_counter()
