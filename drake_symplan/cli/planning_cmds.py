@@ -78,8 +78,8 @@ def _register_bundle(subparsers) -> None:
                    help="effect learner: share of a group a precondition holds in (0.95)")
     b.add_argument("--contact-degree", choices=("on", "off"), default="on",
                    help="effect learner: states hold each object's contact degree "
-                   "(touching0..3: 'nothing else touches ?o0'); off: coverage and "
-                   "precision up, a rider no operator states (default on)")
+                   "(touching0..3: 'nothing else touches ?o0'); off: more coverage and "
+                   "precision, no operator can require that (default on)")
     b.add_argument("--margin", type=float, default=3.0,
                    help="a bit is uncertain when |logit| < margin (default 3)")
     add_json_argument(b)

@@ -169,7 +169,7 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
         semantics = EFFECT if degree else dataclasses.replace(EFFECT, degree=False)
         result = learn_effect_operators(data, EffectLearnConfig(min_count, support),
                                         semantics=semantics)
-        return result.operators, semantics, {**result.summary(), "degree": degree}
+        return result.operators, semantics, {**result.summary(), "contact_degree": degree}
     if learner == "paper":
         result = learn_operators(data, LearnConfig(min_count=min_count))
         measure_reliability(result.operators, lift_transitions(data, PAPER))
