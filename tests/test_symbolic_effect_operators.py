@@ -129,7 +129,7 @@ def test_without_contact_degrees_the_same_groups_make_operators_with_no_touching
 
     rows = [stack(1, True)] * 20 + [stack(0, False)] * 20 + [stack(1, False)] * 5
     operators, semantics, info = learn_bundle_operators(dataset(rows), "effect", 3, 0.95,
-                                                        degree=False)
+                                                        contact_degree=False)
     assert not semantics.degree and info["contact_degree"] is False and len(operators) == 1
     op = operators[0]
     assert sorted(" ".join(a) for a in op.preconditions()) == [

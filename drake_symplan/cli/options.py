@@ -9,6 +9,7 @@ import importlib
 
 from drake_symplan.agent.config import DEFAULT_SOLVE, PLANNING, PLANNING_MODES, SolveConfig
 from drake_symplan.cli.main import CommandError
+from drake_symplan.planning.planners import WALL_FACTOR
 
 
 class RegistryChoices:
@@ -49,12 +50,12 @@ def add_planner_arguments(p: argparse.ArgumentParser, per_plan: bool = False,
     p.add_argument("--planner", choices=PLANNERS, default=DEFAULT_SOLVE.planner,
                    metavar="PLANNER", help="planner back-end, one of %(choices)s: fd (Fast "
                    f"Downward, A* with LM-cut), pyperplan (default {DEFAULT_SOLVE.planner})")
+    cap = f", with a wall-clock cap of {WALL_FACTOR:g} times that"
+    what = ("CPU seconds per plan (bilevel and continuous: the whole search's)" + cap
+            if per_plan else "CPU seconds per planner call" + cap if cpu
+            else "planner seconds per call")
     p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.timeout,
-                   help=("CPU seconds per plan (bilevel and continuous: the whole search's), "
-                         "with a wall-clock cap of three times that" if per_plan else
-                         "CPU seconds per planner call, with a wall-clock cap of three times "
-                         "that" if cpu else "planner seconds per call")
-                   + f" (default {DEFAULT_SOLVE.timeout:g})")
+                   help=f"{what} (default {DEFAULT_SOLVE.timeout:g})")
 
 
 def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None:

@@ -160,16 +160,16 @@ def copy_model(run_dirs: str | Path | list, path: Path) -> Path:
 
 
 def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
-                           support: float = 0.95, degree: bool = True):
+                           support: float = 0.95, contact_degree: bool = True):
     """(operators, semantics, info) learned from a SymbolDataset by `learner`:
-    "effect" (effect_operators.py; `degree`: with contact-degree atoms) or "paper"
+    "effect" (effect_operators.py; `contact_degree`: with contact-degree atoms) or "paper"
     (operators.py, the paper's method as implemented, measured under its own semantics:
     every bit, every pair)."""
     if learner == "effect":
-        semantics = EFFECT if degree else dataclasses.replace(EFFECT, degree=False)
+        semantics = EFFECT if contact_degree else dataclasses.replace(EFFECT, degree=False)
         result = learn_effect_operators(data, EffectLearnConfig(min_count, support),
                                         semantics=semantics)
-        return result.operators, semantics, {**result.summary(), "contact_degree": degree}
+        return result.operators, semantics, {**result.summary(), "contact_degree": contact_degree}
     if learner == "paper":
         result = learn_operators(data, LearnConfig(min_count=min_count))
         measure_reliability(result.operators, lift_transitions(data, PAPER))
