@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from drake_symplan.abstraction.operator_eval import familiarity, prediction_scores
 from drake_symplan.structs import Action, SymbolDataset, encode_action
 from drake_symplan.symbolic.effect_operators import (
     EffectLearnConfig,
@@ -138,3 +139,24 @@ def test_without_contact_degrees_the_same_groups_make_operators_with_no_touching
     assert sorted(" ".join(a) for a in add) == ["not_r0 ?o1 ?o0", "r0 ?o0 ?o1"]
     assert not list(delete)
     assert (op.applicable, op.succeeded) == (25, 20)
+
+
+def test_selective_scores_count_only_situations_the_training_data_saw_often():
+    # b's bit is p0 in 25 training transitions (20 stacked) and not in 2 (both stacked), so
+    # the one operator needs only p0 ?o0 and applies to both situations.
+    train = dataset([stack(1, True)] * 20 + [stack(1, False)] * 5 + [stack(0, True)] * 2)
+    ops = learn_effect_operators(train, EffectLearnConfig(min_count=3)).operators
+    assert len(ops) == 1 and "p0 ?o1" not in [" ".join(a) for a in ops[0].preconditions()]
+    u = np.array([[1], [0]], np.uint8)
+    b_on_a = (u, u, TOUCH, np.array([[[0, 0], [1, 0]]], np.uint8), CERTAIN)
+    heldout = dataset([stack(1, True), stack(0, True), b_on_a, stack(1, False)])
+    scores = prediction_scores(ops, heldout, familiar=familiarity(train), min_seen=(1, 5, 50))
+    # Three transitions change symbols; the operator applies to all and predicts two.
+    assert scores["changed"] == 3 and scores["coverage"] == 1.0
+    assert scores["precision"] == scores["precision_top1"] == 2 / 3
+    assert scores["alternatives"] == 1.0
+    seen = {row["min_seen"]: row for row in scores["selective"]}
+    assert (seen[1]["coverage"], seen[1]["precision"]) == (1.0, 2 / 3)
+    # Seen at least 5 times: only the first (b with p0, 25 times), predicted.
+    assert (seen[5]["coverage"], seen[5]["precision"]) == (1 / 3, 1.0)
+    assert (seen[50]["coverage"], seen[50]["precision"]) == (0.0, 0.0)

@@ -34,6 +34,7 @@ from drake_symplan.symbolic.effect_operators import (
     changes,
     lift_transitions,
     predicts,
+    situation,
 )
 from drake_symplan.symbolic.pddl import domain_pddl
 from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task, parse_step
@@ -47,6 +48,9 @@ class EvalConfig:
     max_problems: int = 50  # per (k, object count), sampled with `seed`
     seed: int = 0
     workers: int = 2  # planner calls in parallel
+
+
+MIN_SEEN = (1, 2, 5, 10, 20, 50)  # the selective scores' thresholds
 
 
 @dataclass
@@ -118,24 +122,45 @@ def solve_problems(operators: list[LiftedOperator], n_unary: int, n_relations: i
 
 
 def prediction_scores(operators: list[LiftedOperator], data: SymbolDataset,
-                      semantics: Semantics = EFFECT) -> dict:
-    """Coverage and precision on the transitions whose symbols change (module doc)."""
-    lifted = lift_transitions(data, semantics)
+                      semantics: Semantics = EFFECT, familiar: Counter | None = None,
+                      min_seen: tuple[int, ...] = MIN_SEEN) -> dict:
+    """Coverage and precision on the transitions whose symbols change (module doc), and
+    `precision_top1`: the share where the most reliable applicable operator alone predicts
+    it (the outcomes are many: `alternatives` is the median count of applicable operators).
+    With `familiar` (counts of the training transitions' situations) also `selective`: the
+    same where the situation was seen at least N times, N in `min_seen`."""
     by_action = defaultdict(list)
     for op in operators:
         by_action[(op.grasp, op.release)].append(op)
-    changed = covered = predicted = 0
-    for tr in lifted:
+    rows = []  # (applicable operators, any predicts, the most reliable predicts, seen)
+    for tr in lift_transitions(data, semantics):
         add, delete = changes(tr.before, tr.after, tr.unknown_before, tr.unknown_after)
         if not add and not delete:
             continue
-        changed += 1
-        verdicts = [predicts(op, tr) for op in by_action[(OFFSETS[tr.grasp], OFFSETS[tr.release])]]
-        if any(v is not None for v in verdicts):
-            covered += 1
-            predicted += any(verdicts)
-    return {"changed": changed, "coverage": covered / changed if changed else 0.0,
-            "precision": predicted / covered if covered else 0.0}
+        verdicts = [(op.reliability, v) for op in by_action[(OFFSETS[tr.grasp],
+                    OFFSETS[tr.release])] if (v := predicts(op, tr)) is not None]
+        top = max(verdicts, key=lambda rv: rv[0])[1] if verdicts else False
+        seen = familiar[situation(tr)] if familiar is not None else 0
+        rows.append((len(verdicts), any(v for _, v in verdicts), top, seen))
+    out = {"changed": len(rows), **_scores(rows, 0)}
+    if familiar is not None:
+        out["selective"] = [{"min_seen": n, **_scores(rows, n)} for n in min_seen]
+    return out
+
+
+def _scores(rows: list[tuple], min_seen: int) -> dict:
+    covered = [r for r in rows if r[0] and r[3] >= min_seen]
+    n = len(covered)
+    return {"coverage": n / len(rows) if rows else 0.0,
+            "precision": sum(r[1] for r in covered) / n if n else 0.0,
+            "precision_top1": sum(r[2] for r in covered) / n if n else 0.0,
+            "alternatives": float(np.median([r[0] for r in covered])) if n else 0.0}
+
+
+def familiarity(data: SymbolDataset, semantics: Semantics = EFFECT) -> Counter:
+    """How often each situation occurs among a data set's transitions (its training data
+    for a learned domain): how well the learner has seen what a held-out scene meets."""
+    return Counter(situation(tr) for tr in lift_transitions(data, semantics))
 
 
 def stability(data: SymbolDataset, outcome: np.ndarray | None,
@@ -200,14 +225,14 @@ def _cell(rs: list[dict]) -> dict:
 def evaluate_operators(operators: list[LiftedOperator], n_unary: int, n_relations: int,
                        heldout: SymbolDataset, scenes: SceneSymbols,
                        outcome: np.ndarray | None, semantics: Semantics,
-                       config: EvalConfig) -> dict:
+                       config: EvalConfig, familiar: Counter | None = None) -> dict:
     """The whole report: planning tables, coverage/precision (merged into each by_k cell,
-    where they do not depend on k) and stability."""
+    where they do not depend on k; selective with `familiar`) and stability."""
     t0 = time.perf_counter()
     problems = make_problems(scenes, semantics, config)
     results = solve_problems(operators, n_unary, n_relations, problems, config)
     report = summarise(results)
-    scores = prediction_scores(operators, heldout, semantics)
+    scores = prediction_scores(operators, heldout, semantics, familiar)
     for cell in report["by_k"].values():
         cell.update(coverage=scores["coverage"], precision=scores["precision"])
     report.update(scores, operators=len(operators), stability=stability(
@@ -215,14 +240,23 @@ def evaluate_operators(operators: list[LiftedOperator], n_unary: int, n_relation
     return report
 
 
-def evaluate_bundle(bundle, data_dir, config: EvalConfig) -> dict:
-    """`evaluate_operators` for a loaded ModelBundle on a held-out data set directory."""
+def evaluate_bundle(bundle, data_dir, config: EvalConfig, familiar_data=None) -> dict:
+    """`evaluate_operators` for a loaded ModelBundle on a held-out data set directory;
+    `familiar_data`: its training data (selective scores)."""
     heldout, scenes = readout_scenes(bundle.model, data_dir, bundle.margin)
+    familiar = None
+    if familiar_data is not None:
+        familiar = familiarity(readout_scenes(bundle.model, familiar_data, bundle.margin)[0],
+                               bundle.semantics)
     report = evaluate_operators(bundle.operators, bundle.info["n_unary"],
                                 bundle.info["n_relations"], heldout, scenes,
-                                load_extra(data_dir, "outcome"), bundle.semantics, config)
+                                load_extra(data_dir, "outcome"), bundle.semantics, config,
+                                familiar)
     report.update(model=str(bundle.path), data=str(data_dir), data_fingerprint=fingerprint(
         data_dir), learner=bundle.info.get("learner"), config=asdict(config))
+    if familiar_data is not None:
+        report.update(familiar_data=str(familiar_data),
+                      familiar_fingerprint=fingerprint(familiar_data))
     return report
 
 

@@ -108,6 +108,9 @@ def _register_eval_operators(subparsers) -> None:
     add_planner_arguments(e, cpu=True)
     e.add_argument("--seed", type=int, default=0,
                    help="seed of the choice of problems among the held-out chains")
+    e.add_argument("--familiar-data", type=Path, metavar="DIR",
+                   help="the model's training data: also coverage and precision where what "
+                   "the action met (its objects' symbols) was seen there at least N times")
     e.add_argument("--out", type=Path, help="also write the report as JSON here")
     e.add_argument("--plot", type=Path, help="write a plot (PNG) here")
     add_json_argument(e)
@@ -259,13 +262,25 @@ def cmd_eval_operators(args) -> dict:
     bundle = ModelBundle.load(args.model)
     config = EvalConfig(ks=tuple(args.k), planner=args.planner, timeout=args.timeout,
                         max_problems=args.max_problems, seed=args.seed)
-    report = evaluate_bundle(bundle, args.data, config)
+    if args.familiar_data is not None and not args.familiar_data.is_dir():
+        raise FileNotFoundError(f"no training data directory {args.familiar_data}")
+    report = evaluate_bundle(bundle, args.data, config, args.familiar_data)
     if args.out is not None:
         from drake_symplan.atomic import write_atomic
 
         write_atomic(args.out, json.dumps(report, indent=1))
     if args.plot is not None:
         plot_report(report, args.plot)
+    if not args.json:
+        print(f"{report['operators']} operators; of {report['changed']} held-out transitions "
+              "whose symbols change:")
+        for row in [{"min_seen": 0, **report}, *report.get("selective", [])]:
+            where = f"situation seen >= {row['min_seen']}x" if row["min_seen"] else "all"
+            print(f"  {where:>24}: coverage {row['coverage']:.1%}, precision "
+                  f"{row['precision']:.1%} (most reliable alone {row['precision_top1']:.1%}, "
+                  f"median {row['alternatives']:g} applicable)")
+        for k, cell in report["by_k"].items():
+            print(f"  k={k}: solved {cell['solved']:.0%} of {cell['problems']}")
     return report
 
 

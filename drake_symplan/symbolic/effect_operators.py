@@ -262,6 +262,15 @@ def _canonical(tr: Lifted) -> tuple[tuple, tuple, tuple, frozenset]:
     return best
 
 
+def situation(tr: Lifted) -> tuple:
+    """What the action met, whatever its objects are named: (grasp, release, objects, atoms
+    before as operators read them) in the order of the other objects that gives the
+    smallest atoms. Transitions in one situation differ only in what followed."""
+    pre = min(_sorted(_rename(tr.read_before, tr.bindings[sel]))
+              for sel in tr.bindings if len(sel) == tr.n - 2)
+    return tr.grasp, tr.release, tr.n, pre
+
+
 def _compatible(add, delete, unknown, group_add, group_delete) -> bool:
     """Whether a transition's effect is the group's, but for bits it could not read: every
     change it saw is the group's, and every change of the group it lacks is on a bit that
