@@ -116,7 +116,8 @@ class LearningCurve(StageRunner):
                   bundle / "operators.json"),
             Stage(f"eval operators {run.name}",
                   ["eval", "operators", "--model", bundle, "--data", self.heldout_data,
-                   "--max-problems", s.operator_problems, "--out", bundle / "eval.json"],
+                   "--max-problems", s.operator_problems, "--familiar-data", view,
+                   "--out", bundle / "eval.json"],
                   bundle / "eval.json"))
 
     def arm_stages(self) -> list[Stage]:

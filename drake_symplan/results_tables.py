@@ -74,17 +74,29 @@ def summarise_operators(rows: dict) -> dict:
         entry["solved_by_k_objects"] = {k: stat(v) for k, v in sorted(by_n.items())}
         entry["stability"] = {k: stat([r["stability"][k] for r in reports])
                               for k in reports[0]["stability"]}
+        if all("selective" in r for r in reports):
+            entry["selective"] = {str(row["min_seen"]): {
+                m: stat([next(x[m] for x in r["selective"] if x["min_seen"] == row["min_seen"])
+                         for r in reports]) for m in ("coverage", "precision")}
+                for row in reports[0]["selective"]}
         out[f"{variant}/{learner}"] = entry
     return out
+
+
+SELECTIVE_SEEN = "10"  # the table's selective column: situations seen 10 times in training
 
 
 def operators_markdown(table: dict) -> str:
     ks = sorted({c.split("_k")[1] for e in table.values() for c in e if c.startswith("solved_k")},
                 key=int)
+    selective = all(SELECTIVE_SEEN in e.get("selective", {}) for e in table.values())
     head = ["model / operators", "seeds", "operators", "coverage", "precision"]
+    head += [f"seen >= {SELECTIVE_SEEN}x: coverage / precision"] if selective else []
     head += [f"solved k={k} (reliability)" for k in ks]
     rows = [[name, str(e["seeds"]), pm(e["operators"], 1), pm(e["coverage"]),
              pm(e["precision"])]
+            + ([" / ".join(pm(e["selective"][SELECTIVE_SEEN][m]) for m in (
+                "coverage", "precision"))] if selective else [])
             + [f"{pm(e[f'solved_k{k}'])} ({e[f'reliability_k{k}']['mean'] * 100:.0f})"
                for k in ks] for name, e in table.items()]
     return _table(head, rows)

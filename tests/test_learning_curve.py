@@ -30,6 +30,9 @@ def test_the_curve_measures_every_point_once_on_the_same_held_out_set(tmp_path, 
         report = json.loads((curve.run_dir(explorer, int(size), 0) / "bundle_effect/eval.json")
                             .read_text())
         assert report["data"] == str(curve.heldout_data)
+        # Selective scores count situations in the point's own training data.
+        assert report["familiar_data"] == str(curve.run_dir(explorer, int(size), 0) / "data")
+        assert [row["min_seen"] for row in report["selective"]][:2] == [1, 2]
     small, large = (sorted(p.resolve() for p in (curve.run_dir("active", n, 0) / "data")
                            .glob("shard-*.npz")) for n in (100, 150))
     assert len(small) == 2 and large[:2] == small  # 100 is the head of the 150 set
@@ -37,6 +40,7 @@ def test_the_curve_measures_every_point_once_on_the_same_held_out_set(tmp_path, 
     assert [r["round"] for r in manifest["active_rounds"]] == [1]
     md = (curve.results / "curve.md").read_text()
     assert md.index("| random 200 |") < md.index("| active 100 |")
+    assert "seen >= 10x: coverage / precision" in md
     assert (curve.results / "curve.png").stat().st_size > 0
     again = LearningCurve("tiny", tmp_path / "curve", say=lambda text: None)
     again.run()
