@@ -137,6 +137,7 @@ class Reproduction(StageRunner):
             evaluate = Stage(f"eval operators {bundle.parent.name}/{bundle.name}",
                              ["eval", "operators", "--model", bundle, "--data",
                               self.heldout_data, "--max-problems", s.operator_problems,
+                              "--familiar-data", self.train_data,
                               "--out", bundle / "eval.json"], bundle / "eval.json")
             stages.append((make, evaluate))
         return stages

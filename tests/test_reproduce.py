@@ -25,6 +25,8 @@ def test_the_stages_of_a_scale(tmp_path):
     bundles = rep.bundles()  # effect-first for both; the paper's learner on relational only
     assert sorted({(m, learner) for m, _, learner in bundles}) == [
         ("attentive", "effect"), ("relational", "effect"), ("relational", "paper")]
+    for _, evaluate in rep.operator_stages():  # selective scores against its training data
+        assert evaluate.argv[evaluate.argv.index("--familiar-data") + 1] == rep.train_data
     planning = rep.planning_stage().argv
     runs = planning[planning.index("--runs") + 1:planning.index("--problems")]
     assert [r.parent.name for r in runs] == ["relational_s0", "attentive_s0"]
