@@ -10,6 +10,7 @@ from drake_symplan.abstraction.operator_eval import EvalConfig, make_problems, s
 from drake_symplan.planning.planners import PlanResult
 from drake_symplan.structs import SceneSymbols
 from drake_symplan.symbolic.effect_operators import EFFECT
+from drake_symplan.symbolic.structs import LiftedOperator
 
 
 def scenes(unary_steps, contacts_steps, episode=None, chain=None):
@@ -69,3 +70,22 @@ def test_each_planner_call_gets_cpu_seconds_with_a_wall_clock_cap(monkeypatch):
     results = solve_problems([], 1, 1, make_problems(sc, EFFECT, config), config)
     assert [r["status"] for r in results] == ["timeout", "timeout"]
     assert calls == [("fd", 6.0, 2.0), ("fd", 6.0, 2.0)]
+
+
+def test_a_problem_is_planned_without_operators_needing_more_objects_than_it_has(monkeypatch):
+    # Parameters must differ, so a 3-parameter operator never applies with 2 objects; the
+    # planner's translator would still read it.
+    domains = []
+
+    def plan_task(domain, task, planner, timeout, cpu_seconds=None):
+        domains.append(domain)
+        return PlanResult("timeout", planner=planner)
+
+    monkeypatch.setattr(operator_eval, "plan_task", plan_task)
+    two = LiftedOperator(0, "center", "center", 2, (("p0", 0),), (("r0", 0, 1),), (), 5)
+    three = LiftedOperator(1, "center", "center", 3, (("p0", 2),), (("r0", 0, 2),), (), 5)
+    sc = scenes([[1, 1], [1, 1], [1, 0]], [APART, TOUCH, TOUCH])
+    config = EvalConfig(ks=(1,), workers=1)
+    solve_problems([two, three], 1, 1, make_problems(sc, EFFECT, config), config)
+    assert len(domains) == 2
+    assert all(two.name in d and three.name not in d for d in domains)
