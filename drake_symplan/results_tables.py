@@ -75,10 +75,10 @@ def summarise_operators(rows: dict) -> dict:
         entry["stability"] = {k: stat([r["stability"][k] for r in reports])
                               for k in reports[0]["stability"]}
         if all("selective" in r for r in reports):
-            entry["selective"] = {str(row["min_seen"]): {
-                m: stat([next(x[m] for x in r["selective"] if x["min_seen"] == row["min_seen"])
-                         for r in reports]) for m in ("coverage", "precision")}
-                for row in reports[0]["selective"]}
+            rows_by_seen = [{row["min_seen"]: row for row in r["selective"]} for r in reports]
+            entry["selective"] = {str(n): {m: stat([rs[n][m] for rs in rows_by_seen])
+                                           for m in ("coverage", "precision")}
+                                  for n in rows_by_seen[0]}
         out[f"{variant}/{learner}"] = entry
     return out
 

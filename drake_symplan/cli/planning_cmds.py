@@ -262,8 +262,6 @@ def cmd_eval_operators(args) -> dict:
     bundle = ModelBundle.load(args.model)
     config = EvalConfig(ks=tuple(args.k), planner=args.planner, timeout=args.timeout,
                         max_problems=args.max_problems, seed=args.seed)
-    if args.familiar_data is not None and not args.familiar_data.is_dir():
-        raise FileNotFoundError(f"no training data directory {args.familiar_data}")
     report = evaluate_bundle(bundle, args.data, config, args.familiar_data)
     if args.out is not None:
         from drake_symplan.atomic import write_atomic
