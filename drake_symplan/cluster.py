@@ -1,4 +1,5 @@
-"""Ray engine: worker actors that build their station once and run many jobs for the driver.
+"""Ray engine: worker actors that build their station once and run many jobs for the driver;
+`run_jobs_local`, the same on local worker processes where Ray is not installed.
 
 `ray_session(address)` joins the cluster at `address` (`""`: `ray.init()` on this machine)
 unless Ray is already initialised, and shuts down what it started. `run_jobs` creates one
@@ -14,6 +15,8 @@ object store; the driver writes them, so workers need no shared file system.
 
 from __future__ import annotations
 
+import multiprocessing as mp
+import os
 import socket
 import time
 import uuid
@@ -144,3 +147,32 @@ def run_jobs(ray, setup: Callable, setup_args: tuple, job: Callable,
         for actor in [*actors, progress]:
             ray.kill(actor)
     return ready_at if ready_at is not None else time.perf_counter()
+
+
+# --- local worker processes -------------------------------------------------------------
+
+_local: dict = {}
+
+
+def _init_local(setup: Callable, setup_args: tuple, parent_pid: int) -> None:
+    _local.update(state=setup(*setup_args), parent=parent_pid)
+
+
+def _run_local(task: tuple):
+    if os.getppid() != _local["parent"]:  # the driver was killed: stop, return nothing
+        os._exit(1)
+    key, job, *args = task
+    return key, job(_local["state"], *args)
+
+
+def run_jobs_local(setup: Callable, setup_args: tuple, job: Callable,
+                   jobs: Iterable[tuple], workers: int, on_done: Callable) -> None:
+    """`run_jobs` on `workers` local processes (spawned: Drake and forked children do not
+    mix), each with its state built once; `on_done(key, result)` runs in this process as
+    each job finishes, in any order. A job's exception is raised here."""
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(workers, initializer=_init_local,
+                  initargs=(setup, setup_args, os.getpid())) as pool:
+        for key, result in pool.imap_unordered(_run_local, [(key, job, *args)
+                                                            for key, *args in jobs]):
+            on_done(key, result)

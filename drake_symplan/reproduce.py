@@ -4,8 +4,9 @@ Each stage is a `symplan` child process whose command line is recorded: collect 
 and a held-out data set (hand back-end, two seeds), train Table I's three models x 3 seeds,
 learn operators for every RelationalDeepSym and Attentive run (effect-first; the paper's
 learner beside it on RelationalDeepSym, the baseline row), evaluate the effects (Table I)
-and the operators on the held-out episodes, make arm problems and solve them with the
-bundles, with and without monitoring. A stage whose output is there is skipped, so the same
+and the operators on the held-out episodes, make arm problems and solve them with every
+bundle monitored, then with the first seed's Relational bundle in the other planning modes,
+the oracle and open loop. A stage whose output is there is skipped, so the same
 command resumes an interrupted run. OUT/results.md holds the tables, the JSON and PNG files
 lie beside it, OUT/provenance.json records commands, seeds, data fingerprints, package
 versions and the host.
@@ -162,38 +163,42 @@ class Reproduction(StageRunner):
 
     def planning_runs(self) -> list[Path]:
         """The bundles the arm problems are solved with, seed by seed (relational, then
-        attentive), so that an unfinished evaluation has whole seeds of both (monitored
-        first: eval planning solves one monitoring mode after the other)."""
+        attentive), so that an unfinished evaluation has whole seeds of both."""
         return [self.bundles()[(m, seed, "effect")] for seed in self.scale.planning_seeds
                 for m in ("relational", "attentive")]
 
+    def _workers(self) -> list[str]:
+        """A planning stage's engine: Ray where asked, else `jobs` local processes."""
+        return self._ray() or ["--workers", self.jobs]
+
     def planning_stage(self) -> Stage:
+        """The headline: every planning bundle on every problem, monitored."""
         runs = self.planning_runs()
         return Stage("eval planning",
                      ["eval", "planning", "--runs", *runs, "--problems", self.out / "problems",
                       "--records", self.results / "planning.jsonl", "--plot",
                       self.results / "planning.png", "--json", *self.solve.flags(),
-                      *self._ray()],
+                      "--monitor", "on", *self._workers()],
                      self.results / "planning.json", stdout=self.results / "planning.json")
 
     def mode_stages(self) -> list[Stage]:
         """The comparison rows on the same problems, with the first seed's Relational
-        bundle: the other planning modes monitored, and the oracle (the problems' own
-        actions replayed open loop, the ceiling exact replay reaches)."""
+        bundle: the other planning modes monitored, the oracle (the problems' own actions
+        replayed open loop, the ceiling exact replay reaches) and, last, the main mode
+        open loop (as the paper executes)."""
         run = self.planning_runs()[0]
         stages = []
         for mode in MODE_ROWS:
-            if mode == self.solve.planning:
-                continue  # the main stage has it
-            out = self.results / f"planning_{mode}"
+            main = mode == self.solve.planning
+            out = self.results / ("planning_open_loop" if main else f"planning_{mode}")
             stages.append(Stage(
-                f"eval planning {mode}",
+                f"eval planning {mode}" + (" open loop" if main else ""),
                 ["eval", "planning", "--runs", run, "--problems", self.out / "problems",
                  "--records", out.with_suffix(".jsonl"), "--json",
                  *self.solve.replace(planning=mode).flags(),
-                 "--monitor", "off" if mode == "oracle" else "on", *self._ray()],
+                 "--monitor", "off" if main or mode == "oracle" else "on", *self._workers()],
                 out.with_suffix(".json"), stdout=out.with_suffix(".json")))
-        return stages
+        return sorted(stages, key=lambda st: st.name.endswith("open loop"))
 
     # --- running ----------------------------------------------------------------
 

@@ -182,7 +182,7 @@ def finished_planning(rep) -> tuple[dict, str]:
     for r in records:
         if r["problem"] in problems:
             groups[(r["run"], r["monitor"])][r["problem"]] = r
-    pairs = [(run_label(run), mode) for run in rep.planning_runs() for mode in (True, False)]
+    pairs = [(run_label(run), True) for run in rep.planning_runs()]
     whole = [pair for pair in pairs if problems and len(groups[pair]) == len(problems)]
     summary = summarise([r for pair in whole for r in groups[pair].values()])
     if whole:
@@ -199,14 +199,15 @@ def modes_planning(rep, planning_result: dict) -> dict:
     bundle: its row of the main evaluation (monitored) and the finished mode stages
     (reproduce.Reproduction.mode_stages), as planning rows {mode: {execution: entry}}."""
     first = run_label(rep.planning_runs()[0])
-    runs = {}
+    runs = defaultdict(dict)
     if first in planning_result["runs"]:
         runs[rep.solve.planning] = {k: v for k, v in planning_result["runs"][first].items()
                                     if k == MODES[True]}
     for stage in rep.mode_stages():
         if stage.done.exists():
+            mode = stage.argv[stage.argv.index("--planning") + 1]
             for summary in json.loads(stage.done.read_text())["runs"].values():
-                runs[stage.name.rsplit(" ", 1)[-1]] = summary
+                runs[mode].update(summary)
     return summarise_planning({"runs": runs}) if len(runs) > 1 else {}
 
 

@@ -344,3 +344,25 @@ def test_the_oracle_replays_a_recorded_problem(tmp_path):
     assert record["status"] == "success" and record["executed"] == 1
     assert backend.executed == [Action("a", "center", "b", "center")]
     assert result["settings"]["planning"] == "oracle"
+
+
+@pytest.mark.slow
+def test_eval_planning_on_local_workers_gives_the_in_process_records(tmp_path):
+    from drake_symplan.agent.evaluation import evaluate_planning
+    from drake_symplan.agent.problems import make_problems
+    from drake_symplan.world.station import models_dir
+
+    problems = tmp_path / "problems"
+    make_problems(problems, 2, [1, 2], 3, 5, "hand")
+    runs = [models_dir() / "learned"]
+    here = evaluate_planning(runs, problems, robot="hand", monitor=(True,))
+    records = tmp_path / "records.jsonl"
+    pooled = evaluate_planning(runs, problems, robot="hand", monitor=(True,),
+                               records_path=records, workers=2)
+
+    def without_times(result):
+        return [{k: v for k, v in r.items() if k != "seconds"} for r in result["records"]]
+
+    assert len(without_times(pooled)) == 3
+    assert without_times(pooled) == without_times(here)
+    assert len(records.read_text().splitlines()) == 3

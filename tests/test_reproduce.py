@@ -30,24 +30,27 @@ def test_the_stages_of_a_scale(tmp_path):
     planning = rep.planning_stage().argv
     runs = planning[planning.index("--runs") + 1:planning.index("--problems")]
     assert [r.parent.name for r in runs] == ["relational_s0", "attentive_s0"]
-    assert "--ray" not in planning
+    assert "--ray" not in planning and planning[-2:] == ["--workers", rep.jobs]
+    assert planning[planning.index("--monitor") + 1] == "on"
     assert planning[planning.index("--planning") + 1] == "bilevel"  # SolveConfig's flags
     bilevel = Reproduction("small", tmp_path, solve=SolveConfig(planning="symbolic",
                                                                  refine=False))
     argv = bilevel.planning_stage().argv
     assert argv[argv.index("--planning") + 1] == "symbolic" and "--no-refine" in argv
-    # The other planning modes on the same problems, seed 0's Relational bundle only.
+    # The other planning modes on the same problems, seed 0's Relational bundle only; the
+    # main mode's open-loop row last.
     modes = rep.mode_stages()
     assert [st.name for st in modes] == ["eval planning symbolic", "eval planning continuous",
-                                         "eval planning oracle"]
-    for st in modes:
+                                         "eval planning oracle", "eval planning bilevel open loop"]
+    for st, mode, monitor in zip(modes, ("symbolic", "continuous", "oracle", "bilevel"),
+                                 ("on", "on", "off", "off"), strict=True):
         runs = st.argv[st.argv.index("--runs") + 1:st.argv.index("--problems")]
         assert [r.parent.name for r in runs] == ["relational_s0"]
-        mode = st.name.rsplit(" ", 1)[-1]
         assert st.argv[st.argv.index("--planning") + 1] == mode
-        assert st.argv[st.argv.index("--monitor") + 1] == ("off" if mode == "oracle" else "on")
+        assert st.argv[st.argv.index("--monitor") + 1] == monitor
     on_ray = Reproduction("small", tmp_path, ray="10.0.0.1:6379")
     assert on_ray.collect_stages()[0].argv[-2:] == ["--ray", "10.0.0.1:6379"]
+    assert on_ray.planning_stage().argv[-2:] == ["--ray", "10.0.0.1:6379"]
 
 
 def test_finished_stages_are_skipped_and_partial_ones_resume(tmp_path):
@@ -112,7 +115,7 @@ def test_an_unfinished_planning_evaluation_reports_its_whole_runs(tmp_path):
              record("attentive_s0", True, folders[0], 1, "success")]  # one of two
     (rep.results / "planning.jsonl").write_text("\n".join(json.dumps(x) for x in lines))
     result, note = finished_planning(rep)
-    assert note.startswith("Unfinished: 3 of 8 solves done") and \
+    assert note.startswith("Unfinished: 3 of 4 solves done") and \
         "relational_s0/bundle_effect (monitor)." in note
     table = summarise_planning(result)
     assert list(table) == ["relational"] and list(table["relational"]) == ["monitor"]
@@ -132,6 +135,11 @@ def test_an_unfinished_planning_evaluation_reports_its_whole_runs(tmp_path):
     assert list(modes) == [rep.solve.planning, "oracle"]
     assert list(modes["oracle"]) == ["open_loop"]
     assert modes["oracle"]["open_loop"]["success"]["mean"] == 0.5
+    # The main mode's open-loop stage is a second row of its own mode.
+    open_loop = rep.mode_stages()[-1]
+    open_loop.done.write_text(oracle.done.read_text())
+    modes = modes_planning(rep, result)
+    assert list(modes[rep.solve.planning]) == ["monitor", "open_loop"]
 
 
 @pytest.mark.slow

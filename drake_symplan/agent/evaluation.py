@@ -1,8 +1,8 @@
 """The planning evaluation (paper IV-C and its planning figure): model bundles solve the
 same problem set, with execution monitoring and without it (open-loop, as the paper), under one `SolveConfig`.
 
-`evaluate_planning` runs every (run, monitoring, problem) with one station (or, with
-`ray_address`, on Ray worker actors with a station each) and returns per
+`evaluate_planning` runs every (run, monitoring, problem) with one station (or on local
+worker processes or Ray worker actors, a station each) and returns per
 run and monitoring mode: the success rate overall, by object count and by k; the planning
 time; the length of the first plan against k; the failure causes with counts, execution
 failures split by whether the goal's atoms were seen at the end (then the symbols could not
@@ -27,7 +27,7 @@ from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.problems import load_problems
 from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
-from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
+from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
 from drake_symplan.structs import GOAL_TOLERANCE, Action
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene
@@ -80,13 +80,14 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
 def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SOLVE,
                       robot: str = "arm", monitor=(True, False), limit: int | None = None,
                       records_path=None, agent=None, load=None, progress=None,
-                      ray_address: str | None = None) -> dict:
+                      ray_address: str | None = None, workers: int = 1) -> dict:
     """Solves every problem under `problems_dir` with each run's bundle (`runs`: bundle
     directories) under `config`, in each monitoring mode of `monitor`; returns
     {"settings", "runs": {label: {mode: summary}}, "records": [...]}. With `ray_address`
     ("" for Ray on this machine) the solves are spread over Ray worker actors, one agent
-    (robot) each, one per CPU of the cluster (drake_symplan/cluster.py). `load(run)` gives
-    a run's Abstraction (default: of ModelBundle.load(run))."""
+    (robot) each, one per CPU of the cluster (drake_symplan/cluster.py); with `workers` > 1
+    on that many local processes, an agent each. `load(run)` gives a run's Abstraction
+    (default: of ModelBundle.load(run))."""
     if not runs:
         raise ValueError("give at least one run (a model bundle directory)")
     problems = load_problems(problems_dir)[:limit]
@@ -114,7 +115,14 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
             progress(record)
 
     if ray_address is not None:
-        _solve_on_ray(ray_address, robot, abstractions, todo, finish)
+        with ray_session(ray_address) as ray:
+            if todo:
+                run_jobs(ray, _worker_state, (robot, abstractions), _solve_in_worker,
+                         _jobs(todo), min(cluster_cpus(ray), len(todo)),
+                         lambda i, record: finish(record))
+    elif workers > 1 and todo:
+        run_jobs_local(_worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
+                       min(workers, len(todo)), lambda i, record: finish(record))
     elif todo:
         agent = agent or Agent(robot)
         for label, mode_config, problem in todo:
@@ -128,20 +136,25 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
             "runs": summarise(records), "records": records}
 
 
-def _solve_on_ray(address: str, robot: str, abstractions: dict, todo: list, finish) -> None:
-    """The solves on Ray worker actors, each with its own Agent; the driver reads the
-    scene files and writes the records, so the workers need neither."""
-    with ray_session(address) as ray:
-        if not todo:
-            return
-        refs = {label: ray.put(a) for label, a in abstractions.items()}  # sent once
-        jobs = []
-        for i, (label, config, problem) in enumerate(todo):
-            folder = Path(problem["dir"])
-            scenes = (load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml"))
-            jobs.append((i, label, refs[label], {**problem, "scenes": scenes}, config))
-        run_jobs(ray, Agent, (robot,), solve_job, jobs,
-                 min(cluster_cpus(ray), len(jobs)), lambda i, record: finish(record))
+def _worker_state(robot: str, abstractions: dict) -> tuple:
+    """A worker's state: its own agent (station) and every run's abstraction, sent once."""
+    return Agent(robot), abstractions
+
+
+def _solve_in_worker(state: tuple, label: str, problem: dict, config: SolveConfig,
+                     tick=None) -> dict:
+    agent, abstractions = state
+    return solve_job(agent, label, abstractions[label], problem, config)
+
+
+def _jobs(todo: list) -> list[tuple]:
+    """The worker jobs of `todo`, the scenes read here so that workers need no files."""
+    jobs = []
+    for i, (label, config, problem) in enumerate(todo):
+        folder = Path(problem["dir"])
+        scenes = (load_scene(folder / "start.yaml"), load_scene(folder / "goal.yaml"))
+        jobs.append((i, label, {**problem, "scenes": scenes}, config))
+    return jobs
 
 
 def read_records(records_path) -> list[dict]:

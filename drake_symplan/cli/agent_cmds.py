@@ -84,6 +84,9 @@ def register(subparsers) -> None:
     p.add_argument("--records", type=Path, default=None,
                    help="append one JSON line per solve here; a re-run resumes from it")
     p.add_argument("--plot", type=Path, default=None, help="write the figure to this PNG")
+    p.add_argument("--workers", type=positive_int, default=1,
+                   help="solve on this many local worker processes, a station each "
+                   "(default 1: in this process)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="solve on Ray workers, one per CPU: on this machine (no ADDRESS) or "
                    "the cluster whose head is at ADDRESS (HOST:PORT); needs .[ray]")
@@ -164,7 +167,7 @@ def cmd_eval_planning(args: argparse.Namespace) -> dict:
     result = evaluate_planning(args.runs, args.problems, config, args.backend, monitor,
                                args.limit, args.records,
                                load=lambda run: Abstraction(load_bundle(run)),
-                               ray_address=args.ray)
+                               ray_address=args.ray, workers=args.workers)
     out = {"settings": result["settings"], "runs": result["runs"]}
     if args.plot:
         plot_planning(result["runs"], args.plot)
