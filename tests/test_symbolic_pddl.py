@@ -109,3 +109,15 @@ def test_every_contact_degree_is_declared_when_operators_use_one():
     for n in range(4):  # touching3 appears in no operator, but a goal may hold it
         assert f"(touching{n} ?x0 - obj)" in text
     assert "touching" not in domain_pddl([], 1, 1)
+
+
+def test_a_domain_for_two_objects_has_no_three_object_action_but_all_predicates():
+    two = LiftedOperator(0, "center", "center", 2, (("p0", 0),), (("r0", 0, 1),), (), 5)
+    three = LiftedOperator(1, "center", "center", 3, (("touching1", 2),),
+                           (("r0", 0, 2),), (), 5)
+    full = domain_pddl([two, three], 1, 1)
+    small = domain_pddl([two, three], 1, 1, n_objects=2)
+    assert set(read_domain(full)) == {two.name, three.name}
+    assert set(read_domain(small)) == {two.name}
+    assert "(touching1 ?x0 - obj)" in small  # a state may still hold it
+    assert domain_pddl([two, three], 1, 1, n_objects=3) == full

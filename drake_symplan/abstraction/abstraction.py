@@ -169,11 +169,11 @@ class Abstraction:
             objects = task.objects
         if not objects:
             return Plan("solved", [], time.perf_counter() - t0, "", planner)
-        domain = self.bundle.domain if planner == "fd" else self.bundle.domain_strips
         for subset in ([objects, None] if len(objects) < len(task.objects) else [None]):
             sub = task if subset is None else task.restricted(subset)
             cpu = None if cpu_seconds is None else max(
                 cpu_seconds - (children_cpu() - cpu0), 1e-3)
+            domain = self.bundle.domain_for(len(sub.objects), costs=planner == "fd")
             found = plan_task(domain, sub, planner,
                               max(t0 + timeout - time.perf_counter(), 1e-3), cpu)
             if found.status != "unsolvable":

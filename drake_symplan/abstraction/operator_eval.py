@@ -110,8 +110,8 @@ def solve_problems(operators: list[LiftedOperator], n_unary: int, n_relations: i
     (their parameters must differ, so they never apply): the planner's translator spends
     its time on every operator it reads, a quarter of it for 2 objects in a large domain."""
     counts = sorted({p.n_objects for p in problems})
-    domains = {n: domain_pddl([op for op in operators if op.n_params <= n], n_unary,
-                              n_relations, costs=config.planner == "fd") for n in counts}
+    domains = {n: domain_pddl(operators, n_unary, n_relations, costs=config.planner == "fd",
+                              n_objects=n) for n in counts}
     by_name = {op.name: op for op in operators}
 
     def one(p: Problem) -> dict:

@@ -116,6 +116,15 @@ class ModelBundle:
         self.domain = domain_pddl(self.planned, self.n_unary, self.n_relations, costs=True)
         self.domain_strips = domain_pddl(self.planned, self.n_unary, self.n_relations,
                                          costs=False)
+        self._domains: dict[tuple[int, bool], str] = {}
+
+    def domain_for(self, n_objects: int, costs: bool = True) -> str:
+        """The planner's domain for a task of `n_objects` objects (pddl.domain_pddl)."""
+        key = (n_objects, costs)
+        if key not in self._domains:
+            self._domains[key] = domain_pddl(self.planned, self.n_unary, self.n_relations,
+                                             costs=costs, n_objects=n_objects)
+        return self._domains[key]
 
     @classmethod
     def load(cls, path: str | Path | None = None, allow_empty: bool = False) -> ModelBundle:

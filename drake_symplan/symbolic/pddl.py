@@ -49,11 +49,15 @@ def domain_pddl(
     name: str = DOMAIN_NAME,
     n_transitions: int | None = None,
     costs: bool = False,
+    n_objects: int | None = None,
 ) -> str:
     """The domain: one action schema per operator, most frequent first.
 
     With `costs` (operators that have a `cost`), each action increases `(total-cost)` by
-    its cost (`:action-costs`, for Fast Downward; pyperplan reads the domain without)."""
+    its cost (`:action-costs`, for Fast Downward; pyperplan reads the domain without).
+    With `n_objects`, for tasks of that many objects: no action for an operator of more
+    parameters (they must differ, so it never applies, but a planner's translator reads
+    every action it is given); the predicates stay those of every operator."""
     operators = list(operators)
     unary, binary = predicate_names(n_unary, n_relations)
     # Perceived predicates the operators use besides the learned symbols (e.g. touchingN).
@@ -81,6 +85,8 @@ def domain_pddl(
         *(["  (:functions (total-cost) - number)"] if costs else []),
     ]
     for op in operators:
+        if n_objects is not None and op.n_params > n_objects:
+            continue
         add, delete = op.effects()
         effect = [_atom(a) for a in add] + [f"(not {_atom(a)})" for a in delete]
         if costs:
