@@ -100,6 +100,9 @@ class OracleBundle:
     by_name = {op.name: op for op in operators}
     path = "oracle"
 
+    def domain_for(self, n_objects: int, costs: bool = True) -> str:
+        return self.domain if costs else self.domain_strips
+
 
 class OracleAbstraction(Abstraction):
     """The abstraction of a model that knows the fake world: p0 = free (nothing rests on
