@@ -21,6 +21,7 @@ import socket
 import time
 import uuid
 from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 
 POLL_SECONDS = 0.2  # the driver's progress polling period
@@ -169,10 +170,15 @@ def run_jobs_local(setup: Callable, setup_args: tuple, job: Callable,
                    jobs: Iterable[tuple], workers: int, on_done: Callable) -> None:
     """`run_jobs` on `workers` local processes (spawned: Drake and forked children do not
     mix), each with its state built once; `on_done(key, result)` runs in this process as
-    each job finishes, in any order. A job's exception is raised here."""
-    ctx = mp.get_context("spawn")
-    with ctx.Pool(workers, initializer=_init_local,
-                  initargs=(setup, setup_args, os.getpid())) as pool:
-        for key, result in pool.imap_unordered(_run_local, [(key, job, *args)
-                                                            for key, *args in jobs]):
-            on_done(key, result)
+    each job finishes, in any order. A job's exception is raised here; a worker that dies
+    raises BrokenProcessPool (the jobs not done are lost: a resumable caller runs again).
+    On an exception the jobs not started are cancelled."""
+    pool = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"),
+                               initializer=_init_local,
+                               initargs=(setup, setup_args, os.getpid()))
+    try:
+        futures = [pool.submit(_run_local, (key, job, *args)) for key, *args in jobs]
+        for future in as_completed(futures):
+            on_done(*future.result())
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
