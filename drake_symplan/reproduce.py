@@ -4,7 +4,7 @@ Each stage is a `symplan` child process whose command line is recorded: collect 
 and a held-out data set (hand back-end, two seeds), train Table I's three models x 3 seeds,
 learn operators for every RelationalDeepSym and Attentive run (effect-first; the paper's
 learner beside it on RelationalDeepSym, the baseline row), evaluate the effects (Table I)
-and the operators on the held-out episodes, make arm problems and solve them with every
+the operators and the continuous model's rollouts on the held-out episodes, make arm problems and solve them with every
 bundle monitored, then with the first seed's Relational bundle in the other planning modes,
 the oracle and open loop. A stage whose output is there is skipped, so the same
 command resumes an interrupted run. OUT/results.md holds the tables, the JSON and PNG files
@@ -149,6 +149,15 @@ class Reproduction(StageRunner):
                                       self.results / "effects.png"],
                      self.results / "effects.json", stdout=self.results / "effects.json")
 
+    def rollout_stages(self) -> list[Stage]:
+        """The continuous model's position error after k actions rolled forward on the
+        held-out episodes, for each Relational bundle (what bilevel planning rolls)."""
+        return [Stage(f"eval rollout {bundle.parent.name}",
+                      ["eval", "rollout", "--model", bundle, "--data", self.heldout_data,
+                       "--json"], out, stdout=out)
+                for bundle in self.planning_runs() if bundle.parent.name.startswith("relational")
+                for out in [self.results / f"rollout_{bundle.parent.name}.json"]]
+
     def problem_stages(self) -> list[Stage]:
         s = self.scale
         stages = []
@@ -214,6 +223,7 @@ class Reproduction(StageRunner):
         self._parallel(self.train_stages())
         self._run(self.effects_stage())
         self._parallel(self.operator_stages())
+        self._parallel(self.rollout_stages())
         for stage in self.problem_stages():
             self._run(stage)
         self._run(self.planning_stage())

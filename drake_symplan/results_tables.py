@@ -211,6 +211,22 @@ def modes_planning(rep, planning_result: dict) -> dict:
     return summarise_planning({"runs": runs}) if len(runs) > 1 else {}
 
 
+# --- the continuous model (`eval rollout --json`) -------------------------------------
+
+
+def rollout_markdown(reports: list[dict]) -> str:
+    """Position error (cm) after k actions rolled forward, mean ± std over the runs."""
+    ks = sorted({k for r in reports for k in r["by_k"]}, key=int)
+    rows = []
+    for k in ks:
+        rows_k = [r["by_k"][k] for r in reports if k in r["by_k"]]
+        rows.append([k, pm(stat([x["error_cm"]["mean"] for x in rows_k]), 1, 1),
+                     pm(stat([x["error_cm"]["median"] for x in rows_k]), 1, 1),
+                     pm(stat([x["scenes_within_5cm"] for x in rows_k]))])
+    return _table(["actions rolled forward", "error mean (cm)", "error median (cm)",
+                   "scenes with every box within 5 cm (%)"], rows)
+
+
 # --- a reproduction's results.md --------------------------------------------------------
 
 
@@ -226,6 +242,8 @@ def write_results(rep) -> Path:
     write_atomic(res / "operators_table.json", json.dumps(operators, indent=1))
     write_atomic(res / "planning_table.json", json.dumps(planning, indent=1))
     write_atomic(res / "planning_modes_table.json", json.dumps(modes, indent=1))
+    rollouts = [json.loads(st.done.read_text()) for st in rep.rollout_stages()
+                if st.done.exists()]
     s = rep.scale
     text = "\n".join([
         f"# Results: `symplan reproduce --scale {rep.name}`", "",
@@ -236,6 +254,8 @@ def write_results(rep) -> Path:
         "", "![effects](effects.png)", "",
         "## Planning at the symbolic level, held-out episodes (% solved by Fast Downward)", "",
         operators_markdown(operators), "",
+        *([f"## The continuous model on the held-out episodes, Relational ({len(rollouts)} "
+           "seeds)", "", rollout_markdown(rollouts), ""] if rollouts else []),
         f"## Planning in the arm, {s.planning_problems} problems per object count "
         f"(% within 5 cm)", "", *([planning_note, ""] if planning_note else []),
         planning_markdown(planning), "", "![planning](planning.png)", "",

@@ -27,6 +27,10 @@ def test_the_stages_of_a_scale(tmp_path):
         ("attentive", "effect"), ("relational", "effect"), ("relational", "paper")]
     for _, evaluate in rep.operator_stages():  # selective scores against its training data
         assert evaluate.argv[evaluate.argv.index("--familiar-data") + 1] == rep.train_data
+    rollouts = rep.rollout_stages()  # the continuous model of every Relational bundle
+    assert [st.name for st in rollouts] == [f"eval rollout relational_s{seed}"
+                                            for seed in s.planning_seeds]
+    assert all(st.argv[st.argv.index("--data") + 1] == rep.heldout_data for st in rollouts)
     planning = rep.planning_stage().argv
     runs = planning[planning.index("--runs") + 1:planning.index("--problems")]
     assert [r.parent.name for r in runs] == ["relational_s0", "attentive_s0"]
@@ -176,3 +180,14 @@ def test_small_scale_end_to_end_then_a_goal_in_the_arm(tmp_path):
     result = solve(start, goal, Abstraction(bundle), SolveConfig("fd", timeout=30.0))
     assert result.status == "success", result.to_json()
     assert all(o["error_cm"] <= 5.0 for o in result.objects.values())
+
+
+def test_the_rollout_table_is_mean_and_spread_over_seeds():
+    from drake_symplan.results_tables import rollout_markdown
+
+    def report(mean, within):
+        return {"by_k": {"1": {"error_cm": {"mean": mean, "median": mean / 2},
+                               "scenes_within_5cm": within}}}
+
+    text = rollout_markdown([report(1.0, 0.8), report(3.0, 0.6)])
+    assert text.splitlines()[-1] == "| 1 | 2.0 ± 1.0 | 1.0 ± 0.5 | 70 ± 10 |"
