@@ -3,10 +3,11 @@
 Each stage is a `symplan` child process whose command line is recorded: collect a training
 and a held-out data set (hand back-end, two seeds), train Table I's three models x 3 seeds,
 learn operators for every RelationalDeepSym and Attentive run (effect-first; the paper's
-learner beside it on RelationalDeepSym, the baseline row), evaluate the effects (Table I)
-the operators and the continuous model's rollouts on the held-out episodes, make arm problems and solve them with every
-bundle monitored, then with the first seed's Relational bundle in the other planning modes,
-the oracle and open loop. A stage whose output is there is skipped, so the same
+learner beside it on RelationalDeepSym, the baseline row), evaluate the effects (Table I),
+the operators and the continuous model's rollouts on the held-out episodes, make arm
+problems and solve them with every bundle monitored, then with the first seed's Relational
+bundle in the other planning modes, the oracle and open loop. A stage whose output is
+there is skipped, so the same
 command resumes an interrupted run. OUT/results.md holds the tables, the JSON and PNG files
 lie beside it, OUT/provenance.json records commands, seeds, data fingerprints, package
 versions and the host.
