@@ -369,3 +369,16 @@ def test_eval_planning_on_local_workers_gives_the_in_process_records(tmp_path):
     assert len(without_times(pooled)) == 3
     assert without_times(pooled) == without_times(here)
     assert len(records.read_text().splitlines()) == 3
+
+
+def test_a_records_file_cut_while_writing_resumes_without_the_cut_line(tmp_path):
+    import json
+
+    from drake_symplan.agent.evaluation import _resume
+
+    records = tmp_path / "records.jsonl"
+    done = {"run": "a/b", "monitor": True, "problem": "p000"}
+    records.write_text(json.dumps(done) + "\n" + '{"run": "a/b", "moni')
+    keys, found = _resume(records)
+    assert keys == {("a/b", True, "p000")} and found == [done]
+    assert records.read_text() == json.dumps(done) + "\n"

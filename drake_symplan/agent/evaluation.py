@@ -166,6 +166,13 @@ def read_records(records_path) -> list[dict]:
 
 
 def _resume(records_path) -> tuple[set, list[dict]]:
+    """The solves done so far; a last line cut short (the run was killed while writing
+    it) is dropped from the file, so that the next record starts a line of its own."""
+    path = Path(records_path) if records_path is not None else None
+    if path is not None and path.is_file():
+        text = path.read_text()
+        if text and not text.endswith("\n"):
+            path.write_text(text[:text.rfind("\n") + 1])
     records = read_records(records_path)
     return {(r["run"], r["monitor"], r["problem"]) for r in records}, records
 
