@@ -105,10 +105,8 @@ def make_problems(scenes: SceneSymbols, semantics: Semantics, config: EvalConfig
 
 def solve_problems(operators: list[LiftedOperator], n_unary: int, n_relations: int,
                    problems: list[Problem], config: EvalConfig) -> list[dict]:
-    """Plans every problem with the domain of `operators`; one result dict per problem.
-    A problem's domain leaves out the operators with more parameters than it has objects
-    (their parameters must differ, so they never apply): the planner's translator spends
-    its time on every operator it reads, a quarter of it for 2 objects in a large domain."""
+    """Plans every problem with the domain of `operators` for its object count
+    (pddl.domain_pddl's `n_objects`); one result dict per problem."""
     counts = sorted({p.n_objects for p in problems})
     domains = {n: domain_pddl(operators, n_unary, n_relations, costs=config.planner == "fd",
                               n_objects=n) for n in counts}

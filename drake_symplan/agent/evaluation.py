@@ -169,11 +169,12 @@ def _resume(records_path) -> tuple[set, list[dict]]:
     """The solves done so far; a last line cut short (the run was killed while writing
     it) is dropped from the file, so that the next record starts a line of its own."""
     path = Path(records_path) if records_path is not None else None
-    if path is not None and path.is_file():
-        text = path.read_text()
-        if text and not text.endswith("\n"):
-            path.write_text(text[:text.rfind("\n") + 1])
-    records = read_records(records_path)
+    text = path.read_text() if path is not None and path.is_file() else ""
+    if not text.endswith("\n"):
+        text = text[:text.rfind("\n") + 1]
+        if path is not None and path.is_file():
+            path.write_text(text)
+    records = [json.loads(line) for line in text.splitlines() if line.strip()]
     return {(r["run"], r["monitor"], r["problem"]) for r in records}, records
 
 
