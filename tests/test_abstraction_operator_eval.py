@@ -60,7 +60,7 @@ def test_each_planner_call_gets_cpu_seconds_with_a_wall_clock_cap(monkeypatch):
     # seconds (--timeout), wall-clock time only its cap (three times that).
     calls = []
 
-    def plan_task(domain, task, planner, timeout, cpu_seconds=None):
+    def plan_task(operators, domain, task, planner, timeout, cpu_seconds=None):
         calls.append((planner, timeout, cpu_seconds))
         return PlanResult("timeout", planner=planner)
 
@@ -77,8 +77,8 @@ def test_a_problem_is_planned_without_operators_needing_more_objects_than_it_has
     # planner's translator would still read it.
     domains = []
 
-    def plan_task(domain, task, planner, timeout, cpu_seconds=None):
-        domains.append(domain)
+    def plan_task(operators, domain, task, planner, timeout, cpu_seconds=None):
+        domains.append(domain())
         return PlanResult("timeout", planner=planner)
 
     monkeypatch.setattr(operator_eval, "plan_task", plan_task)

@@ -97,7 +97,7 @@ class OracleBundle:
     domain, domain_strips = DOMAIN, DOMAIN_STRIPS
     operators = [LiftedOperator(0, "center", "center", 2, (("free", 0), ("free", 1)),
                                 (("on", 0, 1),), (("free", 1),), 1)]
-    by_name = {op.name: op for op in operators}
+    planned, by_name = operators, {op.name: op for op in operators}
     path = "oracle"
 
     def domain_for(self, n_objects: int, costs: bool = True) -> str:

@@ -136,24 +136,24 @@ def test_planning_starts_with_the_objects_whose_goal_atoms_change(bundle, monkey
     assert focus(goal, goal) == ()
     text = problem_text(bundle.task(start, goal).restricted(("a", "b")), costs=True)
     assert "(:objects a b - obj)" in text and " c" not in text.split(":init")[1]
-    problems = []
-    real = abstraction_module.plan_pddl
+    tasks = []
+    real = abstraction_module.fast_downward_task
 
-    def spy(domain, problem, *args, **kwargs):
-        problems.append(problem)
-        return real(domain, problem, *args, **kwargs)
+    def spy(operators, task, *args, **kwargs):
+        tasks.append(task)
+        return real(operators, task, *args, **kwargs)
 
-    monkeypatch.setattr(abstraction_module, "plan_pddl", spy)
+    monkeypatch.setattr(abstraction_module, "fast_downward_task", spy)
     result = bundle.plan(start, goal, "fd")
-    assert result.solved and len(result.steps) == 1 and len(problems) == 1
-    assert "(:objects a b - obj)" in problems[0]
+    assert result.solved and len(result.steps) == 1 and len(tasks) == 1
+    assert tasks[0].objects == ("a", "b")
     # Already there: the empty plan, without a planner call.
-    assert bundle.plan(goal, goal, "fd").steps == [] and len(problems) == 1
+    assert bundle.plan(goal, goal, "fd").steps == [] and len(tasks) == 1
     # a and b lack p0, which no operator adds:
     # unsolvable on the focus, then on all objects before that is the answer.
     stuck = reading([0, 0, 1])
-    assert bundle.plan(stuck, goal, "fd").status == "unsolvable" and len(problems) == 3
-    assert "(:objects a b c - obj)" in problems[2]
+    assert bundle.plan(stuck, goal, "fd").status == "unsolvable" and len(tasks) == 3
+    assert tasks[2].objects == ("a", "b", "c")
 
 
 def test_a_bundle_written_before_the_version_field_still_loads(bundle):

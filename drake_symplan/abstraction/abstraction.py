@@ -2,26 +2,31 @@
 
 `Abstraction(bundle)` holds the verbs over a model bundle's data (symbolic/bundle.py):
 `read` a perceived scene's symbols (learning's read-out), its `atoms` under the bundle's
-semantics, the `task` from a start to a goal reading, the `focus` objects, `plan` (the
-planning layer's back-ends on the bundle's domain) into typed steps parsed once where the
-planner returns them, and the checks the closed loop makes on a step (`mismatches`). The
-solve loop, `symplan inspect`, the demo, bench_solve and `eval operators` all use it.
+semantics, the `task` from a start to a goal reading, the `focus` objects, `plan` (Fast
+Downward on the task grounded in process, or a back-end on the bundle's PDDL domain) into
+typed steps parsed once where the planner returns them, and the checks the closed loop
+makes on a step (`mismatches`). The solve loop, `symplan inspect`, the demo, bench_solve
+and `eval operators` all use it.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
 from drake_symplan.learning.readout import read_symbols
+from drake_symplan.planning.grounding import fast_downward_task
 from drake_symplan.planning.planners import (
     DEFAULT_TIMEOUT,
     PlanResult,
-    children_cpu,
+    cpu_used,
     plan_pddl,
+    search_binary,
 )
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.pddl import problem_from_atoms
@@ -77,13 +82,17 @@ def problem_text(task: Task, costs: bool) -> str:
                               costs=costs)
 
 
-def plan_task(domain: str, task: Task, planner: str = "fd",
+def plan_task(operators, domain: Callable[[], str], task: Task, planner: str = "fd",
               timeout: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None
               ) -> PlanResult:
-    """Plans `task` on the PDDL `domain` text (with action costs for Fast Downward);
-    `cpu_seconds`: a CPU budget, `timeout` then the wall-clock cap (planning/planners.py)."""
+    """Plans `task` with `operators`: Fast Downward's search on the task grounded here
+    (planning/grounding.py) where its build has a search binary, else the planner on the
+    PDDL `domain()` text (with action costs for Fast Downward). `cpu_seconds`: a CPU
+    budget, `timeout` then the wall-clock cap (planning/planners.py)."""
+    if planner == "fd" and search_binary() is not None:
+        return fast_downward_task(operators, task, timeout, cpu_seconds=cpu_seconds)
     options = {} if cpu_seconds is None else {"cpu_seconds": cpu_seconds}
-    return plan_pddl(domain, problem_text(task, costs=planner == "fd"), planner, timeout,
+    return plan_pddl(domain(), problem_text(task, costs=planner == "fd"), planner, timeout,
                      **options)
 
 
@@ -162,7 +171,7 @@ class Abstraction:
         unsolvable, all of them, in the time left (`focus=False`: all of them). The empty
         plan, without a planner call, when the goal's atoms hold already. With
         `cpu_seconds` the budget is the planner's CPU time, `timeout` the wall-clock cap."""
-        t0, cpu0 = time.perf_counter(), children_cpu()
+        t0, cpu0 = time.perf_counter(), cpu_used()
         task = self.task(start, goal)
         objects = self.focus(task, start, goal)
         if objects and not focus:
@@ -172,9 +181,9 @@ class Abstraction:
         for subset in ([objects, None] if len(objects) < len(task.objects) else [None]):
             sub = task if subset is None else task.restricted(subset)
             cpu = None if cpu_seconds is None else max(
-                cpu_seconds - (children_cpu() - cpu0), 1e-3)
-            domain = self.bundle.domain_for(len(sub.objects), costs=planner == "fd")
-            found = plan_task(domain, sub, planner,
+                cpu_seconds - (cpu_used() - cpu0), 1e-3)
+            domain = partial(self.bundle.domain_for, len(sub.objects), planner == "fd")
+            found = plan_task(self.bundle.planned, domain, sub, planner,
                               max(t0 + timeout - time.perf_counter(), 1e-3), cpu)
             if found.status != "unsolvable":
                 break

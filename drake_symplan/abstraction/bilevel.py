@@ -29,7 +29,7 @@ from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.features import box_of
-from drake_symplan.planning.planners import WALL_FACTOR, children_cpu
+from drake_symplan.planning.planners import WALL_FACTOR, cpu_used
 from drake_symplan.structs import GOAL_TOLERANCE, OFFSET_METRES, OFFSETS, Action
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
@@ -61,11 +61,11 @@ class Budget:
 
     def __init__(self, cpu_seconds: float, wall_seconds: float):
         self.cpu, self.wall = cpu_seconds, wall_seconds
-        self.cpu0, self.wall0 = _cpu(), time.perf_counter()
+        self.cpu0, self.wall0 = cpu_used(), time.perf_counter()
 
     def left(self) -> float:
         """CPU seconds left (the wall-clock cap counted as CPU when it is nearer)."""
-        return min(self.cpu - (_cpu() - self.cpu0),
+        return min(self.cpu - (cpu_used() - self.cpu0),
                    self.wall - (time.perf_counter() - self.wall0))
 
     def spent(self) -> bool:
@@ -75,10 +75,6 @@ class Budget:
         """A budget of `fraction` of what is left, from now."""
         left = max(self.left(), 0.0)
         return Budget(fraction * left, fraction * left * self.wall / max(self.cpu, 1e-9))
-
-
-def _cpu() -> float:
-    return time.process_time() + children_cpu()
 
 
 @dataclass

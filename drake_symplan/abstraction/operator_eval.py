@@ -19,6 +19,7 @@ import time
 from collections import Counter, defaultdict
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
+from functools import cache, partial
 
 import numpy as np
 
@@ -107,14 +108,16 @@ def solve_problems(operators: list[LiftedOperator], n_unary: int, n_relations: i
                    problems: list[Problem], config: EvalConfig) -> list[dict]:
     """Plans every problem with the domain of `operators` for its object count
     (pddl.domain_pddl's `n_objects`); one result dict per problem."""
-    counts = sorted({p.n_objects for p in problems})
-    domains = {n: domain_pddl(operators, n_unary, n_relations, costs=config.planner == "fd",
-                              n_objects=n) for n in counts}
     by_name = {op.name: op for op in operators}
+
+    @cache  # the PDDL path's domain text, once per object count
+    def domain(n: int) -> str:
+        return domain_pddl(operators, n_unary, n_relations, costs=config.planner == "fd",
+                           n_objects=n)
 
     def one(p: Problem) -> dict:
         # CPU seconds, so that a problem gets the same answer on a busy host as on a quiet one
-        r = plan_task(domains[p.n_objects], p.task, config.planner,
+        r = plan_task(operators, partial(domain, p.n_objects), p.task, config.planner,
                       WALL_FACTOR * config.timeout, cpu_seconds=config.timeout)
         steps = [parse_step(s, by_name) for s in r.plan]
         return {"k": p.k, "objects": p.n_objects, "status": r.status, "length": len(r.plan),

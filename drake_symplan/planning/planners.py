@@ -11,7 +11,8 @@ file, an unsolvable task, a timeout or a missing planner all come back as result
   as its driver would run them (the driver itself where there is no such build). Every
   call gets its own temporary directory (`output.sas`, `sas_plan`), its own process
   groups, and a wall-clock limit after which the running group is killed. Exit codes
-  follow FD's documented table.
+  follow FD's documented table. `fast_downward_sas` runs the search alone on a task
+  translated already (planning/grounding.py).
 * pyperplan is imported and run in a forked child process, since it has no time limit
   of its own and a Python thread cannot be stopped: at the deadline the child is
   killed, so a timeout really stops the work.
@@ -148,7 +149,6 @@ def fast_downward(
         return result("error", message=(
             f"Fast Downward not found (driver {driver}); install the up-fast-downward "
             f"wheel or set {FD_ENV} to a fast-downward.py"))
-    deadline = start + timeout
     with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
         plan_file = Path(tmp) / "sas_plan"
         components = _fd_components(driver)
@@ -164,20 +164,56 @@ def fast_downward(
             env = dict(os.environ, PYTHONPATH=str(bin_dir))
             runs = [([sys.executable, "-S", "-m", "fast_downward.translate", str(domain),
                       str(problem), "--sas-file", "output.sas"], env, None),
-                    ([str(search_exe), "--search", search, "--internal-plan-file",
-                      str(plan_file)], None, Path(tmp) / "output.sas")]
-        used = children_cpu()
-        for phase, (cmd, env, stdin) in enumerate(runs):
-            left = None if cpu_seconds is None else cpu_seconds - (children_cpu() - used)
-            code, out, err = _run_group(cmd, tmp, env, stdin, deadline, left)
-            if code is None:
-                return result("timeout", message=f"Fast Downward killed after {timeout:g} s")
-            if code != 0:
-                if phase == 0 and len(runs) == 2 and code not in (20, 21, 31):
-                    code = 30  # the translator crashed, as the driver reports it
-                break
-        plan_files = sorted(Path(tmp).glob("sas_plan*"))
-        plan = _read_plan(plan_files[-1].read_text()) if plan_files else []
+                    _search_run(search_exe, search, plan_file, Path(tmp) / "output.sas")]
+        return _fd_runs(runs, tmp, start, timeout, cpu_seconds)
+
+
+def fast_downward_sas(
+    sas: str,
+    timeout: float = DEFAULT_TIMEOUT,
+    search: str = FD_SEARCH,
+    cpu_seconds: float | None = None,
+) -> PlanResult:
+    """Fast Downward's search on a task already translated to SAS+ text
+    (planning/grounding.py), under the same limits as `fast_downward`."""
+    start = time.perf_counter()
+    search_exe = search_binary()
+    if search_exe is None:
+        return PlanResult("error", [], time.perf_counter() - start, (
+            "Fast Downward's search binary not found; install the up-fast-downward wheel"),
+            "fd")
+    with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
+        (Path(tmp) / "output.sas").write_text(sas)
+        run = _search_run(search_exe, search, Path(tmp) / "sas_plan", Path(tmp) / "output.sas")
+        return _fd_runs([run], tmp, start, timeout, cpu_seconds)
+
+
+def _search_run(search_exe: Path, search: str, plan_file: Path, sas_file: Path):
+    """The search binary's command line, environment and input, as `_fd_runs` takes them."""
+    return ([str(search_exe), "--search", search, "--internal-plan-file", str(plan_file)],
+            None, sas_file)
+
+
+def _fd_runs(runs, tmp: str, start: float, timeout: float, cpu_seconds: float | None
+             ) -> PlanResult:
+    """Runs FD's phases one after the other in `tmp` (a phase's failure stops them) and
+    reads the outcome by FD's exit codes and its plan files."""
+    def result(status, plan=(), message=""):
+        return PlanResult(status, list(plan), time.perf_counter() - start, message, "fd")
+
+    deadline = start + timeout
+    used = children_cpu()
+    for phase, (cmd, env, stdin) in enumerate(runs):
+        left = None if cpu_seconds is None else cpu_seconds - (children_cpu() - used)
+        code, out, err = _run_group(cmd, tmp, env, stdin, deadline, left)
+        if code is None:
+            return result("timeout", message=f"Fast Downward killed after {timeout:g} s")
+        if code != 0:
+            if phase == 0 and len(runs) == 2 and code not in (20, 21, 31):
+                code = 30  # the translator crashed, as the driver reports it
+            break
+    plan_files = sorted(Path(tmp).glob("sas_plan*"))
+    plan = _read_plan(plan_files[-1].read_text()) if plan_files else []
     if code in _FD_SOLVED and plan_files:
         return result("solved", plan, _FD_SOLVED[code])
     if code in _FD_UNSOLVABLE:
@@ -188,6 +224,13 @@ def fast_downward(
     if code == 0:
         what = "exit code 0 but no plan file"
     return result("error", message=f"Fast Downward: {what}: {_fd_message(out, err)}")
+
+
+def search_binary() -> Path | None:
+    """FD's search binary of the installed build, or None."""
+    driver = find_fast_downward()
+    components = None if driver is None else _fd_components(driver)
+    return None if components is None else components[1]
 
 
 def _fd_components(driver: Path) -> tuple[Path, Path] | None:
@@ -204,6 +247,11 @@ def children_cpu() -> float:
     """CPU seconds used so far by this process's finished children."""
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
     return usage.ru_utime + usage.ru_stime
+
+
+def cpu_used() -> float:
+    """CPU seconds used so far by this process and its finished children."""
+    return time.process_time() + children_cpu()
 
 
 def limit_cpu(seconds: float | None) -> None:

@@ -1,0 +1,164 @@
+"""A symbolic task grounded on lifted operators here, written as Fast Downward's SAS+
+input, so that a plan costs only FD's search binary: its translator (an interpreter
+start, PDDL parsing, Datalog grounding, invariant synthesis) is most of a small task's
+call (tools/bench_planner.py).
+
+Grounding keeps what the translator keeps: the actions reachable from the initial state
+in the delete relaxation, parameters bound to distinct objects (the PDDL's `different`
+facts). An atom no reachable action adds or deletes is static and leaves the task; every
+other atom is a variable of two values, true and false (the translator would merge an
+atom with its explicit `not_` twin; the search's heuristics read the same relaxed task
+either way, since no precondition or goal asks for an atom to be false). A goal atom
+that is not reachable proves the task unsolvable before any search.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from drake_symplan.planning.planners import (
+    DEFAULT_TIMEOUT,
+    FD_SEARCH,
+    PlanResult,
+    fast_downward_sas,
+)
+from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task
+
+TRUE, FALSE = 0, 1  # variable values, as the translator numbers an atom's
+
+
+@dataclass(frozen=True)
+class GroundAction:
+    name: str  # "pick_center_place_right_n736_op19 o3 o1", as a plan step reads it
+    pre: frozenset
+    add: frozenset
+    delete: frozenset
+    cost: int
+
+
+@dataclass
+class GroundTask:
+    """The reachable part of a task: its variables (non-static atoms), actions, initial
+    state and goal; `unreachable`: the goal atoms no action can make true."""
+
+    variables: list[Atom]
+    actions: list[GroundAction]
+    init: frozenset
+    goal: frozenset
+    unreachable: frozenset
+
+
+def _slot_order(op: LiftedOperator) -> list[list[Atom]]:
+    """The operator's precondition atoms by the last slot they bind, so a binding is
+    checked as soon as its slots are filled."""
+    by_slot: list[list[Atom]] = [[] for _ in range(op.n_params)]
+    for atom in op.pre:
+        by_slot[max(atom[1:])].append(atom)
+    return by_slot
+
+
+def _bindings(op: LiftedOperator, by_slot: list[list[Atom]], objects: Sequence[str],
+              facts: set) -> Iterable[tuple[str, ...]]:
+    """Every binding of the operator's slots to distinct objects under which its
+    preconditions are in `facts`."""
+    args: list[str] = []
+
+    def extend(i: int):
+        if i == op.n_params:
+            yield tuple(args)
+            return
+        for obj in objects:
+            if obj in args:
+                continue
+            args.append(obj)
+            if all(a.ground(args) in facts for a in by_slot[i]):
+                yield from extend(i + 1)
+            args.pop()
+
+    yield from extend(0)
+
+
+def ground(operators: Sequence[LiftedOperator], task: Task) -> GroundTask:
+    """The task's reachable actions and variables (module docstring)."""
+    ops = [(op, _slot_order(op)) for op in operators if op.n_params <= len(task.objects)]
+    facts = set(task.init)
+    found: dict[tuple[str, tuple[str, ...]], GroundAction] = {}
+    grown = True
+    while grown:  # relaxed reachability to a fixpoint
+        grown = False
+        for op, by_slot in ops:
+            for args in list(_bindings(op, by_slot, task.objects, facts)):
+                if (op.name, args) in found:
+                    continue
+                add = frozenset(a.ground(args) for a in op.add)
+                found[op.name, args] = GroundAction(
+                    f"{op.name} {' '.join(args)}", frozenset(a.ground(args) for a in op.pre),
+                    add, frozenset(a.ground(args) for a in op.delete) - add, op.cost)
+                grown |= not add <= facts
+                facts |= add
+    actions = list(found.values())
+    changing = set().union(*(a.add | a.delete for a in actions)) & facts
+    variables = sorted(changing)
+    kept = []
+    for a in actions:
+        act = GroundAction(a.name, a.pre & changing, a.add - a.pre, a.delete & changing,
+                           a.cost)
+        if act.add or act.delete:
+            kept.append(act)
+    return GroundTask(variables, kept, frozenset(task.init) & changing,
+                      frozenset(task.goal) & changing, frozenset(task.goal) - facts)
+
+
+def sas_text(task: GroundTask) -> str:
+    """The task in FD's SAS+ format, version 3, with action costs."""
+    index = {atom: i for i, atom in enumerate(task.variables)}
+    lines = ["begin_version", "3", "end_version", "begin_metric", "1", "end_metric",
+             str(len(task.variables))]
+    for i, atom in enumerate(task.variables):
+        text = f"{atom[0]}({', '.join(atom[1:])})"
+        lines += ["begin_variable", f"var{i}", "-1", "2", f"Atom {text}",
+                  f"NegatedAtom {text}", "end_variable"]
+    lines += ["0", "begin_state"]
+    lines += [str(TRUE if atom in task.init else FALSE) for atom in task.variables]
+    lines += ["end_state", "begin_goal", str(len(task.goal))]
+    lines += [f"{index[a]} {TRUE}" for a in sorted(task.goal)]
+    lines += ["end_goal", str(len(task.actions))]
+    for act in task.actions:
+        prevail = sorted(index[a] for a in act.pre - act.delete)
+        effects = [(index[a], -1, TRUE) for a in act.add]
+        effects += [(index[a], TRUE if a in act.pre else -1, FALSE) for a in act.delete]
+        lines += ["begin_operator", act.name, str(len(prevail))]
+        lines += [f"{v} {TRUE}" for v in prevail]
+        lines += [str(len(effects))]
+        lines += [f"0 {v} {pre} {post}" for v, pre, post in sorted(effects)]
+        lines += [str(act.cost), "end_operator"]
+    lines += ["0"]
+    return "\n".join(lines) + "\n"
+
+
+def fast_downward_task(operators: Sequence[LiftedOperator], task: Task,
+                       timeout: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
+                       cpu_seconds: float | None = None) -> PlanResult:
+    """Fast Downward's search on `task` grounded here; the grounding's CPU time (this
+    thread's: `eval operators` plans in threads) counts against `cpu_seconds` and its
+    seconds against `timeout`."""
+    start, cpu0 = time.perf_counter(), time.thread_time()
+    grounded = ground(operators, task)
+
+    def result(status, message=""):
+        return PlanResult(status, [], time.perf_counter() - start, message, "fd")
+
+    if grounded.unreachable:
+        atoms = ", ".join(Atom.of(a).text() for a in sorted(grounded.unreachable)[:3])
+        return result("unsolvable", f"unsolvable (proved by grounding: no action reaches "
+                                    f"{atoms})")
+    if not grounded.goal - grounded.init:
+        return result("solved")
+    used = time.perf_counter() - start
+    found = fast_downward_sas(sas_text(grounded), max(timeout - used, 1e-3), search,
+                              None if cpu_seconds is None else
+                              max(cpu_seconds - (time.thread_time() - cpu0), 1e-3))
+    found.seconds += used
+    return found

@@ -1,0 +1,113 @@
+"""Grounding tasks here for Fast Downward's search: the reachable actions on a tiny domain,
+proofs without search, and the same plans and costs as FD's own translator on learned
+domains."""
+
+import numpy as np
+import pytest
+
+from drake_symplan.abstraction import abstraction
+from drake_symplan.abstraction.abstraction import plan_task, problem_text
+from drake_symplan.planning import grounding
+from drake_symplan.planning.grounding import fast_downward_task, ground, sas_text
+from drake_symplan.planning.planners import plan_pddl, search_binary
+from drake_symplan.symbolic import synthetic
+from drake_symplan.symbolic.operators import LearnConfig, learn_operators
+from drake_symplan.symbolic.pddl import check_plan, domain_pddl
+from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task, parse_step
+
+needs_search = pytest.mark.skipif(search_binary() is None,
+                                  reason="up-fast-downward has no search binary here")
+
+# put: a box that is free (p0) goes onto another (r0) and is no longer free.
+PUT = LiftedOperator(0, "center", "center", 2, (("p0", 0),), (("r0", 0, 1),), (("p0", 0),),
+                     9, applicable=10, succeeded=9)
+# mark: whatever has a box on it becomes p1.
+MARK = LiftedOperator(1, "center", "left", 2, (("r0", 0, 1),), (("p1", 1),), (), 5,
+                      applicable=5, succeeded=5)
+# three: needs three distinct boxes.
+THREE = LiftedOperator(2, "left", "left", 3, (("p0", 0),), (("p1", 2),), (), 4)
+
+
+def names(task):
+    return sorted(a.name for a in task.actions)
+
+
+def test_ground_keeps_the_reachable_actions_on_distinct_objects():
+    task = Task(("a", "b", "c"), frozenset({Atom("p0", "a"), Atom("p1", "a")}),
+                frozenset({Atom("p1", "b")}))
+    g = ground([PUT, MARK, THREE], task)
+    put, mark, three = PUT.name, MARK.name, THREE.name
+    assert names(g) == sorted([f"{put} a b", f"{put} a c", f"{mark} a b", f"{mark} a c",
+                               f"{three} a b c", f"{three} a c b"])
+    # p1(a) holds and nothing changes it: static, so it is no variable.
+    assert set(g.variables) == {Atom("p0", "a"), Atom("r0", "a", "b"), Atom("r0", "a", "c"),
+                                Atom("p1", "b"), Atom("p1", "c")}
+    assert g.init == {Atom("p0", "a")} and g.goal == {Atom("p1", "b")} and not g.unreachable
+    # Two boxes: nothing binds the three-parameter operator.
+    two = Task(("a", "b"), frozenset({Atom("p0", "a")}), frozenset({Atom("p1", "b")}))
+    assert names(ground([PUT, MARK, THREE], two)) == sorted([f"{put} a b", f"{mark} a b"])
+
+
+def test_the_sas_text_has_one_binary_variable_per_atom_and_the_actions_costs():
+    task = Task(("a", "b"), frozenset({Atom("p0", "a")}), frozenset({Atom("p1", "b")}))
+    text = sas_text(ground([PUT, MARK], task))
+    assert text.count("begin_variable") == 3 and text.count("begin_operator") == 2
+    assert f"begin_operator\n{PUT.name} a b\n0\n2\n" in text  # no prevail, two effects
+    assert f"\n{PUT.cost}\nend_operator" in text and PUT.cost != MARK.cost
+
+
+def test_an_unreachable_goal_is_unsolvable_without_a_search(monkeypatch):
+    monkeypatch.setattr(grounding, "fast_downward_sas", lambda *a, **k: pytest.fail("searched"))
+    task = Task(("a", "b"), frozenset({Atom("p0", "a")}), frozenset({Atom("p1", "a")}))
+    result = fast_downward_task([PUT, MARK], task)
+    assert result.status == "unsolvable" and "p1(a)" in result.message
+    held = Task(("a", "b"), frozenset({Atom("p0", "a"), Atom("p1", "a")}),
+                frozenset({Atom("p1", "a")}))
+    assert fast_downward_task([PUT, MARK], held).status == "solved"
+
+
+@needs_search
+def test_fast_downward_on_the_grounded_task_finds_the_two_step_plan():
+    task = Task(("a", "b", "c"), frozenset({Atom("p0", "a")}),
+                frozenset({Atom("p1", "c"), Atom("r0", "a", "c")}))
+    result = fast_downward_task([PUT, MARK], task)
+    assert result.solved, result.message
+    assert result.plan == [f"({PUT.name} a c)", f"({MARK.name} a c)"]
+
+
+@pytest.fixture(scope="module")
+def learned():
+    data = synthetic.random_transitions(20000, seed=0)
+    return learn_operators(data, LearnConfig(min_count=20)).operators
+
+
+@needs_search
+def test_grounded_and_translated_tasks_get_plans_of_the_same_cost(learned):
+    domain = domain_pddl(learned, synthetic.N_UNARY, synthetic.N_RELATIONS, costs=True)
+    by_name = {op.name: op for op in learned}
+    rng = np.random.default_rng(3)
+    solved = 0
+    for _ in range(15):
+        start, goal, contacts = synthetic.random_problem(4, int(rng.integers(2, 5)), rng)
+        task = Task(start.objects, frozenset(start.facts()),
+                    frozenset(goal.goal_facts(contacts)))
+        ours = plan_task(learned, lambda: domain, task)
+        theirs = plan_pddl(domain, problem_text(task, costs=True), "fd")
+        assert ours.status == theirs.status, (ours, theirs)
+        costs = [sum(parse_step(s, by_name).operator.cost for s in r.plan)
+                 for r in (ours, theirs)]
+        assert costs[0] == costs[1]
+        if ours.solved:
+            assert check_plan(domain, problem_text(task, costs=True), ours.plan) is None
+        solved += ours.solved
+    assert solved >= 10
+
+
+def test_without_a_search_binary_the_task_goes_to_the_planner_as_pddl(learned, monkeypatch):
+    monkeypatch.setattr(abstraction, "search_binary", lambda: None)
+    asked = []
+    domain = domain_pddl(learned, synthetic.N_UNARY, synthetic.N_RELATIONS, costs=True)
+    start, goal, contacts = synthetic.random_problem(3, 2, np.random.default_rng(4))
+    task = Task(start.objects, frozenset(start.facts()), frozenset(goal.goal_facts(contacts)))
+    result = plan_task(learned, lambda: asked.append(1) or domain, task, "fd")
+    assert asked == [1] and result.status in ("solved", "unsolvable")
