@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from drake_symplan.abstraction.abstraction import Plan
-from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel
+from drake_symplan.abstraction.bilevel import PENALTY, Budget, Refiner, plan_bilevel
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
 from drake_symplan.agent.planning_modes import Planner
 from drake_symplan.features import object_features
@@ -50,7 +50,8 @@ class Skeletons:
     def __init__(self, *plans):
         self.plans = list(plans)
 
-    def plan(self, start, goal, planner, timeout, focus=True, cpu_seconds=None):
+    def plan(self, start, goal, planner, timeout, focus=True, cpu_seconds=None,
+             penalties=None):
         return self.plans.pop(0) if self.plans else Plan("unsolvable")
 
     def believed(self, reading):
@@ -63,10 +64,10 @@ class Skeletons:
 START = boxes(a=(0.5, 0.2, 0.025), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
 
 
-def solve(abstraction, goal: Boxes, extra_moves=0, planning="bilevel"):
+def solve(abstraction, goal: Boxes, extra_moves=0, planning="bilevel", alternatives=0):
     refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=extra_moves)
     return plan_bilevel(abstraction, refiner, None, None, START, goal, planning,
-                        budget=Budget(10.0, 30.0))
+                        budget=Budget(10.0, 30.0), alternatives=alternatives)
 
 
 def test_a_skeleton_whose_predicted_end_misses_the_goal_is_rejected_for_one_that_meets_it():
@@ -80,6 +81,37 @@ def test_a_skeleton_whose_predicted_end_misses_the_goal_is_rejected_for_one_that
     assert not first.accepted and "predicted off the goal" in first.why and "'a'" in first.why
     assert first.errors_cm["a"] > 20 and second.accepted and second.errors_cm["a"] == 0.0
     assert np.allclose(found.predicted[-1].where()["a"], [0.7, 0.0, 0.075])
+
+
+class Penalized(Skeletons):
+    """A symbolic planner that puts a on b unless that move is made dearer, then a on c."""
+
+    def __init__(self):
+        super().__init__()
+        self.asked = []
+
+    def plan(self, start, goal, planner, timeout, focus=True, cpu_seconds=None,
+             penalties=None):
+        self.asked.append(dict(penalties or {}))
+        target = "c" if ("a", "b") in (penalties or {}) else "b"
+        return Plan("solved", [Step(STACK["center"], ("a", target))])
+
+
+def test_an_alternative_skeleton_avoids_the_moves_of_one_that_did_not_refine():
+    goal = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    planner = Penalized()
+    found = solve(planner, goal, alternatives=2)
+    assert found.solved and found.level == "bilevel"
+    assert [str(s) for s in found.steps] == [str(Step(STACK["center"], ("a", "c")))]
+    # The focus plan, the plan over every object (the same: no candidate), then one
+    # with the rejected move a -> b made dearer.
+    assert planner.asked == [{}, {}, {("a", "b"): PENALTY}]
+    assert [(c.source, c.accepted) for c in found.candidates] == [("skeleton 1", False),
+                                                                  ("skeleton 2", True)]
+    # Without alternatives the continuous search finds that move instead.
+    found = solve(Penalized(), goal)
+    assert found.level == "continuous" and [s.action for s in found.steps] == [
+        Action("a", "center", "c", "center")]
 
 
 def test_the_offsets_are_chosen_by_the_predicted_landing():

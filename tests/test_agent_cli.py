@@ -65,6 +65,9 @@ def test_unreadable_scene_and_model_directories(scenes, tmp_path, capsys):
     assert_bad_input(code, out, err, f"no model directory {missing}")
     code, out, err = run(["solve", "--start", start, "--goal", goal, "--timeout", "0"], capsys)
     assert_bad_input(code, out, err, "--timeout")
+    code, out, err = run(["solve", "--start", start, "--goal", goal, "--alternatives", "-1"],
+                         capsys)
+    assert_bad_input(code, out, err, "--alternatives must be 0 or more")
 
 
 def test_a_model_without_operators(scenes, tmp_path, capsys):

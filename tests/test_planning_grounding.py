@@ -75,6 +75,22 @@ def test_fast_downward_on_the_grounded_task_finds_the_two_step_plan():
     assert result.plan == [f"({PUT.name} a c)", f"({MARK.name} a c)"]
 
 
+@needs_search
+def test_penalties_make_the_planner_move_other_boxes():
+    # Two plans of equal cost: put a or b on c, then mark c.
+    task = Task(("a", "b", "c"), frozenset({Atom("p0", "a"), Atom("p0", "b")}),
+                frozenset({Atom("p1", "c")}))
+    first = fast_downward_task([PUT, MARK], task)
+    source = first.plan[0].split()[1]
+    other = {"a": "b", "b": "a"}[source]
+    assert first.plan == [f"({PUT.name} {source} c)", f"({MARK.name} {source} c)"]
+    again = fast_downward_task([PUT, MARK], task, penalties={(source, "c"): 1000})
+    assert again.plan == [f"({PUT.name} {other} c)", f"({MARK.name} {other} c)"]
+    # Where every plan moves the pair, the penalty costs but the plan stays.
+    one = Task(("a", "c"), frozenset({Atom("p0", "a")}), frozenset({Atom("p1", "c")}))
+    assert fast_downward_task([PUT, MARK], one, penalties={("a", "c"): 1000}).solved
+
+
 @pytest.fixture(scope="module")
 def learned():
     data = synthetic.random_transitions(20000, seed=0)

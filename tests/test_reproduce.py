@@ -41,6 +41,9 @@ def test_the_stages_of_a_scale(tmp_path):
                                                                  refine=False))
     argv = bilevel.planning_stage().argv
     assert argv[argv.index("--planning") + 1] == "symbolic" and "--no-refine" in argv
+    assert "--alternatives" not in argv  # the default, 0
+    argv = Reproduction("small", tmp_path, solve=SolveConfig(alternatives=3)).planning_stage().argv
+    assert argv[argv.index("--alternatives") + 1] == "3"
     # The other planning modes on the same problems, seed 0's Relational bundle only; the
     # main mode's open-loop row last.
     modes = rep.mode_stages()

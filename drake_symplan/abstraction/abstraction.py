@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import partial
 
@@ -83,14 +83,16 @@ def problem_text(task: Task, costs: bool) -> str:
 
 
 def plan_task(operators, domain: Callable[[], str], task: Task, planner: str = "fd",
-              timeout: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None
-              ) -> PlanResult:
+              timeout: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None,
+              penalties: Mapping[tuple[str, str], int] | None = None) -> PlanResult:
     """Plans `task` with `operators`: Fast Downward's search on the task grounded here
-    (planning/grounding.py) where its build has a search binary, else the planner on the
-    PDDL `domain()` text (with action costs for Fast Downward). `cpu_seconds`: a CPU
-    budget, `timeout` then the wall-clock cap (planning/planners.py)."""
+    (planning/grounding.py, where `penalties` make moves of (source, target) pairs dearer)
+    where its build has a search binary, else the planner on the PDDL `domain()` text
+    (with action costs for Fast Downward; no penalties). `cpu_seconds`: a CPU budget,
+    `timeout` then the wall-clock cap (planning/planners.py)."""
     if planner == "fd" and search_binary() is not None:
-        return fast_downward_task(operators, task, timeout, cpu_seconds=cpu_seconds)
+        return fast_downward_task(operators, task, timeout, cpu_seconds=cpu_seconds,
+                                  penalties=penalties)
     options = {} if cpu_seconds is None else {"cpu_seconds": cpu_seconds}
     return plan_pddl(domain(), problem_text(task, costs=planner == "fd"), planner, timeout,
                      **options)
@@ -166,11 +168,13 @@ class Abstraction:
 
     def plan(self, start: Reading, goal: Reading, planner: str = "fd",
              timeout: float = DEFAULT_TIMEOUT, focus: bool = True,
-             cpu_seconds: float | None = None) -> Plan:
+             cpu_seconds: float | None = None,
+             penalties: Mapping[tuple[str, str], int] | None = None) -> Plan:
         """Plans from start to goal. The `focus` objects first; only if that proves
         unsolvable, all of them, in the time left (`focus=False`: all of them). The empty
         plan, without a planner call, when the goal's atoms hold already. With
-        `cpu_seconds` the budget is the planner's CPU time, `timeout` the wall-clock cap."""
+        `cpu_seconds` the budget is the planner's CPU time, `timeout` the wall-clock cap;
+        `penalties`: see `plan_task`."""
         t0, cpu0 = time.perf_counter(), cpu_used()
         task = self.task(start, goal)
         objects = self.focus(task, start, goal)
@@ -184,7 +188,7 @@ class Abstraction:
                 cpu_seconds - (cpu_used() - cpu0), 1e-3)
             domain = partial(self.bundle.domain_for, len(sub.objects), planner == "fd")
             found = plan_task(self.bundle.planned, domain, sub, planner,
-                              max(t0 + timeout - time.perf_counter(), 1e-3), cpu)
+                              max(t0 + timeout - time.perf_counter(), 1e-3), cpu, penalties)
             if found.status != "unsolvable":
                 break
         steps = [self.step(s) for s in found.plan] if found.solved else []

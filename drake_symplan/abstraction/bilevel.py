@@ -21,6 +21,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,7 @@ SKELETON_SHARE = 0.5
 SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
+PENALTY = 1000  # cost added per use to a move of a skeleton that did not refine
 
 
 def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
@@ -221,11 +223,13 @@ class Refiner:
 
 def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
                  goal_boxes: Boxes, planning: str = "bilevel", planner: str = "fd",
-                 timeout: float = 10.0, budget: Budget | None = None):
+                 timeout: float = 10.0, budget: Budget | None = None,
+                 alternatives: int = 0):
     """A plan from the perceived `start` to `goal` (their Readings and Boxes): "bilevel"
     refines the symbolic planner's skeletons, then searches; "continuous" searches only.
     An abstraction.Plan whose `level` says which found it, with the scene predicted after
-    each step and the candidates looked at (the rejected ones with why)."""
+    each step and the candidates looked at (the rejected ones with why); `alternatives`:
+    skeletons asked for beyond the first two (`skeletons`)."""
     t0 = time.perf_counter()
     budget = budget or Budget(timeout, WALL_FACTOR * timeout)
     target = goal_boxes.where()
@@ -234,7 +238,8 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
     if planning == "bilevel":
         believed, goal_atoms = abstraction.believed(start), abstraction.goal_atoms(goal)
         symbolic = budget.share(1 - SEARCH_SHARE)
-        for i, found in enumerate(skeletons(abstraction, start, goal, planner, symbolic), 1):
+        for i, found in enumerate(skeletons(abstraction, start, goal, planner, symbolic,
+                                            alternatives), 1):
             if not found.solved:
                 candidates.append(Candidate(f"skeleton {i}", [], False,
                                             f"planner: {found.status}"))
@@ -284,10 +289,15 @@ def _nearer(plan: Refined, start: Boxes, goal: dict[str, np.ndarray]) -> bool:
     return sum(goal_errors(plan.predicted[-1], goal).values()) <= before - NEARER
 
 
-def skeletons(abstraction, start, goal, planner: str, budget: Budget):
+def skeletons(abstraction, start, goal, planner: str, budget: Budget,
+              alternatives: int = 0):
     """The symbolic planner's plans: the focus objects' first, then over every object
-    when that gives another. Each call has SKELETON_SHARE of the budget left; after a
-    timeout there is no second call (a larger task would not be faster)."""
+    when that gives another, then up to `alternatives` more over every object, each with
+    the moves of the plans so far made dearer by PENALTY per plan (diverse planning by
+    penalties: the next plan moves other boxes, or onto others, where the domain allows;
+    the refiner already tries other offsets of the same moves). Each call has
+    SKELETON_SHARE of the budget left; no further call after a timeout, an unsolved call
+    or a plan seen before."""
     def call(**options):
         share = budget.share(SKELETON_SHARE)
         return abstraction.plan(start, goal, planner, share.wall, cpu_seconds=share.cpu,
@@ -297,9 +307,26 @@ def skeletons(abstraction, start, goal, planner: str, budget: Budget):
     yield first
     if first.status == "timeout" or budget.spent():
         return
-    every = call(focus=False)
-    if [str(s) for s in every.steps] != [str(s) for s in first.steps] or not first.solved:
-        yield every
+    seen: set[tuple[str, ...]] = set()
+    penalties: Counter = Counter()
+
+    def remember(plan):
+        seen.add(tuple(map(str, plan.steps)))
+        penalties.update({s.args[:2]: PENALTY for s in plan.steps if isinstance(s, Step)})
+
+    if first.solved:
+        remember(first)
+    found = call(focus=False)
+    for n in range(alternatives + 1):
+        new = tuple(map(str, found.steps)) not in seen
+        if (found.solved and new) or (n == 0 and (new or not first.solved)):
+            yield found
+        if not found.solved or (n > 0 and not new) or budget.spent():
+            return
+        if new:
+            remember(found)
+        if n < alternatives:
+            found = call(focus=False, penalties=dict(penalties))
 
 
 def _candidate(source: str, skeleton, refined: Refined | None, refiner: Refiner,

@@ -20,7 +20,9 @@ class SolveConfig:
     after each step and replan on a mismatch (False: open loop, as the paper);
     max_replans: replans per solve; refine: with symbolic planning, choose each step's
     offsets among interchangeable operators and put boxes down at their goal spot
-    (agent/refine.py); planning: PLANNING_MODES (agent/planning_modes.py)."""
+    (agent/refine.py); planning: PLANNING_MODES (agent/planning_modes.py); alternatives:
+    bilevel planning's skeletons beyond the first two when none refines
+    (abstraction/bilevel.py: skeletons)."""
 
     planner: str = "fd"
     timeout: float = DEFAULT_TIMEOUT
@@ -29,6 +31,7 @@ class SolveConfig:
     max_replans: int = 4
     refine: bool = True
     planning: str = "bilevel"
+    alternatives: int = 0
 
     def __post_init__(self):
         if self.planner not in PLANNERS:
@@ -37,6 +40,8 @@ class SolveConfig:
             raise ValueError(f"the planner timeout must be positive, got {self.timeout:g}")
         if self.max_replans < 0:
             raise ValueError(f"max_replans must be 0 or more, got {self.max_replans}")
+        if self.alternatives < 0:
+            raise ValueError(f"alternatives must be 0 or more, got {self.alternatives}")
         if self.planning not in PLANNING_MODES:
             raise ValueError(f"unknown planning {self.planning!r}; one of {PLANNING_MODES}")
 
@@ -51,7 +56,8 @@ class SolveConfig:
         config, less the monitoring (eval planning runs both modes): for child processes."""
         flags = ["--planner", self.planner, "--timeout", f"{self.timeout:g}",
                  "--max-replans", str(self.max_replans), "--planning", self.planning]
-        return flags + ([] if self.refine else ["--no-refine"])
+        return (flags + ([] if self.refine else ["--no-refine"])
+                + (["--alternatives", str(self.alternatives)] if self.alternatives else []))
 
 
 DEFAULT_SOLVE = SolveConfig()

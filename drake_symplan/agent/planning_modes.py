@@ -61,7 +61,7 @@ class Planner:
             return self.abs.plan(now, goal, self.config.planner, wall, cpu_seconds=cpu)
         return plan_bilevel(self.abs, self.refiner, now, goal, Boxes.of(now_scene),
                             Boxes.of(goal_scene), mode, self.config.planner, cpu,
-                            Budget(cpu, wall))
+                            Budget(cpu, wall), self.config.alternatives)
 
     @property
     def predicts_positions(self) -> bool:

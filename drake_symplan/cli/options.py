@@ -90,6 +90,10 @@ def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
                    help="execute each step with the offsets the planner chose and put no box "
                    "down at its goal spot (default: an interchangeable operator's offsets that "
                    "land the box nearer its goal, and such repositionings)")
+    p.add_argument("--alternatives", type=int, default=DEFAULT_SOLVE.alternatives,
+                   help="bilevel: when no skeleton refines, ask the symbolic planner for up "
+                   "to this many more, each avoiding the moves of those before "
+                   f"(default {DEFAULT_SOLVE.alternatives})")
 
 
 def solve_config(args: argparse.Namespace) -> SolveConfig:
@@ -98,9 +102,11 @@ def solve_config(args: argparse.Namespace) -> SolveConfig:
         return SolveConfig(args.planner, args.timeout, not getattr(args, "no_monitor", False),
                            getattr(args, "max_replans", DEFAULT_SOLVE.max_replans),
                            not getattr(args, "no_refine", False),
-                           getattr(args, "planning", DEFAULT_SOLVE.planning))
+                           getattr(args, "planning", DEFAULT_SOLVE.planning),
+                           getattr(args, "alternatives", DEFAULT_SOLVE.alternatives))
     except ValueError as e:
         raise CommandError(str(e).replace("max_replans", "--max-replans")
+                           .replace("alternatives must", "--alternatives must")
                            .replace("the planner timeout", "--timeout")) from e
 
 

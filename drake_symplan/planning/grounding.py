@@ -15,7 +15,7 @@ that is not reachable proves the task unsolvable before any search.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from drake_symplan.planning.planners import (
@@ -80,8 +80,11 @@ def _bindings(op: LiftedOperator, by_slot: list[list[Atom]], objects: Sequence[s
     yield from extend(0)
 
 
-def ground(operators: Sequence[LiftedOperator], task: Task) -> GroundTask:
-    """The task's reachable actions and variables (module docstring)."""
+def ground(operators: Sequence[LiftedOperator], task: Task,
+           penalties: Mapping[tuple[str, str], int] | None = None) -> GroundTask:
+    """The task's reachable actions and variables (module docstring); `penalties`: cost
+    added to every action that moves a (source, target) pair, whatever its offsets."""
+    penalties = penalties or {}
     ops = [(op, _slot_order(op)) for op in operators if op.n_params <= len(task.objects)]
     facts = set(task.init)
     found: dict[tuple[str, tuple[str, ...]], GroundAction] = {}
@@ -95,7 +98,8 @@ def ground(operators: Sequence[LiftedOperator], task: Task) -> GroundTask:
                 add = frozenset(a.ground(args) for a in op.add)
                 found[op.name, args] = GroundAction(
                     f"{op.name} {' '.join(args)}", frozenset(a.ground(args) for a in op.pre),
-                    add, frozenset(a.ground(args) for a in op.delete) - add, op.cost)
+                    add, frozenset(a.ground(args) for a in op.delete) - add,
+                    op.cost + penalties.get(args[:2], 0))
                 grown |= not add <= facts
                 facts |= add
     actions = list(found.values())
@@ -140,12 +144,13 @@ def sas_text(task: GroundTask) -> str:
 
 def fast_downward_task(operators: Sequence[LiftedOperator], task: Task,
                        timeout: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
-                       cpu_seconds: float | None = None) -> PlanResult:
-    """Fast Downward's search on `task` grounded here; the grounding's CPU time (this
-    thread's: `eval operators` plans in threads) counts against `cpu_seconds` and its
-    seconds against `timeout`."""
+                       cpu_seconds: float | None = None,
+                       penalties: Mapping[tuple[str, str], int] | None = None) -> PlanResult:
+    """Fast Downward's search on `task` grounded here (with `penalties`, see `ground`);
+    the grounding's CPU time (this thread's: `eval operators` plans in threads) counts
+    against `cpu_seconds` and its seconds against `timeout`."""
     start, cpu0 = time.perf_counter(), time.thread_time()
-    grounded = ground(operators, task)
+    grounded = ground(operators, task, penalties)
 
     def result(status, message=""):
         return PlanResult(status, [], time.perf_counter() - start, message, "fd")
