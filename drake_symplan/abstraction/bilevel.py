@@ -41,7 +41,7 @@ SKELETON_SHARE = 0.5
 SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
-PENALTY = 1000  # cost added per use to a move of a skeleton that did not refine
+PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 
 
 def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
