@@ -4,6 +4,7 @@ continuous search where the symbols find nothing; the continuous model's arithme
 
 from __future__ import annotations
 
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -137,6 +138,23 @@ def test_the_continuous_fallback_finds_a_two_step_plan_the_symbols_cannot():
     assert all(isinstance(s, Reposition) and s.kind == "move" for s in found.steps)
     assert [c.source for c in found.candidates] == ["skeleton 1", "skeleton 2", "continuous"]
     assert solve(Skeletons(), tower, planning="continuous").steps == found.steps
+
+
+class Slow(Skeletons):
+    """Skeletons whose planner takes 0.1 s a call."""
+
+    def plan(self, *args, **kwargs):
+        time.sleep(0.1)
+        return super().plan(*args, **kwargs)
+
+
+def test_each_candidate_reports_the_time_it_took():
+    tower = boxes(a=(0.7, 0.0, 0.125), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
+    found = solve(Slow(Plan("unsolvable"), Plan("unsolvable")), tower)
+    first, second, search = found.candidates
+    assert first.seconds >= 0.1 and second.seconds >= 0.1
+    assert first.seconds + second.seconds + search.seconds <= found.seconds
+    assert search.to_json()["seconds"] == round(search.seconds, 4)
 
 
 class Lifting(torch.nn.Module):

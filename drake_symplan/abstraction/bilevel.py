@@ -81,18 +81,21 @@ class Budget:
 
 @dataclass
 class Candidate:
-    """A plan the search looked at: its steps, whether it was accepted, why not, and the
-    predicted distance (cm) of each box to its goal at its end."""
+    """A plan the search looked at: its steps, whether it was accepted, why not, the
+    predicted distance (cm) of each box to its goal at its end, and the wall seconds it
+    took (a skeleton: the planner call and the refinement; "continuous": the search)."""
 
     source: str  # "skeleton 1", "continuous"
     steps: list[str]
     accepted: bool
     why: str
     errors_cm: dict[str, float] = field(default_factory=dict)
+    seconds: float = 0.0
 
     def to_json(self) -> dict:
         return {"source": self.source, "steps": self.steps, "accepted": self.accepted,
-                "why": self.why, "errors_cm": self.errors_cm}
+                "why": self.why, "errors_cm": self.errors_cm,
+                "seconds": round(self.seconds, 4)}
 
 
 @dataclass
@@ -235,28 +238,36 @@ def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
     target = goal_boxes.where()
     candidates: list[Candidate] = []
     unverified = None  # the first skeleton, run on its symbols if nothing else is found
+    began = time.perf_counter()  # the candidate being looked at
+
+    def looked_at(candidate: Candidate) -> None:
+        nonlocal began
+        now = time.perf_counter()
+        candidate.seconds, began = now - began, now
+        candidates.append(candidate)
+
     if planning == "bilevel":
         believed, goal_atoms = abstraction.believed(start), abstraction.goal_atoms(goal)
         symbolic = budget.share(1 - SEARCH_SHARE)
         for i, found in enumerate(skeletons(abstraction, start, goal, planner, symbolic,
                                             alternatives), 1):
             if not found.solved:
-                candidates.append(Candidate(f"skeleton {i}", [], False,
-                                            f"planner: {found.status}"))
+                looked_at(Candidate(f"skeleton {i}", [], False, f"planner: {found.status}"))
                 continue
             unverified = unverified or found
             refined = refiner.refine(found.steps, start_boxes, believed, goal_atoms, target,
                                      symbolic)
-            candidates.append(_candidate(f"skeleton {i}", found.steps, refined, refiner,
-                                         start_boxes, target))
+            looked_at(_candidate(f"skeleton {i}", found.steps, refined, refiner,
+                                 start_boxes, target))
             if refined is not None:
                 return Plan("solved", refined.steps, time.perf_counter() - t0, "", planner,
                             level="bilevel", predicted=refined.predicted,
                             candidates=candidates)
             if symbolic.spent():
                 break
+    began = time.perf_counter()  # a planner call that gave no new skeleton is not counted
     refined, nearest = refiner.search(start_boxes, target, budget)
-    candidates.append(_candidate("continuous", [], refined, refiner, start_boxes, target))
+    looked_at(_candidate("continuous", [], refined, refiner, start_boxes, target))
     seconds = time.perf_counter() - t0
     if refined is not None:
         return Plan("solved", refined.steps, seconds, "", planner, level="continuous",
