@@ -13,8 +13,8 @@ planning time is perception + symbols + its own plan; putting a scene on the tab
 letting physics settle it (the simulator's part, `show`) is reported apart. Medians over
 the problems, each mode's median as a multiple of the first mode's, and where its plan
 time went in all (`spent_s`: skeletons, i.e. planner calls and refinement, and the
-continuous search). Targets (issue
-31, reported, not asserted): a median <= 1 s at 2-4 objects and <= 5 s with 8 objects.
+continuous search). Targets (issue 31, reported, not asserted): a median <= 1 s at 2-4
+objects and <= 5 s with 8 objects.
 
 Problems come from --problems (a `symplan problems make` set, any depth), or, without it,
 --count problems of --objects objects (k = 1-3) are made with the arm in a temporary
