@@ -26,6 +26,8 @@ def fold_yaw(yaw: float, period: float) -> float:
     return float((yaw + period / 2) % period - period / 2)
 
 
+GOAL_TOLERANCE = 0.05  # m: a goal is reached when every box is this near its goal position
+
 CONTACT_TOLERANCE = 0.006  # m; perceived boxes are a few mm off, sampled objects >= 2 cm apart
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.atomic import write_atomic
-from drake_symplan.structs import TransitionArrays
+from drake_symplan.datasets import TransitionArrays
 
 SCHEMA_VERSION = 1
 MANIFEST = "manifest.json"

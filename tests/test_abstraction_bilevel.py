@@ -13,9 +13,9 @@ import torch
 from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.bilevel import PENALTY, Budget, Refiner, plan_bilevel
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.actions import Action, release_shift
 from drake_symplan.agent.planning_modes import Planner
 from drake_symplan.features import object_features
-from drake_symplan.structs import Action, release_shift
 from drake_symplan.symbolic.structs import LiftedOperator, Reposition, Step
 
 ON = (("on", 0, 1),)
@@ -33,7 +33,7 @@ def boxes(**where) -> Boxes:
 
 class Stacking:
     """The hand-written world model: the source lands on the target's top, shifted by the
-    offsets (structs.release_shift); nothing else moves."""
+    offsets (actions.release_shift); nothing else moves."""
 
     def predict(self, scene: Boxes, actions: list[Action]) -> list[Boxes]:
         out = []

@@ -7,8 +7,8 @@ import numpy as np
 
 from drake_symplan.abstraction import operator_eval
 from drake_symplan.abstraction.operator_eval import EvalConfig, make_problems, solve_problems
+from drake_symplan.datasets import SceneSymbols
 from drake_symplan.planning.planners import PlanResult
-from drake_symplan.structs import SceneSymbols
 from drake_symplan.symbolic.effect_operators import EFFECT
 from drake_symplan.symbolic.structs import LiftedOperator
 

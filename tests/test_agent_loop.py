@@ -13,13 +13,14 @@ import numpy as np
 import pytest
 
 from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
+from drake_symplan.actions import Action
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import SolveConfig
 from drake_symplan.agent.solve import Agent, SolveResult
+from drake_symplan.datasets import ObjectState
 from drake_symplan.features import object_features
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
 from drake_symplan.robot.backends import Execution
-from drake_symplan.structs import Action, ObjectState
 from drake_symplan.symbolic.states import SymbolicState
 from drake_symplan.symbolic.structs import Atom, LiftedOperator
 from drake_symplan.world.scenes import ObjectSpec, Scene

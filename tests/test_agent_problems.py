@@ -107,10 +107,11 @@ def test_problem_seeds_and_loading(tmp_path):
 
 @pytest.mark.slow
 def test_reproducible_problems_replay_from_their_files(tmp_path):
+    from drake_symplan.actions import Action
     from drake_symplan.agent import beliefs
     from drake_symplan.agent.problems import make_problems, replay
     from drake_symplan.agent.solve import Agent
-    from drake_symplan.structs import GOAL_TOLERANCE, Action
+    from drake_symplan.boxes import GOAL_TOLERANCE
 
     agent = Agent("hand")
     summary = make_problems(tmp_path, 3, [2], 2, seed=7, backend="hand", agent=agent,

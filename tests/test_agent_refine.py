@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.abstraction.bilevel import equivalents
+from drake_symplan.actions import Action
 from drake_symplan.agent.refine import refine_step
-from drake_symplan.structs import Action
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.effect_operators import EFFECT
 from drake_symplan.symbolic.structs import LiftedOperator, Reposition, parse_step, reaches

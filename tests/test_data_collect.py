@@ -11,7 +11,8 @@ import time
 import numpy as np
 import pytest
 
-from drake_symplan.structs import Action, ObjectState
+from drake_symplan.actions import Action
+from drake_symplan.datasets import ObjectState
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 CUBE_ON_CUBE = [("o0", "cube", (0.6, 0.2, 0.025)), ("o1", "cube", (0.7, 0.0, 0.025))]

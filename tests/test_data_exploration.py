@@ -8,6 +8,7 @@ import dataclasses as dc
 import numpy as np
 import pytest
 
+from drake_symplan.actions import ACTION_DIM, EFFECT_DIM, Action, relevant_objects
 from drake_symplan.data import storage
 from drake_symplan.data.collect import CollectConfig, pack
 from drake_symplan.data.exploration import (
@@ -18,7 +19,6 @@ from drake_symplan.data.exploration import (
     random_action,
 )
 from drake_symplan.data.stats import dataset_stats
-from drake_symplan.structs import ACTION_DIM, EFFECT_DIM, Action, relevant_objects
 
 
 @dc.dataclass

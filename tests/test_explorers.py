@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.actions import EFFECT_DIM, IS_SOURCE, Action
 from drake_symplan.explorers.active import (
     ActiveConfig,
     all_actions,
@@ -14,7 +15,6 @@ from drake_symplan.explorers.active import (
     ground_steps,
     pursue,
 )
-from drake_symplan.structs import EFFECT_DIM, IS_SOURCE, Action
 from drake_symplan.symbolic.structs import Atom, LiftedOperator
 
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from drake_symplan.abstraction.abstraction import Reading
+from drake_symplan.actions import Action
 from drake_symplan.agent.inspection import (
     PALETTE,
     UNCERTAIN,
@@ -27,7 +28,6 @@ from drake_symplan.agent.inspection import (
     symbol_view,
 )
 from drake_symplan.cli import main as cli_main
-from drake_symplan.structs import Action
 from drake_symplan.symbolic.states import SymbolicState
 from drake_symplan.symbolic.structs import LiftedOperator, Reposition, parse_step
 from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene

@@ -10,11 +10,11 @@ PACKAGE = Path(__file__).resolve().parents[1] / "drake_symplan"
 
 # Lowest first (docs/layout.md). A module may import its own layer and the ones before it.
 LAYERS = (
-    ("drake_symplan", "structs", "boxes", "features", "atomic", "typed_yaml", "shards",
+    ("drake_symplan", "actions", "datasets", "boxes", "features", "atomic", "typed_yaml", "shards",
      "cluster"),
     ("world",), ("perception",), ("skills",), ("robot",), ("data",), ("learning",),
     ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",),
-    ("results_tables", "reproduce", "stages", "learning_curve"), ("cli",),
+    ("pipelines",), ("cli",),
 )
 RANK = {name: i for i, names in enumerate(LAYERS) for name in names}
 
@@ -65,15 +65,15 @@ class NoDrake:
             raise ImportError(f"{name} is blocked: this import must not need Drake")
 
 sys.meta_path.insert(0, NoDrake())
-names = ["drake_symplan.structs", "drake_symplan.shards", "drake_symplan.atomic",
+names = ["drake_symplan.actions", "drake_symplan.datasets", "drake_symplan.shards", "drake_symplan.atomic",
          "drake_symplan.typed_yaml", "drake_symplan.features", "drake_symplan.boxes"]
 for package in ("learning", "symbolic", "planning", "abstraction"):
     pkg = importlib.import_module(f"drake_symplan.{package}")
     names += [f"drake_symplan.{package}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]
 for name in names:
     importlib.import_module(name)
-leaked = sorted(m for m in sys.modules if m.startswith(("pydrake", "drake_symplan.data",
-    "drake_symplan.world", "drake_symplan.skills", "drake_symplan.perception")))
+leaked = sorted(m for m in sys.modules if m.split(".")[0] == "pydrake" or m.split(".")[:2] in
+    (["drake_symplan", p] for p in ("data", "world", "skills", "perception")))
 assert not leaked, f"importing {names} imported {leaked}"
 importlib.import_module("drake_symplan.data.storage")
 assert "pydrake" not in sys.modules

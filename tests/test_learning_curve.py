@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from drake_symplan.learning_curve import CURVE_SCALES, CurveScale, LearningCurve
+from drake_symplan.pipelines.learning_curve import CURVE_SCALES, CurveScale, LearningCurve
 
 TINY = CurveScale(sizes=(100, 150), random_only=(200,), multi_seed=(150,), seeds=(0, 1),
                   heldout=100, objects="2-3", chunk_size=50, epochs=5, patience=3,

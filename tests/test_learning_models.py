@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import torch
 
+from drake_symplan.actions import Action, encode_action
 from drake_symplan.learning.gumbel import GumbelSigmoid, gumbel_sigmoid, read_bits
 from drake_symplan.learning.layers import NormedLinear, Packed, packed_transformer
 from drake_symplan.learning.models import DeepSym, build_model, object_transformer
-from drake_symplan.structs import Action, encode_action
 
 torch.set_num_threads(1)
 D = 5

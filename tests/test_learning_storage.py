@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from drake_symplan.datasets import TransitionArrays
 from drake_symplan.shards import (
     fingerprint,
     load_extra,
@@ -12,7 +13,6 @@ from drake_symplan.shards import (
     write_manifest,
     write_shard,
 )
-from drake_symplan.structs import TransitionArrays
 
 
 def _arrays(t: int, n: int, d: int = 3, seed: int = 0, episode0: int = 0) -> TransitionArrays:

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from drake_symplan.actions import Action
 from drake_symplan.features import FEATURE_DIM, object_features
 from drake_symplan.perception.association import associate
 from drake_symplan.perception.evaluation import compare
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene, Perceiver
-from drake_symplan.structs import Action
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import ObjectSpec, Scene
 from drake_symplan.world.station import Station, StationConfig

@@ -11,7 +11,7 @@ import pytest
 
 from drake_symplan.agent.config import SolveConfig
 from drake_symplan.cli.main import main
-from drake_symplan.reproduce import SCALES, Reproduction, Stage, StageFailed
+from drake_symplan.pipelines.reproduce import SCALES, Reproduction, Stage, StageFailed
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 
@@ -92,7 +92,7 @@ def test_a_failing_stage_is_one_line_and_exit_1(tmp_path, capsys):
 
 
 def test_an_unfinished_planning_evaluation_reports_its_whole_runs(tmp_path):
-    from drake_symplan.results_tables import (
+    from drake_symplan.pipelines.results_tables import (
         finished_planning,
         modes_planning,
         planning_markdown,
@@ -186,7 +186,7 @@ def test_small_scale_end_to_end_then_a_goal_in_the_arm(tmp_path):
 
 
 def test_the_rollout_table_is_mean_and_spread_over_seeds():
-    from drake_symplan.results_tables import rollout_markdown
+    from drake_symplan.pipelines.results_tables import rollout_markdown
 
     def report(mean, within):
         return {"by_k": {"1": {"error_cm": {"mean": mean, "median": mean / 2},

@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
+from drake_symplan.actions import Action
+from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.pick_place import pick_place
-from drake_symplan.structs import Action, ObjectState
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 

@@ -54,7 +54,8 @@ def test_a_dwell_moves_only_the_fingers_for_its_duration(planner):
 
 
 def test_a_motion_ends_home_at_rest_and_marks_the_lift(planner):
-    from drake_symplan.structs import Action, ObjectState
+    from drake_symplan.actions import Action
+    from drake_symplan.datasets import ObjectState
 
     objects = {"a": ObjectState("a", "cube", np.array([0.6, 0.2, 0.025])),
                "b": ObjectState("b", "cube", np.array([0.7, -0.1, 0.025]))}

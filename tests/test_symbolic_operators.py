@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from drake_symplan.structs import SymbolDataset
+from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic import synthetic
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
 from drake_symplan.symbolic.pddl import domain_pddl

@@ -2,7 +2,7 @@
 
 import pytest
 
-from drake_symplan.structs import Action
+from drake_symplan.actions import Action
 from drake_symplan.symbolic.structs import (
     Atom,
     LiftedOperator,

@@ -18,8 +18,9 @@ import time
 
 import numpy as np
 
+from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action
+from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.pick_place import PickPlacePlanner, action_geometry, pick_place
-from drake_symplan.structs import OFFSET_METRES, OFFSETS, Action, ObjectState
 from drake_symplan.world.scenes import sample_scene
 from drake_symplan.world.station import Station
 

@@ -19,12 +19,12 @@ import time
 import numpy as np
 from tqdm import tqdm
 
+from drake_symplan.actions import OFFSETS, Action
 from drake_symplan.perception.association import associate
 from drake_symplan.perception.evaluation import compare, match_to_truth
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
-from drake_symplan.structs import OFFSETS, Action
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import sample_structured_scene
 from drake_symplan.world.station import Station, StationConfig

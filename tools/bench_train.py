@@ -26,10 +26,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from drake_symplan.actions import ACTION_DIM, EFFECT_DIM
+from drake_symplan.datasets import TransitionArrays
 from drake_symplan.learning.models import build_model
 from drake_symplan.learning.readout import readout_dataset
 from drake_symplan.learning.trainer import make_optimizer, train_step
-from drake_symplan.structs import ACTION_DIM, EFFECT_DIM, TransitionArrays
 
 STEP_LIMIT_MS = 10.0
 READOUT_MIN_RATE = 10_000.0

@@ -300,7 +300,7 @@ def main(argv=None) -> int:
         readable_step,
     )
     from drake_symplan.agent.solve import Agent
-    from drake_symplan.structs import GOAL_TOLERANCE
+    from drake_symplan.boxes import GOAL_TOLERANCE
     from drake_symplan.world.scenes import save_scene
     from drake_symplan.world.visualization import StartMeshcat
 

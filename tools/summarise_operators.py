@@ -11,7 +11,7 @@ import argparse
 import json
 from pathlib import Path
 
-from drake_symplan.results_tables import (
+from drake_symplan.pipelines.results_tables import (
     collect_operator_reports,
     operators_markdown,
     summarise_operators,

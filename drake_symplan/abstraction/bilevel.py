@@ -28,10 +28,10 @@ import numpy as np
 
 from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action
+from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS
 from drake_symplan.features import box_of
 from drake_symplan.planning.planners import WALL_FACTOR, cpu_used
-from drake_symplan.structs import GOAL_TOLERANCE, OFFSET_METRES, OFFSETS, Action
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
 MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance

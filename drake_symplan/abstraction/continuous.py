@@ -4,8 +4,8 @@ effect model the robot trained on its own exploration data, rolled forward.
 The effect model predicts, for the objects an action involves (its source and target and
 whatever touches them, as in training: data/exploration.py), each one's displacement at
 the end of the lift and after the release relative to where the carry put it (the effect,
-structs.py). A box predicted to rise with the hand is carried with it: the source's
-centre to the release point (the target's centre shifted along y, structs.release_shift),
+actions.py). A box predicted to rise with the hand is carried with it: the source's
+centre to the release point (the target's centre shifted along y, actions.release_shift),
 what rides on it by the same vector. Orientations are kept (a tipped box is predicted
 lying as it was), positions change, and the predicted scene's contacts come from the box
 geometry (boxes.contact_graph). Objects out of the action's reach stay. No simulator: what
@@ -19,15 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_shift, relevant_objects
 from drake_symplan.boxes import HALF_EXTENTS, contact_graph
 from drake_symplan.features import box_of
-from drake_symplan.structs import (
-    LIFT_TOL,
-    Action,
-    encode_action,
-    release_shift,
-    relevant_objects,
-)
 
 
 @dataclass(frozen=True)
@@ -81,7 +75,7 @@ class Boxes:
 
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves
-        (structs.relevant_objects)."""
+        (actions.relevant_objects)."""
         return sorted(self.names.index(n) for n in relevant_objects(self, action))
 
 

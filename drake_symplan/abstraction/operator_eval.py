@@ -24,11 +24,12 @@ from functools import cache, partial
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import plan_task, reliability
+from drake_symplan.actions import OFFSETS
 from drake_symplan.atomic import save_figure
+from drake_symplan.datasets import SceneSymbols, SymbolDataset
 from drake_symplan.learning.readout import readout_scenes
 from drake_symplan.planning.planners import DEFAULT_TIMEOUT, WALL_FACTOR
 from drake_symplan.shards import fingerprint, load_extra
-from drake_symplan.structs import OFFSETS, SceneSymbols, SymbolDataset
 from drake_symplan.symbolic.effect_operators import (
     EFFECT,
     Semantics,

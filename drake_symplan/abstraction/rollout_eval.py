@@ -18,8 +18,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.actions import IS_SOURCE, IS_TARGET, OFFSETS, Action
 from drake_symplan.shards import fingerprint, load_extra, load_transitions
-from drake_symplan.structs import IS_SOURCE, IS_TARGET, OFFSETS, Action
 
 SCENE = ("scene_state", "scene_next_state", "scene_mask", "scene_contacts", "scene_slots",
          "step", "chain")

@@ -23,12 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Abstraction
+from drake_symplan.actions import Action
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.problems import load_problems
 from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
+from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
-from drake_symplan.structs import GOAL_TOLERANCE, Action
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene
 

@@ -16,9 +16,10 @@ import torch
 from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
 from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel, reaches_goal
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.actions import Action
 from drake_symplan.agent.config import SolveConfig
+from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.planning.planners import WALL_FACTOR
-from drake_symplan.structs import GOAL_TOLERANCE, Action
 from drake_symplan.symbolic.structs import PlanStep, Reposition, reaches
 
 # m: a box perceived this far from its predicted position (beyond the prediction's spread)

@@ -36,11 +36,12 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RollPitchYaw
 
+from drake_symplan.actions import Action
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import write_atomic
+from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.data.exploration import left_workspace, random_action
-from drake_symplan.structs import GOAL_TOLERANCE, Action
 from drake_symplan.world.scenes import (
     TILT_TOL,
     ObjectSpec,

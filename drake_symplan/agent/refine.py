@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan.abstraction.bilevel import equivalents
+from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action, release_shift
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.structs import OFFSET_METRES, OFFSETS, Action, release_shift
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
 MIN_GAIN = 0.01  # m: a change of offsets must bring the source this much nearer its goal

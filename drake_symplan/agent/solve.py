@@ -41,8 +41,8 @@ from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import Planner
 from drake_symplan.agent.refine import REPOSITIONS_PER_OBJECT, refine_step, reposition_step
+from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
-from drake_symplan.structs import GOAL_TOLERANCE
 from drake_symplan.symbolic.structs import PlanStep, Step
 from drake_symplan.world.visualization import StartMeshcat
 

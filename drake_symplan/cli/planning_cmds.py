@@ -153,7 +153,7 @@ def _register_plan(subparsers) -> None:
 
 
 def _load_symbols(args):
-    from drake_symplan.structs import SymbolDataset
+    from drake_symplan.datasets import SymbolDataset
 
     if args.symbols is not None:
         if args.run is not None or args.data is not None:

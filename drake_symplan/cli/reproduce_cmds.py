@@ -1,7 +1,7 @@
 """`symplan reproduce --scale small|paper [--out DIR] [--ray [ADDRESS]] [--report]`: the whole
-pipeline and every results table, resumable (drake_symplan/reproduce.py); `--report` writes
+pipeline and every results table, resumable (drake_symplan/pipelines/reproduce.py); `--report` writes
 the tables of the stages done so far. `symplan curve --scale small|session|paper`: the
-learning curve of random against active exploration (drake_symplan/learning_curve.py).
+learning curve of random against active exploration (drake_symplan/pipelines/learning_curve.py).
 
 Exit status: 0 done, 1 a stage failed (one line on stderr naming it and its log), 2 bad
 input."""
@@ -17,7 +17,7 @@ from drake_symplan.cli.options import add_json_argument, add_solve_arguments, so
 
 
 def register(subparsers) -> None:
-    from drake_symplan.reproduce import SCALES
+    from drake_symplan.pipelines.reproduce import SCALES
 
     p = subparsers.add_parser(
         "reproduce", help="collect, train 3 models x 3 seeds, learn operators, evaluate "
@@ -32,7 +32,7 @@ def register(subparsers) -> None:
                       extra=lambda: add_solve_arguments(p, monitor_flag=False))
     p.set_defaults(func=run_reproduce)
 
-    from drake_symplan.learning_curve import CURVE_SCALES
+    from drake_symplan.pipelines.learning_curve import CURVE_SCALES
 
     c = subparsers.add_parser(
         "curve", help="random against active exploration by data size: coverage, "
@@ -63,7 +63,7 @@ def add_run_arguments(p, name: str, ray_help: str, report_help: str, extra=None)
 
 
 def run_reproduce(args):
-    from drake_symplan.reproduce import Reproduction, StageFailed
+    from drake_symplan.pipelines.reproduce import Reproduction, StageFailed
 
     out = args.out or Path("out") / f"reproduce_{args.scale}"
     if out.exists() and not out.is_dir():
@@ -86,8 +86,8 @@ def run_reproduce(args):
 
 
 def run_curve(args):
-    from drake_symplan.learning_curve import LearningCurve
-    from drake_symplan.stages import StageFailed
+    from drake_symplan.pipelines.learning_curve import LearningCurve
+    from drake_symplan.pipelines.stages import StageFailed
 
     out = args.out or Path("out") / f"curve_{args.scale}"
     if out.exists() and not out.is_dir():

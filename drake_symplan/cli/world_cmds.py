@@ -60,7 +60,7 @@ def load_scene_file(path: str):
 
 
 def cmd_act(args: argparse.Namespace) -> dict:
-    from drake_symplan.structs import Action
+    from drake_symplan.actions import Action
 
     # Inputs first, so that bad ones are told before Drake is loaded.
     scene = load_scene_file(args.scene)
@@ -92,6 +92,6 @@ def cmd_act(args: argparse.Namespace) -> dict:
 def _belief(spec):
     import numpy as np
 
-    from drake_symplan.structs import ObjectState
+    from drake_symplan.datasets import ObjectState
 
     return ObjectState(spec.name, spec.type, np.asarray(spec.position, float), spec.yaw, 0.0)

@@ -43,8 +43,8 @@ from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
 from drake_symplan.data import storage
 from drake_symplan.data.exploration import OUTCOMES, EpisodeConfig, random_choice, run_episode
 from drake_symplan.data.stats import dataset_stats
+from drake_symplan.datasets import TransitionArrays
 from drake_symplan.robot.backends import BACKENDS, make_backend
-from drake_symplan.structs import TransitionArrays
 from drake_symplan.world.cameras import DepthNoise
 from drake_symplan.world.station import TIME_STEP
 

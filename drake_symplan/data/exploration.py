@@ -11,7 +11,7 @@ target, grasp and release offsets uniform); `explorers/` has the active one. Eac
   chooses the action, and what the planner can compute in a symbolic state; an object that
   comes into contact only as a result of the action is left out.
 - State / next state: the perceived features of those objects before / after.
-- Effect per object (metres, structs.EFFECT_DIM): e_lift = p_lift - p_before and
+- Effect per object (metres, actions.EFFECT_DIM): e_lift = p_lift - p_before and
   e_release = p_after - p_lift - carry, where carry is the TCP's lateral travel (release
   point - grasp point, from the action and the beliefs) for objects that went up with the
   lift (e_lift z > LIFT_TOL) and 0 for the others.
@@ -47,11 +47,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from drake_symplan.perception.perceive import associate
-from drake_symplan.perception.segmentation import CROP_X, CROP_Y
-from drake_symplan.robot.backends import PerceptionFailure
-from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.structs import (
+from drake_symplan.actions import (
     EFFECT_DIM,
     LIFT_TOL,
     OFFSETS,
@@ -59,6 +55,10 @@ from drake_symplan.structs import (
     encode_action,
     relevant_objects,
 )
+from drake_symplan.perception.perceive import associate
+from drake_symplan.perception.segmentation import CROP_X, CROP_Y
+from drake_symplan.robot.backends import PerceptionFailure
+from drake_symplan.skills.pick_place import action_geometry
 from drake_symplan.world.scenes import sample_scene
 
 OUTCOMES = ("no_effect", "placed", "tipped", "carried_along", "fell_off", "other")

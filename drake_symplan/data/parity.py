@@ -15,12 +15,12 @@ from collections import Counter
 import numpy as np
 from tqdm import tqdm
 
+from drake_symplan.actions import Action, relevant_objects
 from drake_symplan.data.exploration import classify, effects, random_action
 from drake_symplan.perception.matching import match_by_position
 from drake_symplan.perception.perceive import associate
 from drake_symplan.robot.backends import make_backend
 from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.structs import Action, relevant_objects
 from drake_symplan.world.scenes import sample_scene
 
 

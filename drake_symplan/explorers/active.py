@@ -28,8 +28,8 @@ import torch
 
 from drake_symplan.abstraction.abstraction import Abstraction
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.actions import OFFSETS, Action
 from drake_symplan.data.exploration import random_action
-from drake_symplan.structs import OFFSETS, Action
 from drake_symplan.symbolic.structs import Atom, LiftedOperator, Step
 
 

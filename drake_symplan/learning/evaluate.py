@@ -19,12 +19,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from drake_symplan.actions import IS_SOURCE, IS_TARGET
 from drake_symplan.atomic import save_figure
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.dataset import TensorSet, split_by_episode
 from drake_symplan.learning.models import MODELS
 from drake_symplan.shards import fingerprint, load_extra, load_transitions
-from drake_symplan.structs import IS_SOURCE, IS_TARGET
 
 CM_PER_M = 100.0
 ROLES = ("source", "target", "other")
@@ -64,7 +64,7 @@ def evaluate_loss(model: torch.nn.Module, data: TensorSet, batch_size: int = 409
 
 
 def object_roles(action: torch.Tensor | np.ndarray) -> np.ndarray:
-    """[T, N] index into ROLES of every slot, from the action encoding (structs.py)."""
+    """[T, N] index into ROLES of every slot, from the action encoding (actions.py)."""
     a = np.asarray(action)
     return np.where(a[..., IS_SOURCE] > 0.5, 0, np.where(a[..., IS_TARGET] > 0.5, 1, 2))
 

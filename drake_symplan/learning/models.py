@@ -36,6 +36,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from drake_symplan.actions import ACTION_DIM, EFFECT_DIM, IS_SOURCE, IS_TARGET
 from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE, GumbelSigmoid
 from drake_symplan.learning.layers import (
     MLP,
@@ -44,7 +45,6 @@ from drake_symplan.learning.layers import (
     packed_transformer,
     scale_to_norm,
 )
-from drake_symplan.structs import ACTION_DIM, EFFECT_DIM, IS_SOURCE, IS_TARGET
 
 
 class EffectModel(nn.Module):

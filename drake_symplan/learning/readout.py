@@ -5,7 +5,7 @@ logit's magnitude is under a margin (see `gumbel.read_bits`). One forward pass p
 state replaces the peer implementation's 100 stochastic passes. Padded slots read
 as 0 and are never uncertain. Models without relations (the baselines) give K = 0.
 
-`readout_dataset` returns the `SymbolDataset` (structs.py) that `symplan symbols` saves
+`readout_dataset` returns the `SymbolDataset` (datasets.py) that `symplan symbols` saves
 as symbols.npz: unary [T, N, P] uint8, relational [T, K, N, N] uint8 with
 relational[t, k, i, j] = r_k(o_i, o_j), next_unary / next_relational (from next_state),
 action [T, N, 8] float32, mask [T, N] bool, and a bool `*_uncertain` array beside each
@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from drake_symplan.datasets import SceneSymbols, SymbolDataset, TransitionArrays
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN, read_bits
 from drake_symplan.learning.models import EffectModel
 from drake_symplan.shards import load_extra, load_transitions
-from drake_symplan.structs import SceneSymbols, SymbolDataset, TransitionArrays
 
 READOUT_BATCH = 8192
 

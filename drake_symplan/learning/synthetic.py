@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.structs import OFFSETS, Action, TransitionArrays, encode_action
+from drake_symplan.actions import OFFSETS, Action, encode_action
+from drake_symplan.datasets import TransitionArrays
 
 LIFT = 0.05
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from drake_symplan.actions import OFFSET_METRES, Action
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.structs import OFFSET_METRES, Action
 
 TYPE_MISMATCH_COST = 0.3  # m-equivalent
 UNMATCHED_COST = 0.5

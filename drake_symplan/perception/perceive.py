@@ -13,12 +13,12 @@ import dataclasses as dc
 import numpy as np
 
 from drake_symplan.boxes import YAW_PERIOD, contact_graph, fold_yaw
+from drake_symplan.datasets import ObjectState
 from drake_symplan.features import object_features
 from drake_symplan.perception import segmentation as seg
 from drake_symplan.perception import tracking
 from drake_symplan.perception.box_fitting import fit_boxes
 from drake_symplan.perception.fitted_box import FittedBox
-from drake_symplan.structs import ObjectState
 
 
 @dc.dataclass

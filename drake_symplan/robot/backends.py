@@ -25,10 +25,10 @@ import time
 import numpy as np
 from scipy.spatial import QhullError
 
+from drake_symplan.actions import Action
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.skills.hand_place import hand_pick_place
 from drake_symplan.skills.pick_place import InfeasibleAction, PickPlacePlanner, run_motion
-from drake_symplan.structs import Action
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import Scene
 from drake_symplan.world.station import Station, StationConfig

@@ -25,9 +25,10 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_symplan.actions import Action
 from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.structs import Action, ObjectState
 from drake_symplan.world.hand import grasp_catches, hand_q_of_pose
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import Station

@@ -16,10 +16,11 @@ from typing import TypeVar
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_symplan.actions import OFFSET_METRES, Action
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
+from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.ik import ArmIK
 from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
-from drake_symplan.structs import OFFSET_METRES, Action, ObjectState
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
 

@@ -29,7 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drake_symplan.structs import OFFSETS, SymbolDataset
+from drake_symplan.actions import OFFSETS
+from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic.operators import action_roles
 from drake_symplan.symbolic.structs import LiftedOperator
 from drake_symplan.symbolic.structs import bit_key as key

@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drake_symplan.structs import IS_SOURCE, IS_TARGET, OFFSETS, Action, SymbolDataset
+from drake_symplan.actions import IS_SOURCE, IS_TARGET, OFFSETS, Action
+from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic.canonical import canonical_orders, encode, permute
 from drake_symplan.symbolic.structs import Atom, LiftedOperator
 

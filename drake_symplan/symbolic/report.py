@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 from drake_symplan.atomic import write_atomic
-from drake_symplan.structs import SymbolDataset
+from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic.bundle import operators_json
 from drake_symplan.symbolic.effect_operators import PAPER
 from drake_symplan.symbolic.operators import OperatorSet, example_action

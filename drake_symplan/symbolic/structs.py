@@ -17,7 +17,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 
-from drake_symplan.structs import OFFSETS, Action
+from drake_symplan.actions import OFFSETS, Action
 
 
 class Atom(tuple):

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_symplan.structs import ACTION_DIM, OFFSETS, Action, SymbolDataset, encode_action
+from drake_symplan.actions import ACTION_DIM, OFFSETS, Action, encode_action
+from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic.states import SymbolicState
 
 N_UNARY = 1

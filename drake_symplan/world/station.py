@@ -32,7 +32,7 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.boxes import OBJECT_TYPES, tilt_of
-from drake_symplan.structs import ObjectState
+from drake_symplan.datasets import ObjectState
 from drake_symplan.world.cameras import (
     AddDepthCameras,
     CameraConfig,

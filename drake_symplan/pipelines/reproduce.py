@@ -26,8 +26,8 @@ from pathlib import Path
 # collection: Drake and torch) is imported inside the functions that need it.
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.atomic import write_atomic
+from drake_symplan.pipelines.stages import Stage, StageFailed, StageRunner
 from drake_symplan.shards import fingerprint
-from drake_symplan.stages import Stage, StageFailed, StageRunner
 
 __all__ = ["SCALES", "Reproduction", "Stage", "StageFailed"]
 
@@ -214,7 +214,7 @@ class Reproduction(StageRunner):
 
     def run(self) -> Path:
         """Runs every stage not done yet; writes results.md and provenance.json."""
-        from drake_symplan.results_tables import write_results  # Drake, torch: see top
+        from drake_symplan.pipelines.results_tables import write_results  # Drake, torch: see top
 
         t0 = time.perf_counter()
         self.results.mkdir(parents=True, exist_ok=True)
@@ -238,7 +238,7 @@ class Reproduction(StageRunner):
     def report(self) -> Path:
         """results.md from the stages done so far (an unfinished planning evaluation:
         the runs and modes it has finished), without running anything."""
-        from drake_symplan.results_tables import write_results  # Drake, torch: see top
+        from drake_symplan.pipelines.results_tables import write_results  # Drake, torch: see top
 
         return write_results(self)
 

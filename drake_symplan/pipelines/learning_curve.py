@@ -17,7 +17,7 @@ import json
 from pathlib import Path
 
 from drake_symplan.atomic import write_atomic
-from drake_symplan.stages import Stage, StageRunner
+from drake_symplan.pipelines.stages import Stage, StageRunner
 
 EXPLORERS = ("random", "active")
 MODEL = ["--model", "relational", "--model-option", "invariant=true"]
@@ -183,7 +183,7 @@ class LearningCurve(StageRunner):
 
     def report(self) -> Path:
         """curve.json, curve.md and curve.png from the points evaluated so far."""
-        from drake_symplan.results_tables import (
+        from drake_symplan.pipelines.results_tables import (
             collect_operator_reports,
             operators_markdown,
             planning_markdown,

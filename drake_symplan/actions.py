@@ -1,0 +1,107 @@
+"""The pick/place action every layer shares: its parameters, offsets, per-object encoding
+and the effect layout it is learned with. No Drake and no torch here."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+# The paper's single action has four discrete parameters: pick `source` at a grasp
+# offset, release it above `target` at a release offset. Offsets run along world y,
+# the long blocks' long axis, as in the authors' setup.
+OFFSETS: tuple[str, ...] = ("left", "center", "right")
+OFFSET_METRES: dict[str, float] = {"left": -0.075, "center": 0.0, "right": 0.075}
+
+# Per-object action encoding (one-hot, ACTION_DIM = 8):
+#   [is_source, grasp=left, grasp=center, grasp=right,
+#    is_target, release=left, release=center, release=right]
+# A non-argument object is all zeros; the grasp bits are set only on the source and
+# the release bits only on the target.
+ACTION_DIM = 8
+IS_SOURCE, IS_TARGET = 0, 4  # the role columns of the encoding
+
+# Per-object effect (EFFECT_DIM = 6, metres): [dp at lift (3); dp after release
+# relative to where the carry put it (3)]. The second half has the arm's lateral
+# carry (source's lifted xy -> release xy) subtracted, so symbols need no global
+# position (paper, Experiment Setup).
+EFFECT_DIM = 6
+LIFT_TOL = 0.05  # m of rise at the end of the lift: the object went up with the hand
+
+
+@dataclass(frozen=True)
+class Action:
+    """pick(source, grasp) then place on target with release offset."""
+
+    source: str
+    grasp: str
+    target: str
+    release: str
+
+    def __post_init__(self):
+        if self.grasp not in OFFSETS:
+            raise ValueError(f"unknown grasp offset {self.grasp!r}; expected one of {OFFSETS}")
+        if self.release not in OFFSETS:
+            raise ValueError(
+                f"unknown release offset {self.release!r}; expected one of {OFFSETS}"
+            )
+        if self.source == self.target:
+            raise ValueError(f"source and target are the same object {self.source!r}")
+
+    @classmethod
+    def parse(cls, pick: str, place: str) -> Action:
+        """From CLI strings 'o1:center' and 'o2:left'."""
+        try:
+            source, grasp = pick.split(":")
+            target, release = place.split(":")
+        except ValueError as e:
+            raise ValueError(
+                f"expected NAME:OFFSET for --pick and --place, got {pick!r} and {place!r}"
+            ) from e
+        return cls(source, grasp, target, release)
+
+    def __str__(self) -> str:
+        return f"pick({self.source}:{self.grasp}) place({self.target}:{self.release})"
+
+    @classmethod
+    def from_text(cls, text: str) -> Action:
+        """The inverse of str(): 'pick(o1:center) place(o0:left)' -> its Action."""
+        m = re.fullmatch(r"pick\((\S+):(\w+)\) place\((\S+):(\w+)\)", text.strip())
+        if m is None:
+            raise ValueError(f"{text!r} is not an action 'pick(NAME:OFFSET) place(NAME:OFFSET)'")
+        return cls(m[1], m[2], m[3], m[4])
+
+
+def release_shift(action: Action) -> float:
+    """How far along world y from the target's centre the source's centre is released: its
+    grasp point goes over the target's release point (skills/pick_place.py)."""
+    return OFFSET_METRES[action.release] - OFFSET_METRES[action.grasp]
+
+
+def relevant_objects(scene, action: Action) -> list[str]:
+    """The objects a transition records and an effect model sees (the Relevance contract):
+    [source, target] + the objects in contact with either in `scene` (its `contacts`)."""
+    args = (action.source, action.target)
+    touching = set()
+    for a, b in scene.contacts:
+        if a in args and b not in args:
+            touching.add(b)
+        elif b in args and a not in args:
+            touching.add(a)
+    return [*args, *sorted(touching)]
+
+
+def encode_action(action: Action, names: list[str]) -> np.ndarray:
+    """The per-object action encoding [len(names), ACTION_DIM] for objects `names`."""
+    if action.source not in names:
+        raise ValueError(f"action source {action.source!r} is not among objects {names}")
+    if action.target not in names:
+        raise ValueError(f"action target {action.target!r} is not among objects {names}")
+    a = np.zeros((len(names), ACTION_DIM), dtype=np.float32)
+    s, t = names.index(action.source), names.index(action.target)
+    a[s, IS_SOURCE] = 1.0
+    a[s, IS_SOURCE + 1 + OFFSETS.index(action.grasp)] = 1.0
+    a[t, IS_TARGET] = 1.0
+    a[t, IS_TARGET + 1 + OFFSETS.index(action.release)] = 1.0
+    return a
