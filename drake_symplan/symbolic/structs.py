@@ -157,7 +157,7 @@ class LiftedOperator:
                 f"{self.reliability:.2f} ({self.succeeded}/{self.applicable}), cost {self.cost}")
 
     def to_dict(self) -> dict:
-        """The operator's entry in operators.json (symbolic/operator_io.py)."""
+        """The operator's entry in operators.json (symbolic/bundle.py: operators_json)."""
         add, delete = self.effects()
         return {
             "index": self.index, "name": self.name, "grasp": self.grasp,
