@@ -6,9 +6,10 @@
                              [--from-scratch --budget-minutes M [--work DIR]]
 
 The same command as `symplan demo` (drake_symplan/cli/demo_cmds.py; the episode in
-drake_symplan/agent/demo.py, --from-scratch's stages in drake_symplan/pipelines/
-from_scratch.py), with the recording and --from-scratch's work under this repository's
-out/ wherever it is run from. `--help` tells every option.
+drake_symplan/agent/demo.py, --from-scratch's stages in
+drake_symplan/pipelines/from_scratch.py), with the recording and --from-scratch's work
+under this repository's out/ and the default problem its models/demo/, wherever it is
+run from. `--help` tells every option.
 
 Exit status: 0 success, 1 a verdict that is not success, no plan, or no goal
 could be made, 2 bad input (one line on stderr).
@@ -25,7 +26,8 @@ REPO = Path(__file__).resolve().parents[1]
 def main(argv: list[str] | None = None) -> int:
     from drake_symplan.cli.demo_cmds import main as demo_main
 
-    return demo_main(argv, prog="run_demo.py", out_dir=REPO / "out")
+    return demo_main(argv, prog="run_demo.py", out_dir=REPO / "out",
+                     problem_dir=REPO / "models" / "demo")
 
 
 if __name__ == "__main__":

@@ -66,8 +66,10 @@ class DemoHelpFormatter(HelpFormatter, argparse.RawDescriptionHelpFormatter):
     """The description as written (its numbered steps), each option's default said."""
 
 
-def add_demo_arguments(p: argparse.ArgumentParser, out_dir: Path) -> None:
-    """The demo's options; `out_dir` holds the recording and --from-scratch's work."""
+def add_demo_arguments(p: argparse.ArgumentParser, out_dir: Path,
+                       problem_dir: Path | None = None) -> None:
+    """The demo's options; `out_dir` holds the recording and --from-scratch's work;
+    `problem_dir`, the default problem (None: the package's models/demo/)."""
     add_model_argument(p)
     p.add_argument("--seed", type=nonnegative_int, default=None,
                    help="sample a new problem with this seed: a random scene, then k random "
@@ -95,7 +97,7 @@ def add_demo_arguments(p: argparse.ArgumentParser, out_dir: Path) -> None:
     p.add_argument("--work", type=Path, default=out_dir / "from_scratch",
                    help="--from-scratch: directory for the data set, run and bundle "
                    "(default out/from_scratch)")
-    p.set_defaults(func=cmd_demo)
+    p.set_defaults(func=cmd_demo, problem_dir=problem_dir)
 
 
 def register(subparsers) -> None:
@@ -106,18 +108,19 @@ def register(subparsers) -> None:
     add_demo_arguments(p, Path("out"))
 
 
-def demo_parser(prog: str, out_dir: Path) -> argparse.ArgumentParser:
+def demo_parser(prog: str, out_dir: Path, problem_dir: Path | None = None):
     """The demo's parser on its own (tools/run_demo.py), usage errors in one line."""
     p = Parser(prog=prog, description=__doc__, formatter_class=DemoHelpFormatter)
-    add_demo_arguments(p, out_dir)
+    add_demo_arguments(p, out_dir, problem_dir)
     return p
 
 
-def main(argv: list[str] | None = None, prog: str = "run_demo.py",
-         out_dir: Path = Path("out")) -> int:
-    """The demo as a program of its own: `prog` names it in its usage and error lines."""
+def main(argv: list[str] | None, prog: str, out_dir: Path = Path("out"),
+         problem_dir: Path | None = None) -> int:
+    """The demo as a program of its own: `prog` names it in its usage and error lines;
+    `out_dir` and `problem_dir` as add_demo_arguments takes them."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    return run(demo_parser(prog, out_dir), argv, name=prog)
+    return run(demo_parser(prog, out_dir, problem_dir), argv, name=prog)
 
 
 def check_inputs(args: argparse.Namespace):
@@ -131,7 +134,8 @@ def check_inputs(args: argparse.Namespace):
     if args.start is not None and args.seed is not None:
         raise CommandError("give --seed (a sampled problem) or --start/--goal, not both")
     if args.start is None and args.seed is None:
-        args.start, args.goal = shipped_problem() / "start.yaml", shipped_problem() / "goal.yaml"
+        shipped = args.problem_dir or shipped_problem()
+        args.start, args.goal = shipped / "start.yaml", shipped / "goal.yaml"
     if args.start is None:
         check_objects(args.objects)
     start, goal = (None, None) if args.start is None else load_scene_pair(args.start,
