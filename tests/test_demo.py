@@ -1,6 +1,7 @@
-"""tools/run_demo.py: bad input in one line (exit 2) before any station is built, and,
-slow, the whole demo on a small scene: a goal made by the arm, a plan, its execution, the
-result JSON of `symplan solve --json` and one HTML recording with the goal drawn in it."""
+"""tools/run_demo.py and `symplan demo`: bad input in one line (exit 2) before any station
+is built, --from-scratch's stages, and, slow, the whole demo on a small scene: a goal made
+by the arm, a plan, its execution, the result JSON of `symplan solve --json` and one HTML
+recording with the goal drawn in it."""
 
 from __future__ import annotations
 
@@ -93,6 +94,63 @@ def test_the_demo_solves_a_small_random_goal_and_records_it(tmp_path):
     page = out.read_text()
     assert {"/symplan/goal/boxes/o0", "/symplan/goal/boxes/o1"} <= recorded_paths(page)
     assert 'id="symplan-panel"' in page and f"Verdict: {result['status']}" in page
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["--seed", "-1"], "argument --seed: must be a non-negative integer, got '-1'"),
+    (["--seed", "abc"], "argument --seed: must be a non-negative integer, got 'abc'"),
+    (["--planning", "foo"], "argument --planning: invalid choice: 'foo'"),
+])
+def test_bad_seeds_and_choices_are_one_line_from_the_script_and_symplan(argv, text, capsys):
+    proc = subprocess.run([sys.executable, "tools/run_demo.py", *argv], cwd=REPO,
+                          capture_output=True, text=True, timeout=120)
+    assert_bad_input(proc.returncode, proc.stdout, proc.stderr, text)
+    assert proc.stderr.rstrip().endswith("(see run_demo.py --help)"), proc.stderr
+    from drake_symplan.cli.main import main as symplan
+
+    code = symplan(["demo", *argv])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err.count("\n") == 1, (code, out, err)
+    assert err.startswith(f"symplan demo: error: {text}"), err
+
+
+def test_symplan_demo_help_tells_the_demo_and_its_options(capsys):
+    from drake_symplan.cli.main import main as symplan
+
+    assert symplan(["demo", "--help"]) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and out.startswith("usage: symplan demo ")
+    assert "The demo: the robot solves a goal" in out and "Exit status: 0 done" in out
+    for option in ("--model", "--seed", "--objects", "--k", "--start", "--goal", "--out",
+                   "--no-record", "--planner", "--timeout", "--planning", "--meshcat",
+                   "--json", "--from-scratch", "--budget-minutes", "--work"):
+        assert f"  {option}" in out, option
+    code, script, _ = run_main(["--help"], capsys)
+    assert code == 0 and script.startswith("usage: run_demo.py ")
+    assert script.split("options:")[1] == out.split("options:")[1]  # the same options
+
+
+def test_symplan_demo_tells_bad_input_like_the_script(tmp_path, capsys):
+    from drake_symplan.cli.main import main as symplan
+
+    code = symplan(["demo", "--start", str(tmp_path / "s.yaml")])
+    out, err = capsys.readouterr()
+    assert (code, out) == (2, "") and err == ("symplan demo: error: give --start and --goal "
+                                              "together\n")
+
+
+def test_from_scratch_stages_announce_their_command_and_stop_at_the_budget(tmp_path):
+    from drake_symplan.pipelines.stages import Stage, StageFailed, StageRunner
+
+    said = []
+    runner = StageRunner(tmp_path, jobs=1, say=said.append, announce="  $ {command}")
+    runner.run(Stage("slow", ["--help"], None, timeout=0.001))  # stopped before it starts
+    assert said == ["  $ symplan --help", "    stopped at the budget"]
+    assert runner.log[0]["stopped"] is True
+    runner.run(Stage("help", ["--help"], None))  # no `done` file: it runs whenever asked
+    assert runner.log[-1]["command"] == "symplan --help" and "seconds" in runner.log[-1]
+    with pytest.raises(StageFailed, match="bad failed \\(exit 2; log "):
+        runner.run(Stage("bad", ["no-such-command"], None))
 
 
 def test_from_scratch_bad_input(tmp_path, capsys):

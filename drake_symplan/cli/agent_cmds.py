@@ -20,8 +20,12 @@ from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
 from drake_symplan.cli.options import (
     add_json_argument,
+    add_model_argument,
     add_robot_argument,
     add_solve_arguments,
+    check_objects,
+    load_bundle,
+    load_scene_pair,
     solve_config,
 )
 
@@ -39,8 +43,7 @@ def register(subparsers) -> None:
     p.add_argument("--goal", required=True, type=Path,
                    help="goal scene YAML with the start's objects (only perceived; the file "
                    "names the objects)")
-    p.add_argument("--model", type=Path, default=None,
-                   help="model bundle directory (default: the shipped models/learned/)")
+    add_model_argument(p)
     add_solve_arguments(p)
     add_robot_argument(p)
     p.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
@@ -94,23 +97,10 @@ def register(subparsers) -> None:
     p.set_defaults(func=cmd_eval_planning)
 
 
-def load_bundle(path: Path | None):
-    """The model bundle at `path` (None: the shipped default); BundleError is bad input."""
-    if path is not None and not path.is_dir():
-        raise CommandError(f"no model directory {path}")
-    from drake_symplan.symbolic.bundle import ModelBundle
-
-    return ModelBundle.load(path)
-
-
 def cmd_solve(args: argparse.Namespace) -> dict:
-    from drake_symplan.agent.beliefs import check_scene_pair
-    from drake_symplan.cli.world_cmds import load_scene_file
-
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
-    start, goal = load_scene_file(args.start), load_scene_file(args.goal)
-    check_scene_pair(start, goal)
+    start, goal = load_scene_pair(args.start, args.goal)
     bundle = load_bundle(args.model)
 
     from drake_symplan.abstraction.abstraction import Abstraction
@@ -141,10 +131,8 @@ def cmd_solve(args: argparse.Namespace) -> dict:
 
 def cmd_problems_make(args: argparse.Namespace) -> dict:
     from drake_symplan.agent.problems import make_problems
-    from drake_symplan.world.scenes import MAX_OBJECTS
 
-    if not 2 <= args.objects <= MAX_OBJECTS:
-        raise CommandError(f"--objects must be in [2, {MAX_OBJECTS}], got {args.objects}")
+    check_objects(args.objects)
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
                             reproducible=args.reproducible)

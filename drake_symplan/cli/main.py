@@ -19,7 +19,8 @@ import textwrap
 
 # Each module defines `register(subparsers)`, which adds its sub-commands and sets
 # `func` on them; a func takes the parsed args and returns a JSON-able dict (printed
-# when --json is given) or None. Modules are imported lazily so that `symplan plan`
+# when --json is given) or None, or an int, its exit status, when it printed its result
+# itself (the demo: its JSON comes before its Meshcat prompt). Modules are imported lazily so that `symplan plan`
 # does not pay for importing Drake.
 COMMAND_MODULES = [
     "drake_symplan.cli.world_cmds",
@@ -30,6 +31,7 @@ COMMAND_MODULES = [
     "drake_symplan.cli.agent_cmds",
     "drake_symplan.cli.inspect_cmds",
     "drake_symplan.cli.reproduce_cmds",
+    "drake_symplan.cli.demo_cmds",
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2
@@ -56,6 +58,7 @@ PIPELINE = (
     ("eval planning", "models on a problem set in full physics"),
     ("reproduce", "all of the above at a scale, every results table into one directory"),
     ("curve", "random against active exploration by data size: the learning curve"),
+    ("demo", "the shipped problem (or --seed N's): plan, the UR10 executes it, 5 cm check"),
 )
 DESCRIPTION = "\n\n".join([
     textwrap.fill("A UR10 in Drake explores pick/place actions on blocks it perceives with "
@@ -120,6 +123,17 @@ def positive_int(text: str) -> int:
     return value
 
 
+def nonnegative_int(text: str) -> int:
+    """argparse type: an integer of at least 0 (a seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="symplan", description=DESCRIPTION,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -139,20 +153,28 @@ def one_line(error: BaseException) -> str:
     return re.sub(r"\s*\n\s*", " ", str(error)).strip()
 
 
-def main(argv: list[str] | None = None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
+def run(parser: argparse.ArgumentParser, argv: list[str], name: str | None = None) -> int:
+    """Parses `argv` with `parser`, runs its command and returns the exit status; bad
+    input is one line on stderr, `NAME: error: ...` (NAME: `symplan CMD` by default)."""
     try:
-        args = build_parser().parse_args(argv)
+        args = parser.parse_args(argv)
     except SystemExit as e:  # --help (0) or a usage error (2), already printed
         return e.code if isinstance(e.code, int) else EXIT_BAD_INPUT
     try:
         result = args.func(args)
     except BAD_INPUT as e:
-        print(f"symplan {command_name(args)}: error: {one_line(e)}", file=sys.stderr)
+        print(f"{name or 'symplan ' + command_name(args)}: error: {one_line(e)}",
+              file=sys.stderr)
         return EXIT_BAD_INPUT
+    if isinstance(result, int):  # the command printed its result itself
+        return result
     if result is not None and getattr(args, "json", False):
         print(json.dumps(result, indent=2))
     return EXIT_NEGATIVE if isinstance(result, NegativeAnswer) else EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run(build_parser(), list(sys.argv[1:] if argv is None else argv))
 
 
 if __name__ == "__main__":

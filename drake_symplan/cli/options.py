@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+from pathlib import Path
 
 from drake_symplan.agent.config import DEFAULT_SOLVE, PLANNING, PLANNING_MODES, SolveConfig
 from drake_symplan.cli.main import CommandError
@@ -114,3 +115,39 @@ def planner_settings(args: argparse.Namespace) -> tuple[str, float]:
     """(--planner, --timeout), checked as a SolveConfig checks them."""
     config = solve_config(args)
     return config.planner, config.timeout
+
+
+def add_model_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", type=Path, default=None,
+                   help="model bundle directory (default: the shipped models/learned/)")
+
+
+def load_bundle(path: Path | None, missing: str = "no model directory"):
+    """The model bundle at `path` (None: the shipped default); a directory that is not
+    there (told as `missing` PATH) or a BundleError is bad input."""
+    from drake_symplan.symbolic.bundle import ModelBundle, default_bundle_dir
+
+    where = path if path is not None else default_bundle_dir()
+    if not where.is_dir():
+        raise CommandError(f"{missing} {where}" + (
+            "" if path is not None else " (the default model is not shipped yet; give --model DIR)"))
+    return ModelBundle.load(where)
+
+
+def check_objects(n: int) -> int:
+    """--objects of a sampled scene: from 2 to world.scenes.MAX_OBJECTS."""
+    from drake_symplan.world.scenes import MAX_OBJECTS
+
+    if not 2 <= n <= MAX_OBJECTS:
+        raise CommandError(f"--objects must be in [2, {MAX_OBJECTS}], got {n}")
+    return n
+
+
+def load_scene_pair(start: Path, goal: Path):
+    """(start, goal) scenes of --start and --goal, checked to name the same objects."""
+    from drake_symplan.agent.beliefs import check_scene_pair
+    from drake_symplan.cli.world_cmds import load_scene_file
+
+    scenes = load_scene_file(start), load_scene_file(goal)
+    check_scene_pair(*scenes)
+    return scenes
