@@ -22,11 +22,19 @@ from drake_symplan.cli.options import (
     add_json_argument,
     add_robot_argument,
     add_solve_arguments,
+    check_output_dir,
+    check_output_file,
     solve_config,
 )
 
 
 def register(subparsers) -> None:
+    _register_solve(subparsers)
+    _register_problems(subparsers)
+    _register_eval_planning(subparsers)
+
+
+def _register_solve(subparsers) -> None:
     p = subparsers.add_parser(
         "solve", help="solve a goal scene from a start scene in full physics",
         description="Perceives both scenes, plans with a model bundle's symbols and domain, "
@@ -48,6 +56,8 @@ def register(subparsers) -> None:
     add_json_argument(p)
     p.set_defaults(func=cmd_solve)
 
+
+def _register_problems(subparsers) -> None:
     problems = subparsers.add_parser("problems", help="planning problem sets")
     problems_sub = problems.add_subparsers(dest="problems_command", required=True)
     p = problems_sub.add_parser(
@@ -69,6 +79,8 @@ def register(subparsers) -> None:
     add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)
 
+
+def _register_eval_planning(subparsers) -> None:
     p = eval_subparsers(subparsers).add_parser(
         "planning", help="success rates of model bundles on a problem set, with and "
         "without monitoring")
@@ -109,6 +121,7 @@ def cmd_solve(args: argparse.Namespace) -> dict:
 
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
+    check_output_file(args.record, "--record")
     start, goal = load_scene_file(args.start), load_scene_file(args.goal)
     check_scene_pair(start, goal)
     bundle = load_bundle(args.model)
@@ -145,6 +158,7 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
 
     if not 2 <= args.objects <= MAX_OBJECTS:
         raise CommandError(f"--objects must be in [2, {MAX_OBJECTS}], got {args.objects}")
+    check_output_dir(args.out)
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
                             reproducible=args.reproducible)
@@ -163,11 +177,14 @@ def cmd_eval_planning(args: argparse.Namespace) -> dict:
     for run in args.runs:
         if not run.is_dir():
             raise CommandError(f"no model directory {run}")
+    check_output_file(args.records, "--records")
+    check_output_file(args.plot, "--plot")
     monitor = {"both": (True, False), "on": (True,), "off": (False,)}[args.monitor]
-    result = evaluate_planning(args.runs, args.problems, config, args.backend, monitor,
-                               args.limit, args.records,
-                               load=lambda run: Abstraction(load_bundle(run)),
-                               ray_address=args.ray, workers=args.workers)
+    result = evaluate_planning(
+        args.runs, args.problems, config, args.backend, monitor, args.limit, args.records,
+        load=lambda run: Abstraction(load_bundle(run)), ray_address=args.ray,
+        workers=args.workers,
+        warn=lambda text: print(f"symplan eval planning: warning: {text}", file=sys.stderr))
     out = {"settings": result["settings"], "runs": result["runs"]}
     if args.plot:
         plot_planning(result["runs"], args.plot)

@@ -5,7 +5,9 @@ Every command keeps one contract, enforced here: exit status 0 when it did its j
 when it ran but its answer is negative (no plan, unsolvable, timeout, infeasible action:
 the command returns a `NegativeAnswer`), 2 for bad input (a flag, a missing or malformed
 file: a `CommandError`, ValueError or file error), reported as ONE line on stderr,
-`symplan CMD: error: ...`, naming the file or flag, with nothing written.
+`symplan CMD: error: ...`, naming the file or flag, with nothing written. A reader that
+closes stdout early (`symplan data stats DIR | head -1`) ends the command quietly, with
+the status of a command killed by SIGPIPE (141), as other Unix tools do.
 """
 
 from __future__ import annotations
@@ -13,7 +15,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import re
+import select
 import sys
 import textwrap
 
@@ -33,6 +37,7 @@ COMMAND_MODULES = [
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_CLOSED_STDOUT = 128 + 13  # as if killed by SIGPIPE
 
 # The commands in pipeline order, for `symplan --help`.
 PIPELINE = (
@@ -81,8 +86,8 @@ class NegativeAnswer(dict):
 
 
 # Errors that mean the input was bad: reported in one line, exit status 2.
-BAD_INPUT = (CommandError, ValueError, FileNotFoundError, NotADirectoryError,
-             IsADirectoryError, PermissionError)
+BAD_INPUT = (CommandError, ValueError, FileNotFoundError, FileExistsError,
+             NotADirectoryError, IsADirectoryError, PermissionError)
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -120,6 +125,17 @@ def positive_int(text: str) -> int:
     return value
 
 
+def positive_float(text: str) -> float:
+    """argparse type: a finite number above 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="symplan", description=DESCRIPTION,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -140,6 +156,30 @@ def one_line(error: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        code = run_command(argv)
+        sys.stdout.flush()  # here, where a reader that has gone is caught
+    except BrokenPipeError:
+        if not stdout_closed():
+            raise  # some other pipe: a bug to see
+        # Whatever is left to print or flush goes nowhere, also at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_CLOSED_STDOUT
+    return code
+
+
+def stdout_closed() -> bool:
+    """Whether stdout is a pipe whose reader has closed it."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(event & select.POLLERR for _, event in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll here, or no stdout file
+        return True
+
+
+def run_command(argv: list[str] | None = None) -> int:
+    """Parses `argv` and runs the command; its exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         args = build_parser().parse_args(argv)
