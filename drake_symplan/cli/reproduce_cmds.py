@@ -8,7 +8,6 @@ input."""
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from drake_symplan.cli.options import (
     check_output_dir,
     solve_config,
 )
+from drake_symplan.json_files import read_json
 
 
 def register(subparsers) -> None:
@@ -105,5 +105,5 @@ def run_curve(args):
         print(f"symplan curve: {e}", file=sys.stderr)
         return NegativeAnswer({"status": "failed", "message": str(e), "out": str(out)})
     return {"status": "report" if args.report else "done", "results": str(path),
-            "out": str(out), "points": json.loads((out / "results/curve.json").read_text())[
+            "out": str(out), "points": read_json(out / "results/curve.json")[
                 "points"]}
