@@ -24,6 +24,7 @@ import numpy as np
 
 from drake_symplan.atomic import write_atomic
 from drake_symplan.datasets import TransitionArrays
+from drake_symplan.json_files import read_json
 
 SCHEMA_VERSION = 1
 MANIFEST = "manifest.json"
@@ -76,13 +77,14 @@ def write_manifest(out_dir: str | Path, info: dict | None = None) -> Path:
 def read_manifest(data_dir: str | Path) -> dict:
     """The manifest of `data_dir`, checked for a known schema version."""
     path = Path(data_dir) / MANIFEST
+    if not Path(data_dir).exists():
+        raise FileNotFoundError(f"data directory {data_dir} does not exist")
+    if not Path(data_dir).is_dir():
+        raise NotADirectoryError(f"data directory {data_dir} is not a directory")
     if not path.is_file():
         raise FileNotFoundError(f"{path} does not exist: {data_dir} is not a data set directory")
-    try:
-        manifest = json.loads(path.read_text())
-    except json.JSONDecodeError as e:
-        raise ValueError(f"{path} is not valid JSON: {e}") from e
-    if not isinstance(manifest, dict) or manifest.get("schema_version") != SCHEMA_VERSION:
+    manifest = read_json(path)
+    if manifest.get("schema_version") != SCHEMA_VERSION:
         raise ValueError(f"{path} has no schema_version {SCHEMA_VERSION}")
     return manifest
 
@@ -90,8 +92,6 @@ def read_manifest(data_dir: str | Path) -> dict:
 def shard_paths(data_dir: str | Path) -> list[Path]:
     """The shard files of `data_dir` in index order; errors if there are none."""
     data_dir = Path(data_dir)
-    if not data_dir.is_dir():
-        raise FileNotFoundError(f"data directory {data_dir} does not exist")
     read_manifest(data_dir)
     paths = sorted(data_dir.glob(SHARD_GLOB))
     if not paths:

@@ -378,8 +378,14 @@ def test_a_records_file_cut_while_writing_resumes_without_the_cut_line(tmp_path)
     from drake_symplan.agent.evaluation import _resume
 
     records = tmp_path / "records.jsonl"
-    done = {"run": "a/b", "monitor": True, "problem": "p000"}
+    done = {"run": "a/b", "monitor": True, "problem": "p000", "status": "success",
+            "failure_cause": None, "success_true": True, "n_objects": 2, "k": 1,
+            "plan_length": 1, "replans": 0, "seconds": {"plan": 0.1}, "error_cm": {}}
     records.write_text(json.dumps(done) + "\n" + '{"run": "a/b", "moni')
-    keys, found = _resume(records)
+    told = []
+    keys, found = _resume(records, told.append)
     assert keys == {("a/b", True, "p000")} and found == [done]
     assert records.read_text() == json.dumps(done) + "\n"
+    assert told == [f"{records}: its incomplete last line (a solve cut off while it was "
+                    "written) was dropped; resuming after its 1 record(s)"]
+    assert _resume(records, told.append)[1] == [done] and len(told) == 1  # whole: no word

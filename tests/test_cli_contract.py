@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 import types
+from pathlib import Path
 
 import pytest
 
@@ -121,7 +122,8 @@ def test_missing_files_are_one_line_naming_them(tmp_path, capsys):
     for argv, expected in [
         (["plan", "--domain", tmp_path / "d.pddl", "--problem", missing],
          f"symplan plan: error: no PDDL file {missing}"),
-        (["data", "stats", missing], f"symplan data stats: error: {missing}"),
+        (["data", "stats", missing],
+         f"symplan data stats: error: data directory {missing} does not exist"),
         (["act", "--scene", missing, "--pick", "o0:center", "--place", "o1:center"],
          f"symplan act: error: scene file {missing} does not exist"),
         (["train", "--config", missing], f"symplan train: error: {missing}: no such file"),
@@ -204,3 +206,209 @@ def test_every_option_has_help_that_tells_its_default_and_the_exit_codes(capsys)
 def test_one_spelling_per_command(capsys):
     code, out, _ = run(["explain", "--help"], capsys)
     assert code == 0 and out.startswith("usage: symplan explain ")
+
+
+# --- inputs a user found to slip through ------------------------------------------------
+
+DEMO = Path(__file__).resolve().parents[1] / "models" / "demo"
+SHIPPED = Path(__file__).resolve().parents[1] / "models" / "learned"
+
+
+@pytest.mark.parametrize("text, problem", [
+    ("[1, 2]", "operators.json holds an array, not an object"),
+    ('{"operators": [', "operators.json: invalid JSON (line 1, column 16"),
+    ('{"version": 2, "operators": {}}', "operators.json has no operators list"),
+])
+def test_an_operators_json_that_is_not_one_is_one_line_from_every_reader(
+        text, problem, bundle_copy, tiny_dataset, tmp_path, capsys):
+    (bundle_copy / "operators.json").write_text(text)
+    for argv in (
+            ["solve", "--start", DEMO / "start.yaml", "--goal", DEMO / "goal.yaml",
+             "--model", bundle_copy, "--record", tmp_path / "rec.html"],
+            ["inspect", "--scene", DEMO / "start.yaml", "--model", bundle_copy],
+            ["eval", "operators", "--model", bundle_copy, "--data", tiny_dataset],
+            ["eval", "rollout", "--model", bundle_copy, "--data", tiny_dataset],
+            ["eval", "planning", "--runs", bundle_copy, "--problems", DEMO],
+            ["bundle", "--continuous", SHIPPED, "--out", bundle_copy]):
+        code, out, err = run(argv, capsys)
+        assert_bad_input(code, out, err, f"model directory {bundle_copy}", problem)
+    assert not (tmp_path / "rec.html").exists()
+    assert not (bundle_copy / "continuous.pt").exists()
+
+
+def problem_set(tmp_path, **record) -> Path:
+    """A problem set of the demo's problem, its problem.json replaced by `record`."""
+    folder = tmp_path / "set" / "p000"
+    folder.mkdir(parents=True)
+    for name in ("start.yaml", "goal.yaml"):
+        (folder / name).write_text((DEMO / name).read_text())
+    (folder / "problem.json").write_text(json.dumps(record))
+    return folder
+
+
+def test_the_oracle_on_a_problem_without_recorded_actions_is_one_line(tmp_path, capsys):
+    folder = problem_set(tmp_path, k=2, n_objects=4)
+    code, out, err = run(["eval", "planning", "--runs", SHIPPED, "--problems", tmp_path / "set",
+                          "--planning", "oracle", "--monitor", "off"], capsys)
+    assert_bad_input(code, out, err, "symplan eval planning: error: "
+                     f"{folder / 'problem.json'} records no actions")
+    (folder / "problem.json").write_text('{"k": 2, "n_objects": 4, "actions": ["fly(o0)"]}')
+    code, out, err = run(["eval", "planning", "--runs", SHIPPED, "--problems", tmp_path / "set",
+                          "--planning", "oracle"], capsys)
+    assert_bad_input(code, out, err, f"{folder / 'problem.json'}: 'fly(o0)' is not an action")
+    (folder / "problem.json").write_text('{"k": 2, "n_objects": 4, "actions": [}')
+    code, out, err = run(["eval", "planning", "--runs", SHIPPED, "--problems", tmp_path / "set"],
+                         capsys)
+    assert_bad_input(code, out, err, f"{folder / 'problem.json'}: invalid JSON (line 1")
+    (folder / "problem.json").write_text('{"n_objects": 4}')
+    code, out, err = run(["eval", "planning", "--runs", SHIPPED, "--problems", tmp_path / "set"],
+                         capsys)
+    assert_bad_input(code, out, err, f"{folder / 'problem.json'}: no k (an integer each)")
+
+
+def a_record(folder: Path) -> dict:
+    """The record of a solve of `folder`'s problem by the shipped model, open loop."""
+    return {"run": "models/learned", "problem": str(folder), "monitor": False,
+            "status": "success", "failure_cause": None, "success_true": True, "n_objects": 4,
+            "k": 2, "plan_length": 2, "replans": 0, "seconds": {"plan": 0.2, "total": 9.0},
+            "error_cm": {"o0": 1.0}}
+
+
+@pytest.mark.parametrize("lines, problem", [
+    (["[1,2]"], "line 1: not an evaluation record (an array, not an object)"),
+    (["RECORD", '{"a": 1}'], "line 2: not an evaluation record (it lacks ['run', "),
+    (["RECORD", "", "{nope"], "line 3: invalid JSON (line 1, column 2"),
+])
+def test_a_records_file_of_lines_that_are_not_records_is_one_line(lines, problem, tmp_path,
+                                                                  capsys):
+    folder = problem_set(tmp_path, k=2, n_objects=4)
+    records = tmp_path / "records.jsonl"
+    text = "\n".join(json.dumps(a_record(folder)) if x == "RECORD" else x for x in lines)
+    records.write_text(text + "\n{cut")  # a cut last line too: the file is left as it is
+    code, out, err = run(["eval", "planning", "--runs", SHIPPED, "--problems", tmp_path / "set",
+                          "--records", records, "--monitor", "off"], capsys)
+    assert_bad_input(code, out, err, f"symplan eval planning: error: {records}, {problem}")
+    assert records.read_text() == text + "\n{cut"
+
+
+def test_a_records_file_whose_last_line_was_cut_says_it_dropped_it(tmp_path, capsys):
+    folder = problem_set(tmp_path, k=2, n_objects=4, actions=[])
+    records = tmp_path / "records.jsonl"
+    whole = json.dumps(a_record(folder)) + "\n"
+    records.write_text(whole + '{"run": "models/lea')
+    # Everything was solved: the resume solves nothing, and says what it dropped.
+    code, out, err = run(["eval", "planning", "--runs", SHIPPED, "--problems", tmp_path / "set",
+                          "--records", records, "--monitor", "off", "--json"], capsys)
+    assert code == 0 and json.loads(out)["runs"]["models/learned"]["open_loop"]["success"] == 1
+    assert err == (f"symplan eval planning: warning: {records}: its incomplete last line (a "
+                   "solve cut off while it was written) was dropped; resuming after its 1 "
+                   "record(s)\n")
+    assert records.read_text() == whole
+
+
+@pytest.mark.parametrize("argv", [
+    ["problems", "make", "--objects", "2", "--k", "1", "--count", "1"],
+    ["collect", "--transitions", "10"],
+])
+def test_an_out_directory_that_is_a_file_is_one_line(argv, tmp_path, capsys):
+    file = tmp_path / "taken"
+    file.write_text("mine\n")
+    code, out, err = run([*argv, "--out", file], capsys)
+    assert_bad_input(code, out, err, f"error: --out {file} is a file, not a directory")
+    code, out, err = run([*argv, "--out", file / "sub"], capsys)
+    assert_bad_input(code, out, err, f"error: --out {file / 'sub'} cannot be made (in {file}")
+    assert file.read_text() == "mine\n" and sorted(tmp_path.iterdir()) == [file]
+
+
+@pytest.mark.parametrize("step", ["0", "-0.01", "nan", "inf", "fast"])
+def test_collect_refuses_a_time_step_that_is_not_positive(step, tmp_path, capsys):
+    out_dir = tmp_path / "data"
+    code, out, err = run(["collect", "--transitions", "10", "--time-step", step,
+                          "--out", out_dir], capsys)
+    assert_bad_input(code, out, err, "symplan collect: error: argument --time-step: must be a "
+                     f"positive number, got '{step}'")
+    assert not out_dir.exists()
+    from drake_symplan.data.collect import CollectConfig
+
+    with pytest.raises(ValueError, match="time_step must be a positive number"):
+        CollectConfig(time_step=0.0)
+
+
+@pytest.mark.parametrize("flags", [[], ["--json"]])
+def test_a_reader_that_closes_stdout_early_ends_the_command_quietly(flags, tiny_dataset):
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen([sys.executable, "-m", "drake_symplan.cli.main", "data", "stats",
+                             str(tiny_dataset), *flags], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()  # `| head -1` gone before the command prints
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == cli_main.EXIT_CLOSED_STDOUT and err == ""
+    done = subprocess.run([sys.executable, "-m", "drake_symplan.cli.main", "data", "stats",
+                           str(tiny_dataset), *flags], capture_output=True, text=True, env=env,
+                          timeout=300)
+    assert done.returncode == 0 and f"{tiny_dataset}" in done.stdout and done.stderr == ""
+
+
+def test_a_broken_pipe_that_is_not_stdout_is_not_hidden(monkeypatch):
+    def broken(*args):
+        raise BrokenPipeError("a worker's pipe")
+
+    monkeypatch.setattr(cli_main, "run_command", broken)
+    monkeypatch.setattr(cli_main, "stdout_closed", lambda: False)
+    with pytest.raises(BrokenPipeError):
+        cli_main.main([])
+
+
+def test_record_and_out_files_that_are_directories_are_told_before_anything_runs(tmp_path,
+                                                                                  capsys):
+    scene = DEMO / "start.yaml"
+    for argv, flag in [
+            (["solve", "--start", scene, "--goal", DEMO / "goal.yaml"], "--record"),
+            (["inspect", "--scene", scene], "--record"),
+            (["act", "--scene", scene, "--pick", "o1:center", "--place", "o3:left"], "--record"),
+            (["act", "--scene", scene, "--pick", "o1:center", "--place", "o3:left"], "--out"),
+            (["scene", "sample", "--objects", "2"], "--out"),
+            (["eval", "planning", "--runs", SHIPPED, "--problems", DEMO], "--records")]:
+        code, out, err = run([*argv, flag, tmp_path], capsys)
+        assert_bad_input(code, out, err, f"error: {flag} {tmp_path} is a directory, not a file")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_familiar_data_file_is_told_it_is_not_a_directory(tiny_dataset, tmp_path, capsys):
+    file = tmp_path / "train.npz"
+    file.write_text("")
+    code, out, err = run(["eval", "operators", "--data", tiny_dataset, "--familiar-data", file],
+                         capsys)
+    assert_bad_input(code, out, err, f"error: --familiar-data {file} is not a directory")
+    code, out, err = run(["eval", "operators", "--data", file], capsys)
+    assert_bad_input(code, out, err, f"error: --data {file} is not a directory")
+    code, out, err = run(["data", "stats", file], capsys)
+    assert_bad_input(code, out, err, f"error: data directory {file} is not a directory")
+
+
+def test_malformed_json_files_are_named(tiny_dataset, capsys):
+    manifest = tiny_dataset / "manifest.json"
+    manifest.write_text('{"schema_version": 1,}')
+    code, out, err = run(["data", "stats", tiny_dataset], capsys)
+    assert_bad_input(code, out, err, f"error: {manifest}: invalid JSON (line 1, column 22")
+    manifest.write_bytes(b'{"schema_version": "\xff"}')
+    code, out, err = run(["data", "stats", tiny_dataset], capsys)
+    assert_bad_input(code, out, err, f"error: {manifest}: not UTF-8 text")
+    manifest.write_text("[]")
+    code, out, err = run(["data", "stats", tiny_dataset], capsys)
+    assert_bad_input(code, out, err, f"error: {manifest}: expected an object, got an array")
+
+
+def test_scene_sample_says_what_it_wrote(tmp_path, capsys):
+    from drake_symplan.world.scenes import load_scene
+
+    path = tmp_path / "scene.yaml"
+    code, out, err = run(["scene", "sample", "--objects", "3", "--seed", "4", "--out", path],
+                         capsys)
+    types = ", ".join(f"{o.name} {o.type}" for o in load_scene(path).objects)
+    assert code == 0 and err == "" and out == f"wrote {path}: 3 objects ({types})\n"
+    code, out, err = run(["scene", "sample", "--objects", "3", "--out", path, "--json"], capsys)
+    assert code == 0 and json.loads(out) == {"out": str(path), "objects": ["o0", "o1", "o2"]}

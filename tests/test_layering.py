@@ -10,8 +10,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "drake_symplan"
 
 # Lowest first (docs/layout.md). A module may import its own layer and the ones before it.
 LAYERS = (
-    ("drake_symplan", "actions", "datasets", "boxes", "features", "atomic", "typed_yaml", "shards",
-     "cluster"),
+    ("drake_symplan", "actions", "datasets", "boxes", "features", "atomic", "typed_yaml",
+     "json_files", "shards", "cluster"),
     ("world",), ("perception",), ("skills",), ("robot",), ("data",), ("learning",),
     ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",),
     ("pipelines",), ("cli",),
@@ -66,7 +66,7 @@ class NoDrake:
 
 sys.meta_path.insert(0, NoDrake())
 names = ["drake_symplan.actions", "drake_symplan.datasets", "drake_symplan.shards", "drake_symplan.atomic",
-         "drake_symplan.typed_yaml", "drake_symplan.features", "drake_symplan.boxes"]
+         "drake_symplan.typed_yaml", "drake_symplan.json_files", "drake_symplan.features", "drake_symplan.boxes"]
 for package in ("learning", "symbolic", "planning", "abstraction"):
     pkg = importlib.import_module(f"drake_symplan.{package}")
     names += [f"drake_symplan.{package}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]

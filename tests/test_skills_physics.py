@@ -80,3 +80,22 @@ def test_recording_is_written(tmp_path):
     text = html.read_text()
     assert len(text) > 100_000
     assert "<html" in text.lower() and "animation" in text.lower()
+
+
+def test_act_writes_the_scene_after_the_action(tmp_path, capsys):
+    from drake_symplan.cli.main import main
+    from drake_symplan.world.scenes import load_scene
+
+    scene = tmp_path / "s.yaml"
+    scene.write_text("objects:\n"
+                     "  - {name: o0, type: cube, position: [0.70, 0.00, 0.025], yaw: 0.0}\n"
+                     "  - {name: o1, type: cube, position: [0.60, 0.20, 0.025], yaw: 0.0}\n")
+    after = tmp_path / "after.yaml"
+    assert main(["act", "--scene", str(scene), "--pick", "o1:center", "--place", "o0:center",
+                 "--out", str(after)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-1] == f"wrote {after}: 2 objects (o0 cube, o1 cube)"
+    placed = {o.name: o for o in load_scene(after).objects}  # a scene file as sampled
+    assert abs(placed["o1"].position[2] - 0.075) < 0.01  # on o0
+    assert np.linalg.norm(np.subtract(placed["o1"].position[:2], placed["o0"].position[:2])) \
+        < 0.03

@@ -17,23 +17,28 @@ from __future__ import annotations
 
 import json
 import statistics
+import sys
 from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Abstraction
-from drake_symplan.actions import Action
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
-from drake_symplan.agent.problems import load_problems
+from drake_symplan.agent.problems import load_problems, recorded_actions
 from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
 from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
+from drake_symplan.json_files import parse_json, type_name
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene
 
 MODES = {True: "monitor", False: "open_loop"}
+# What every record holds (solve_job) and `summarise` reads; "level" and
+# "symbolic_goal_reached" came later and may be absent.
+RECORD_KEYS = ("run", "problem", "monitor", "status", "failure_cause", "success_true",
+               "n_objects", "k", "plan_length", "replans", "seconds", "error_cm")
 # The issue's targets are set on these bands of (object count, k).
 BANDS = {"2-4 objects, k 1-3": ((2, 3, 4), (1, 2, 3)), "2-4 objects, k 4-5": ((2, 3, 4), (4, 5)),
          "8 objects, k 1-3": ((8,), (1, 2, 3))}
@@ -63,7 +68,7 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
                                             load_scene(folder / "goal.yaml"))
     given = None
     if config.planning == "oracle":  # the problem's own actions, replayed open loop
-        given = [Action.from_text(a) for a in problem["actions"]]
+        given = recorded_actions(problem)
     result = agent.solve(start, goal, abstraction, config, given=given)
     return {
         "run": label, "problem": str(folder), "n_objects": problem["n_objects"],
@@ -81,14 +86,15 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
 def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SOLVE,
                       robot: str = "arm", monitor=(True, False), limit: int | None = None,
                       records_path=None, agent=None, load=None, progress=None,
-                      ray_address: str | None = None, workers: int = 1) -> dict:
+                      ray_address: str | None = None, workers: int = 1, warn=None) -> dict:
     """Solves every problem under `problems_dir` with each run's bundle (`runs`: bundle
     directories) under `config`, in each monitoring mode of `monitor`; returns
     {"settings", "runs": {label: {mode: summary}}, "records": [...]}. With `ray_address`
     ("" for Ray on this machine) the solves are spread over Ray worker actors, one agent
     (robot) each, one per CPU of the cluster (drake_symplan/cluster.py); with `workers` > 1
     on that many local processes, an agent each. `load(run)` gives a run's Abstraction
-    (default: of ModelBundle.load(run))."""
+    (default: of ModelBundle.load(run)); `warn(text)` is told of a records file's cut last
+    line (default: a line on stderr)."""
     if not runs:
         raise ValueError("give at least one run (a model bundle directory)")
     problems = load_problems(problems_dir)[:limit]
@@ -98,7 +104,9 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     for problem in problems:
         for name in ("start.yaml", "goal.yaml"):
             load_scene(Path(problem["dir"]) / name)
-    done, records = _resume(records_path)
+        if config.planning == "oracle":
+            recorded_actions(problem)
+    done, records = _resume(records_path, warn)
     if records_path is not None:
         Path(records_path).parent.mkdir(parents=True, exist_ok=True)
     # Monitoring mode by mode, run by run: an unfinished evaluation has whole runs of the
@@ -162,21 +170,51 @@ def read_records(records_path) -> list[dict]:
     """The records of a JSON-lines file (none if there is no such file)."""
     if records_path is None or not Path(records_path).is_file():
         return []
-    return [json.loads(line) for line in Path(records_path).read_text().splitlines()
-            if line.strip()]
+    return parse_records(Path(records_path).read_text(), records_path)
 
 
-def _resume(records_path) -> tuple[set, list[dict]]:
-    """The solves done so far; a last line cut short (the run was killed while writing
-    it) is dropped from the file, so that the next record starts a line of its own."""
+def parse_records(text: str, path) -> list[dict]:
+    """The records in the JSON lines `text` of the file `path`; ValueError naming the file
+    and line of one that is not a record."""
+    records = []
+    for n, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        where = f"{path}, line {n}"
+        record = parse_json(line, where, expect=object)
+        if not isinstance(record, dict):
+            raise ValueError(f"{where}: not an evaluation record ({type_name(record)}, not "
+                             "an object)")
+        missing = [k for k in RECORD_KEYS if k not in record]
+        if missing:
+            raise ValueError(f"{where}: not an evaluation record (it lacks {missing})")
+        if not isinstance(record["seconds"], dict) or "plan" not in record["seconds"] \
+                or not isinstance(record["error_cm"], dict):
+            raise ValueError(f"{where}: not an evaluation record (its seconds or error_cm "
+                             "are not what a solve records)")
+        records.append(record)
+    return records
+
+
+def _resume(records_path, warn=None) -> tuple[set, list[dict]]:
+    """The solves done so far. A last line cut short (the run was killed while writing
+    it) is dropped from the file, so that the next record starts a line of its own, and
+    `warn` is told; a line that is not a record is bad input (the file left as it is)."""
     path = Path(records_path) if records_path is not None else None
     text = path.read_text() if path is not None and path.is_file() else ""
-    if not text.endswith("\n"):
+    cut = bool(text) and not text.endswith("\n")
+    if cut:
         text = text[:text.rfind("\n") + 1]
-        if path is not None and path.is_file():
-            path.write_text(text)
-    records = [json.loads(line) for line in text.splitlines() if line.strip()]
+    records = parse_records(text, path)
+    if cut:
+        path.write_text(text)
+        (warn or _warn)(f"{path}: its incomplete last line (a solve cut off while it was "
+                        f"written) was dropped; resuming after its {len(records)} record(s)")
     return {(r["run"], r["monitor"], r["problem"]) for r in records}, records
+
+
+def _warn(text: str) -> None:
+    print(f"warning: {text}", file=sys.stderr)
 
 
 def _rate(records: list[dict], key: str = "status") -> float:

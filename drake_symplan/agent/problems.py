@@ -34,7 +34,6 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from pydrake.math import RollPitchYaw
 
 from drake_symplan.actions import Action
 from drake_symplan.agent import beliefs
@@ -42,14 +41,13 @@ from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import write_atomic
 from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.data.exploration import left_workspace, random_action
+from drake_symplan.json_files import read_json
 from drake_symplan.world.scenes import (
-    TILT_TOL,
-    ObjectSpec,
-    Scene,
     SceneError,
     as_saved,
     sample_scene,
     save_scene,
+    scene_from_poses,
 )
 
 NONTRIVIAL_DISTANCE = 0.05  # m: a goal is non-trivial if some object moved farther
@@ -71,19 +69,6 @@ def is_nontrivial(start: dict[str, np.ndarray], end: dict[str, np.ndarray],
                   distance: float = NONTRIVIAL_DISTANCE) -> bool:
     """Does some object end more than `distance` from its start position?"""
     return displacement(start, end) > distance
-
-
-def scene_from_poses(poses: dict, types: dict[str, str]):
-    """A scene (world.scenes.Scene) of bodies at `poses` (name -> RigidTransform): upright
-    objects with their yaw, tilted ones with their full rpy."""
-    objects = []
-    for name, X in poses.items():
-        R = X.rotation()
-        rpy = RollPitchYaw(R).vector()
-        upright = abs(R.matrix()[2, 2]) >= np.cos(TILT_TOL)
-        objects.append(ObjectSpec(name, types[name], [float(v) for v in X.translation()],
-                                  float(rpy[2]), None if upright else [float(v) for v in rpy]))
-    return Scene(objects)
 
 
 def problem_seed(seed: int, attempt: int) -> int:
@@ -178,7 +163,7 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / SUMMARY
-    summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
+    summary = read_json(summary_path) if summary_path.is_file() else {}
     settings = {"n_objects": n_objects, "k": ks, "seed": seed, "backend": backend}
     if reproducible:  # only then, so that sets made before still resume
         settings["reproducible"] = True
@@ -223,9 +208,26 @@ def load_problems(problems_dir) -> list[dict]:
         raise FileNotFoundError(f"no problems directory {root}")
     found = []
     for path in sorted(root.glob("**/problem.json")):
-        record = json.loads(path.read_text())
+        record = read_json(path)
+        missing = [k for k in ("k", "n_objects") if not isinstance(record.get(k), int)]
+        if missing:
+            raise ValueError(f"{path}: no {' or '.join(missing)} (an integer each)")
         record["dir"] = str(path.parent)
         found.append(record)
     if not found:
         raise ValueError(f"no problems (*/problem.json) under {root}")
     return found
+
+
+def recorded_actions(problem: dict) -> list[Action]:
+    """The actions that made `problem` (a load_problems entry), which the oracle replays;
+    ValueError naming its problem.json when it records none (or not as actions)."""
+    where = Path(problem["dir"]) / "problem.json"
+    actions = problem.get("actions")
+    if not isinstance(actions, list) or not all(isinstance(a, str) for a in actions):
+        raise ValueError(f"{where} records no actions (an \"actions\" list), which the "
+                         "oracle replays; make the set with `symplan problems make`")
+    try:
+        return [Action.from_text(a) for a in actions]
+    except ValueError as e:
+        raise ValueError(f"{where}: {e}") from e

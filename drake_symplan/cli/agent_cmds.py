@@ -24,6 +24,8 @@ from drake_symplan.cli.options import (
     add_robot_argument,
     add_solve_arguments,
     check_objects,
+    check_output_dir,
+    check_output_file,
     load_bundle,
     load_scene_pair,
     solve_config,
@@ -31,6 +33,12 @@ from drake_symplan.cli.options import (
 
 
 def register(subparsers) -> None:
+    _register_solve(subparsers)
+    _register_problems(subparsers)
+    _register_eval_planning(subparsers)
+
+
+def _register_solve(subparsers) -> None:
     p = subparsers.add_parser(
         "solve", help="solve a goal scene from a start scene in full physics",
         description="Perceives both scenes, plans with a model bundle's symbols and domain, "
@@ -51,6 +59,8 @@ def register(subparsers) -> None:
     add_json_argument(p)
     p.set_defaults(func=cmd_solve)
 
+
+def _register_problems(subparsers) -> None:
     problems = subparsers.add_parser("problems", help="planning problem sets")
     problems_sub = problems.add_subparsers(dest="problems_command", required=True)
     p = problems_sub.add_parser(
@@ -72,6 +82,8 @@ def register(subparsers) -> None:
     add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)
 
+
+def _register_eval_planning(subparsers) -> None:
     p = eval_subparsers(subparsers).add_parser(
         "planning", help="success rates of model bundles on a problem set, with and "
         "without monitoring")
@@ -100,6 +112,7 @@ def register(subparsers) -> None:
 def cmd_solve(args: argparse.Namespace) -> dict:
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
+    check_output_file(args.record, "--record")
     start, goal = load_scene_pair(args.start, args.goal)
     bundle = load_bundle(args.model)
 
@@ -133,6 +146,7 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
     from drake_symplan.agent.problems import make_problems
 
     check_objects(args.objects)
+    check_output_dir(args.out)
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
                             reproducible=args.reproducible)
@@ -151,11 +165,14 @@ def cmd_eval_planning(args: argparse.Namespace) -> dict:
     for run in args.runs:
         if not run.is_dir():
             raise CommandError(f"no model directory {run}")
+    check_output_file(args.records, "--records")
+    check_output_file(args.plot, "--plot")
     monitor = {"both": (True, False), "on": (True,), "off": (False,)}[args.monitor]
-    result = evaluate_planning(args.runs, args.problems, config, args.backend, monitor,
-                               args.limit, args.records,
-                               load=lambda run: Abstraction(load_bundle(run)),
-                               ray_address=args.ray, workers=args.workers)
+    result = evaluate_planning(
+        args.runs, args.problems, config, args.backend, monitor, args.limit, args.records,
+        load=lambda run: Abstraction(load_bundle(run)), ray_address=args.ray,
+        workers=args.workers,
+        warn=lambda text: print(f"symplan eval planning: warning: {text}", file=sys.stderr))
     out = {"settings": result["settings"], "runs": result["runs"]}
     if args.plot:
         plot_planning(result["runs"], args.plot)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from drake_symplan.cli.main import positive_int
-from drake_symplan.cli.options import add_json_argument, add_robot_argument
+from drake_symplan.cli.main import positive_float, positive_int
+from drake_symplan.cli.options import add_json_argument, add_robot_argument, check_output_dir
 
 
 def register(subparsers) -> None:
@@ -31,7 +31,7 @@ def register(subparsers) -> None:
     collect.add_argument("--noise-sigma", type=float, default=0.0, help="depth noise (m)")
     collect.add_argument("--noise-dropout", type=float, default=0.0,
                          help="fraction of depth pixels lost")
-    collect.add_argument("--time-step", type=float, default=0.01,
+    collect.add_argument("--time-step", type=positive_float, default=0.01,
                          help="physics step (s); 0.005 extends a collection made before 10 ms "
                               "became the step")
     explore = collect.add_argument_group(
@@ -81,6 +81,7 @@ def cmd_collect(args: argparse.Namespace) -> dict:
     from drake_symplan.data.collect import CollectConfig, collect
     from drake_symplan.data.stats import format_stats
 
+    check_output_dir(args.out)
     lo, hi = parse_objects(args.objects)
     active = {}
     if args.explorer == "active":

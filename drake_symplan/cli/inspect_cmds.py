@@ -25,6 +25,7 @@ from drake_symplan.cli.options import (
     add_json_argument,
     add_planner_arguments,
     add_planning_argument,
+    check_output_file,
     solve_config,
 )
 
@@ -87,6 +88,7 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
 
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
+    check_output_file(args.record, "--record")
     start = load_scene_file(args.scene)
     goal = load_scene_file(args.goal) if args.goal is not None else None
     if goal is not None:

@@ -5,7 +5,9 @@ Every command keeps one contract, enforced here: exit status 0 when it did its j
 when it ran but its answer is negative (no plan, unsolvable, timeout, infeasible action:
 the command returns a `NegativeAnswer`), 2 for bad input (a flag, a missing or malformed
 file: a `CommandError`, ValueError or file error), reported as ONE line on stderr,
-`symplan CMD: error: ...`, naming the file or flag, with nothing written.
+`symplan CMD: error: ...`, naming the file or flag, with nothing written. A reader that
+closes stdout early (`symplan data stats DIR | head -1`) ends the command quietly, with
+the status of a command killed by SIGPIPE (141), as other Unix tools do.
 """
 
 from __future__ import annotations
@@ -13,7 +15,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import re
+import select
 import sys
 import textwrap
 
@@ -35,6 +39,7 @@ COMMAND_MODULES = [
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_CLOSED_STDOUT = 128 + 13  # as if killed by SIGPIPE
 
 # The commands in pipeline order, for `symplan --help`.
 PIPELINE = (
@@ -84,8 +89,8 @@ class NegativeAnswer(dict):
 
 
 # Errors that mean the input was bad: reported in one line, exit status 2.
-BAD_INPUT = (CommandError, ValueError, FileNotFoundError, NotADirectoryError,
-             IsADirectoryError, PermissionError)
+BAD_INPUT = (CommandError, ValueError, FileNotFoundError, FileExistsError,
+             NotADirectoryError, IsADirectoryError, PermissionError)
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -134,6 +139,17 @@ def nonnegative_int(text: str) -> int:
     return value
 
 
+def positive_float(text: str) -> float:
+    """argparse type: a finite number above 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = 0.0
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="symplan", description=DESCRIPTION,
                     formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -155,7 +171,32 @@ def one_line(error: BaseException) -> str:
 
 def run(parser: argparse.ArgumentParser, argv: list[str], name: str | None = None) -> int:
     """Parses `argv` with `parser`, runs its command and returns the exit status; bad
-    input is one line on stderr, `NAME: error: ...` (NAME: `symplan CMD` by default)."""
+    input is one line on stderr, `NAME: error: ...` (NAME: `symplan CMD` by default). A
+    reader that has closed stdout ends it quietly (EXIT_CLOSED_STDOUT)."""
+    try:
+        code = run_command(parser, argv, name)
+        sys.stdout.flush()  # here, where a reader that has gone is caught
+    except BrokenPipeError:
+        if not stdout_closed():
+            raise  # some other pipe: a bug to see
+        # Whatever is left to print or flush goes nowhere, also at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_CLOSED_STDOUT
+    return code
+
+
+def stdout_closed() -> bool:
+    """Whether stdout is a pipe whose reader has closed it."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(event & select.POLLERR for _, event in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll here, or no stdout file
+        return True
+
+
+def run_command(parser: argparse.ArgumentParser, argv: list[str], name: str | None) -> int:
+    """`run` without the closed-stdout guard."""
     try:
         args = parser.parse_args(argv)
     except SystemExit as e:  # --help (0) or a usage error (2), already printed

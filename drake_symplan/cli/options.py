@@ -151,3 +151,44 @@ def load_scene_pair(start: Path, goal: Path):
     scenes = load_scene_file(start), load_scene_file(goal)
     check_scene_pair(*scenes)
     return scenes
+
+
+# --- paths, checked before a command does anything ---------------------------------------
+
+
+def _nearest_existing(path: Path) -> Path:
+    """`path` or its nearest ancestor that exists."""
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
+def check_input_dir(path: Path | None, flag: str) -> None:
+    """Bad input unless `path` (when given) is a directory; the message says which."""
+    if path is not None and not Path(path).is_dir():
+        what = "is not a directory" if Path(path).exists() else "does not exist"
+        raise CommandError(f"{flag} {path} {what}")
+
+
+def check_output_dir(path: Path | str, flag: str = "--out") -> None:
+    """Bad input when the directory `path` cannot be made or used: it, or a folder it
+    would be made in, is a file."""
+    path = Path(path)
+    found = _nearest_existing(path)
+    if found == path and not path.is_dir():
+        raise CommandError(f"{flag} {path} is a file, not a directory")
+    if not found.is_dir():
+        raise CommandError(f"{flag} {path} cannot be made (in {found}, a file)")
+
+
+def check_output_file(path: Path | str | None, flag: str) -> None:
+    """Bad input when the file `path` (when given) cannot be written: it is a directory,
+    or a folder it would be written in is a file."""
+    if path is None:
+        return
+    path = Path(path)
+    if path.is_dir():
+        raise CommandError(f"{flag} {path} is a directory, not a file")
+    found = _nearest_existing(path.parent)
+    if not found.is_dir():
+        raise CommandError(f"{flag} {path} cannot be written (in {found}, a file)")

@@ -17,6 +17,8 @@ from drake_symplan.cli.options import (
     LEARNERS,
     add_json_argument,
     add_planner_arguments,
+    check_input_dir,
+    check_output_file,
     planner_settings,
 )
 
@@ -214,10 +216,10 @@ def cmd_plan(args) -> dict:
 
 
 def cmd_bundle(args) -> dict:
-    import json
     import shlex
     import sys
 
+    from drake_symplan.json_files import read_json
     from drake_symplan.learning.checkpoint import load_run
     from drake_symplan.learning.readout import readout_scenes
     from drake_symplan.shards import fingerprint
@@ -242,7 +244,7 @@ def cmd_bundle(args) -> dict:
     data, _ = readout_scenes(model, args.data, args.margin)
     operators, semantics, info = learn_bundle_operators(
         data, args.learner, args.min_count, args.support, args.contact_degree == "on")
-    run_config = json.loads((args.run / "config.json").read_text()) \
+    run_config = read_json(args.run / "config.json") \
         if (args.run / "config.json").is_file() else {}
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]),
                   "run": str(args.run), "run_config": run_config,
@@ -259,6 +261,10 @@ def cmd_eval_operators(args) -> dict:
     from drake_symplan.symbolic.bundle import ModelBundle
 
     planner_settings(args)
+    check_input_dir(args.data, "--data")
+    check_input_dir(args.familiar_data, "--familiar-data")
+    check_output_file(args.out, "--out")
+    check_output_file(args.plot, "--plot")
     bundle = ModelBundle.load(args.model)
     config = EvalConfig(ks=tuple(args.k), planner=args.planner, timeout=args.timeout,
                         max_problems=args.max_problems, seed=args.seed)

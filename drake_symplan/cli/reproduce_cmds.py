@@ -8,12 +8,17 @@ input."""
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
-from drake_symplan.cli.options import add_json_argument, add_solve_arguments, solve_config
+from drake_symplan.cli.options import (
+    add_json_argument,
+    add_solve_arguments,
+    check_output_dir,
+    solve_config,
+)
+from drake_symplan.json_files import read_json
 
 
 def register(subparsers) -> None:
@@ -66,8 +71,7 @@ def run_reproduce(args):
     from drake_symplan.pipelines.reproduce import Reproduction, StageFailed
 
     out = args.out or Path("out") / f"reproduce_{args.scale}"
-    if out.exists() and not out.is_dir():
-        raise CommandError(f"--out {out} is a file, not a directory")
+    check_output_dir(out)
     rep = Reproduction(args.scale, out, jobs=args.jobs, ray=args.ray,
                        say=lambda text: print(text, file=sys.stderr, flush=True),
                        solve=solve_config(args))
@@ -90,8 +94,7 @@ def run_curve(args):
     from drake_symplan.pipelines.stages import StageFailed
 
     out = args.out or Path("out") / f"curve_{args.scale}"
-    if out.exists() and not out.is_dir():
-        raise CommandError(f"--out {out} is a file, not a directory")
+    check_output_dir(out)
     curve = LearningCurve(args.scale, out, jobs=args.jobs, ray=args.ray,
                           say=lambda text: print(text, file=sys.stderr, flush=True))
     if args.report and not list((out / "runs").glob("*/bundle_effect/eval.json")):
@@ -102,5 +105,5 @@ def run_curve(args):
         print(f"symplan curve: {e}", file=sys.stderr)
         return NegativeAnswer({"status": "failed", "message": str(e), "out": str(out)})
     return {"status": "report" if args.report else "done", "results": str(path),
-            "out": str(out), "points": json.loads((out / "results/curve.json").read_text())[
+            "out": str(out), "points": read_json(out / "results/curve.json")[
                 "points"]}

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer
-from drake_symplan.cli.options import add_json_argument
+from drake_symplan.cli.options import add_json_argument, check_output_file
 
 
 def register(subparsers) -> None:
@@ -28,6 +29,10 @@ def register(subparsers) -> None:
     act.add_argument("--place", required=True, help="TARGET:left|center|right")
     act.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
     act.add_argument("--record", help="write a self-contained HTML recording here")
+    act.add_argument("--out", metavar="FILE",
+                     help="write the scene after the action here (scene YAML as `symplan "
+                     "scene sample` writes it, from the simulator's poses: `symplan "
+                     "perceive --scene FILE` or another act can follow)")
     add_json_argument(act)
     act.set_defaults(func=cmd_act)
 
@@ -37,11 +42,21 @@ def cmd_scene_sample(args: argparse.Namespace) -> dict:
 
     from drake_symplan.world.scenes import sample_scene, save_scene
 
+    check_output_file(args.out, "--out")
     scene = sample_scene(np.random.default_rng(args.seed), args.objects,
                          long_fraction=args.long_fraction,
                          yaw_jitter=float(np.radians(args.yaw_jitter_deg)))
     save_scene(scene, args.out)
-    return {"out": args.out, "objects": [o.name for o in scene.objects]}
+    result = {"out": args.out, "objects": [o.name for o in scene.objects]}
+    if not args.json:
+        print(scene_line(args.out, scene))
+    return result
+
+
+def scene_line(path, scene) -> str:
+    """'wrote scene.yaml: 3 objects (o0 cube, o1 long, o2 cube)'."""
+    objects = ", ".join(f"{o.name} {o.type}" for o in scene.objects)
+    return f"wrote {path}: {len(scene.objects)} objects ({objects})"
 
 
 def load_scene_file(path: str):
@@ -63,6 +78,8 @@ def cmd_act(args: argparse.Namespace) -> dict:
     from drake_symplan.actions import Action
 
     # Inputs first, so that bad ones are told before Drake is loaded.
+    check_output_file(args.record, "--record")
+    check_output_file(args.out, "--out")
     scene = load_scene_file(args.scene)
     action = Action.parse(args.pick, args.place)
     for name in (action.source, action.target):
@@ -85,8 +102,30 @@ def cmd_act(args: argparse.Namespace) -> dict:
         result["recording"] = args.record
     if not args.json:
         print(f"{action}: {outcome.status} in {outcome.seconds:.2f} s {outcome.message}")
-    # infeasible (no IK solution) or sim_failure: the action could not be done.
-    return result if outcome.status == "ok" else NegativeAnswer(result)
+    written = args.out is not None and _write_after(station, args.out, args.json)
+    if written:
+        result["out"] = args.out
+    # infeasible (no IK solution) or sim_failure: the action could not be done; a scene
+    # after it that is no valid scene file is not written.
+    ok = outcome.status == "ok" and (args.out is None or written)
+    return result if ok else NegativeAnswer(result)
+
+
+def _write_after(station, path: str, quiet: bool) -> bool:
+    """Writes the scene the simulator holds (the world after the action) to `path`, as
+    `scene sample` writes one; False, told on stderr, when it is no valid scene."""
+    from drake_symplan.world.scenes import SceneError, as_saved, save_scene, scene_from_poses
+
+    try:
+        scene = as_saved(scene_from_poses(station.object_poses(), dict(station.types)))
+    except SceneError as e:
+        print(f"symplan act: the scene after the action is not a valid scene file ({e}); "
+              f"nothing written to {path}", file=sys.stderr)
+        return False
+    save_scene(scene, path)
+    if not quiet:
+        print(scene_line(path, scene))
+    return True
 
 
 def _belief(spec):

@@ -41,9 +41,9 @@ from tqdm import tqdm
 
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
 from drake_symplan.data import storage
-from drake_symplan.data.exploration import OUTCOMES, EpisodeConfig, random_choice, run_episode
+from drake_symplan.data.exploration import EpisodeConfig, random_choice, run_episode
+from drake_symplan.data.packing import pack
 from drake_symplan.data.stats import dataset_stats
-from drake_symplan.datasets import TransitionArrays
 from drake_symplan.robot.backends import BACKENDS, make_backend
 from drake_symplan.world.cameras import DepthNoise
 from drake_symplan.world.station import TIME_STEP
@@ -78,6 +78,9 @@ class CollectConfig:
             raise ValueError(f"unknown back-end {self.backend!r}; expected one of {tuple(BACKENDS)}")
         if self.transitions < 1 or self.chunk_size < 1 or self.episode_length < 1:
             raise ValueError("transitions, chunk_size and episode_length must be positive")
+        if not 0 < self.time_step < math.inf:
+            raise ValueError(f"time_step must be a positive number of seconds, got "
+                             f"{self.time_step}")
         if not 2 <= self.min_objects <= self.max_objects <= 8:
             raise ValueError(f"objects must satisfy 2 <= min <= max <= 8, got "
                              f"{self.min_objects}-{self.max_objects}")
@@ -156,54 +159,6 @@ def run_chunk(backend, config: CollectConfig, c: int, on_transition=None, choose
             "phase_seconds": {k: round(v - phases0[k], 3)
                               for k, v in backend.seconds().items()}}
     return arrays, extra, info
-
-
-EXPLORE_MODES = ("random", "disagreement", "goal", "uncovered")  # explorers/active.py
-
-
-def pack(transitions, modes: bool = False) -> tuple[TransitionArrays, dict[str, np.ndarray]]:
-    """Transitions padded to their largest object count, plus per-transition extras (with
-    `modes`, "explore_mode": the index in EXPLORE_MODES of how each action was chosen)."""
-    n = max(len(t.names) for t in transitions)
-    d = transitions[0].state.shape[1]
-    T = len(transitions)
-    state = np.zeros((T, n, d), np.float32)
-    next_state = np.zeros((T, n, d), np.float32)
-    action = np.zeros((T, n, transitions[0].action.shape[1]), np.float32)
-    effect = np.zeros((T, n, transitions[0].effect.shape[1]), np.float32)
-    mask = np.zeros((T, n), bool)
-    for i, t in enumerate(transitions):
-        k = len(t.names)
-        state[i, :k], next_state[i, :k] = t.state, t.next_state
-        action[i, :k], effect[i, :k], mask[i, :k] = t.action, t.effect, True
-    arrays = TransitionArrays(state, action, effect, mask,
-                              np.array([t.episode for t in transitions], np.int64), next_state)
-    extra = {"outcome": np.array([OUTCOMES.index(t.outcome) for t in transitions], np.int8),
-             "step": np.array([t.step for t in transitions], np.int32)}
-    if modes:
-        extra["explore_mode"] = np.array([EXPLORE_MODES.index(t.mode) for t in transitions],
-                                         np.int8)
-    if all(t.scene is not None for t in transitions):
-        extra.update(scene_extras([t.scene for t in transitions], n))
-    return arrays, extra
-
-
-def scene_extras(scenes, n: int) -> dict[str, np.ndarray]:
-    """The per-transition scene arrays stored beside the transitions (exploration.SceneRecord):
-    scene_state / scene_next_state [T, 8, d_o], scene_mask [T, 8], scene_contacts /
-    scene_next_contacts [T, 8, 8], scene_slots [T, n] (-1 for padding), chain [T]."""
-    slots = np.full((len(scenes), n), -1, np.int8)
-    for i, sc in enumerate(scenes):
-        slots[i, :len(sc.slots)] = sc.slots
-    return {
-        "scene_state": np.stack([sc.state for sc in scenes]),
-        "scene_next_state": np.stack([sc.next_state for sc in scenes]),
-        "scene_mask": np.stack([sc.mask for sc in scenes]),
-        "scene_contacts": np.stack([sc.contacts for sc in scenes]),
-        "scene_next_contacts": np.stack([sc.next_contacts for sc in scenes]),
-        "scene_slots": slots,
-        "chain": np.array([sc.chain for sc in scenes], np.int16),
-    }
 
 
 # --- workers ---------------------------------------------------------------------------

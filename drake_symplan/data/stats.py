@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from pathlib import Path
 
@@ -26,6 +25,7 @@ import numpy as np
 
 from drake_symplan.data import storage
 from drake_symplan.data.exploration import DROP_REASONS, OUTCOMES
+from drake_symplan.json_files import parse_json
 
 PERCEPTION_FAILURES = ("perception_count_mismatch", "perception_lost_object")
 
@@ -51,7 +51,7 @@ def dataset_stats(data_dir: str | Path) -> dict:
         if "outcome" in z:
             outcomes.update(OUTCOMES[int(i)] for i in z["outcome"])
         if "info" in z:
-            info = json.loads(str(z["info"]))
+            info = parse_json(str(z["info"]), f"shard {path}: its info")
             executed.update(info["executed_outcomes"])
             ends.update(info["episode_ends"])
             skipped.update(info["skipped_transitions"])

@@ -24,6 +24,7 @@ from drake_symplan.atomic import write_atomic
 from drake_symplan.data import storage
 from drake_symplan.data.collect import CollectConfig, collect
 from drake_symplan.explorers.active import ActiveConfig, ActiveExplorer
+from drake_symplan.json_files import read_json
 from drake_symplan.learning.checkpoint import BEST, LAST, load_run
 from drake_symplan.learning.readout import readout_scenes
 from drake_symplan.learning.trainer import TrainConfig, train
@@ -72,7 +73,7 @@ def collect_active(out_dir: str | Path, config: CollectConfig, workers: int | No
                                rate_per_s=round(new / wall, 3) if wall > 0 else None)
     manifest = storage.read_manifest(out_dir)
     manifest["active_rounds"] = [
-        json.loads((round_dir(out_dir, k) / "explorer.json").read_text())
+        read_json(round_dir(out_dir, k) / "explorer.json")
         for k in range(1, r + 1)]
     storage.write_manifest(out_dir, manifest)
     summary["active_rounds"] = manifest["active_rounds"]
@@ -85,7 +86,7 @@ def load_explorer(out_dir: Path, r: int, config: CollectConfig, active: ActiveCo
     where = round_dir(out_dir, r)
     if not (where / "explorer.json").is_file():
         learn_round(out_dir, r, config, active, say)
-    record = json.loads((where / "explorer.json").read_text())
+    record = read_json(where / "explorer.json")
     return ActiveExplorer(ModelBundle.load(where / "bundle", allow_empty=True), active, record["predicates"])
 
 

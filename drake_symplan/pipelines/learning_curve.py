@@ -17,6 +17,7 @@ import json
 from pathlib import Path
 
 from drake_symplan.atomic import write_atomic
+from drake_symplan.json_files import read_json
 from drake_symplan.pipelines.stages import Stage, StageRunner
 
 EXPLORERS = ("random", "active")
@@ -197,7 +198,7 @@ class LearningCurve(StageRunner):
         table = {f"{EXPLORERS[e]} {size}": entry for e, size, entry in points}
         rows = {f"{EXPLORERS[e]}_{size}": entry for e, size, entry in points}
         planning = self.results / "planning.json"
-        arm = summarise_planning(json.loads(planning.read_text())) \
+        arm = summarise_planning(read_json(planning)) \
             if planning.is_file() else None
         write_atomic(self.results / "curve.json", json.dumps(
             {"scale": dc.asdict(self.scale), "points": rows, "arm": arm}, indent=1))

@@ -26,6 +26,7 @@ from pathlib import Path
 # collection: Drake and torch) is imported inside the functions that need it.
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.atomic import write_atomic
+from drake_symplan.json_files import read_json
 from drake_symplan.pipelines.stages import Stage, StageFailed, StageRunner
 from drake_symplan.shards import fingerprint
 
@@ -244,7 +245,7 @@ class Reproduction(StageRunner):
 
     def _write_provenance(self, seconds: float) -> None:
         path = self.out / "provenance.json"
-        earlier = json.loads(path.read_text()) if path.exists() else {}
+        earlier = read_json(path) if path.exists() else {}
         sittings = earlier.get("sittings", []) + [{
             "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "seconds": round(seconds, 1),
             "stages": self.log}]

@@ -13,6 +13,7 @@ import numpy as np
 from drake_symplan.agent.evaluation import MODES, plot_planning, read_records, run_label, summarise
 from drake_symplan.agent.problems import load_problems
 from drake_symplan.atomic import write_atomic
+from drake_symplan.json_files import read_json
 
 
 def stat(values) -> dict:
@@ -51,7 +52,7 @@ def collect_operator_reports(runs: Path) -> dict:
     for path in sorted(Path(runs).glob("*_s*/bundle_*/eval.json")):
         variant = path.parents[1].name.rsplit("_s", 1)[0]
         learner = path.parent.name.removeprefix("bundle_")
-        rows[(variant, learner)].append(json.loads(path.read_text()))
+        rows[(variant, learner)].append(read_json(path))
     return rows
 
 
@@ -174,7 +175,7 @@ def finished_planning(rep) -> tuple[dict, str]:
     in its records so far, summarised the same way."""
     res = rep.results
     if (res / "planning.json").exists():
-        return json.loads((res / "planning.json").read_text()), ""
+        return read_json(res / "planning.json"), ""
     records = read_records(res / "planning.jsonl")
     problems = {str(Path(p["dir"])) for p in load_problems(rep.out / "problems")} \
         if (rep.out / "problems").is_dir() else set()
@@ -206,7 +207,7 @@ def modes_planning(rep, planning_result: dict) -> dict:
     for stage in rep.mode_stages():
         if stage.done.exists():
             mode = stage.argv[stage.argv.index("--planning") + 1]
-            for summary in json.loads(stage.done.read_text())["runs"].values():
+            for summary in read_json(stage.done)["runs"].values():
                 runs[mode].update(summary)
     return summarise_planning({"runs": runs}) if len(runs) > 1 else {}
 
@@ -234,7 +235,7 @@ def write_results(rep) -> Path:
     """results.md (and operators_table.json, planning_table.json, planning_modes_table.json)
     of a reproduce.Reproduction."""
     res = rep.results
-    effects = json.loads((res / "effects.json").read_text())
+    effects = read_json(res / "effects.json")
     operators = summarise_operators(collect_operator_reports(rep.out / "runs"))
     planning_result, planning_note = finished_planning(rep)
     planning = summarise_planning(planning_result)
@@ -242,7 +243,7 @@ def write_results(rep) -> Path:
     write_atomic(res / "operators_table.json", json.dumps(operators, indent=1))
     write_atomic(res / "planning_table.json", json.dumps(planning, indent=1))
     write_atomic(res / "planning_modes_table.json", json.dumps(modes, indent=1))
-    rollouts = [json.loads(st.done.read_text()) for st in rep.rollout_stages()
+    rollouts = [read_json(st.done) for st in rep.rollout_stages()
                 if st.done.exists()]
     s = rep.scale
     text = "\n".join([

@@ -24,6 +24,7 @@ from importlib import resources
 from pathlib import Path
 
 from drake_symplan.atomic import write_atomic
+from drake_symplan.json_files import read_json, type_name
 from drake_symplan.learning.checkpoint import (
     BEST,
     load_run,
@@ -86,10 +87,18 @@ def operators_json(operators: list[LiftedOperator], semantics: Semantics, info: 
 def read_operators_json(data: dict) -> tuple[list[LiftedOperator], Semantics, dict]:
     """(operators, semantics, info) of operators.json; version 1 (bundles written before
     the version field) is read too. ValueError on anything else."""
+    if not isinstance(data, dict):
+        raise ValueError(f"operators.json holds {type_name(data)}, not an object")
     version = data.get("version", 1)
     if version not in (1, OPERATORS_VERSION):
         raise ValueError(f"operators.json version {version} is not one this code reads "
                          f"(1, {OPERATORS_VERSION})")
+    for key, kind in (("operators", "list"), ("semantics", "object")):
+        if not isinstance(data.get(key), list if kind == "list" else dict):
+            raise ValueError(f"operators.json has no {key} {kind}")
+    missing = [k for k in ("n_unary", "n_relations") if k not in data]
+    if missing:
+        raise ValueError(f"operators.json lacks {missing}")
     scale = data.get("cost_scale", 10.0)
     operators = [LiftedOperator.from_dict(d, scale) for d in data["operators"]]
     semantics = Semantics(**{"degree": False, "guess_uncertain": False, **data["semantics"]})
@@ -138,16 +147,16 @@ class ModelBundle:
                 raise BundleError(f"model directory {path} has no {name}")
         try:
             operators, semantics, info = read_operators_json(
-                json.loads((path / "operators.json").read_text()))
+                read_json(path / "operators.json", expect=object))
             model = model_from_checkpoint(read_checkpoint(path / "model.pt")).eval()
             continuous = models_from_file(path / CONTINUOUS) \
                 if (path / CONTINUOUS).is_file() else None
-        except (ValueError, KeyError, TypeError, OSError, RuntimeError) as e:
+        except (ValueError, KeyError, TypeError, AttributeError, OSError, RuntimeError) as e:
             raise BundleError(f"model directory {path}: cannot read it ({e})") from e
         if not operators and not allow_empty:
             raise BundleError(f"model directory {path}: operators.json holds no operators")
         prov = path / "provenance.json"
-        provenance = json.loads(prov.read_text()) if prov.is_file() else {}
+        provenance = read_json(prov) if prov.is_file() else {}
         return cls(path, model, operators, semantics, info, provenance,
                    info.get("margin", DEFAULT_MARGIN), continuous)
 

@@ -210,6 +210,21 @@ def load_scene(path: str | Path) -> Scene:
     return scene_from_yaml(path.read_text(), f"scene file {path}")
 
 
+def scene_from_poses(poses: dict, types: dict[str, str]):
+    """A scene of bodies at `poses` (name -> RigidTransform; a simulator's, e.g.
+    Station.object_poses): upright objects with their yaw, tilted ones with their full rpy."""
+    from pydrake.math import RollPitchYaw
+
+    objects = []
+    for name, X in poses.items():
+        R = X.rotation()
+        rpy = RollPitchYaw(R).vector()
+        upright = abs(R.matrix()[2, 2]) >= np.cos(TILT_TOL)
+        objects.append(ObjectSpec(name, types[name], [float(v) for v in X.translation()],
+                                  float(rpy[2]), None if upright else [float(v) for v in rpy]))
+    return Scene(objects)
+
+
 def scene_to_yaml(scene: Scene) -> str:
     lines = ["objects:"]
     for o in scene.objects:
