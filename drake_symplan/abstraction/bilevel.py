@@ -28,7 +28,7 @@ import numpy as np
 
 from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action
+from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS
 from drake_symplan.features import box_of
 from drake_symplan.planning.planners import WALL_FACTOR, cpu_used
@@ -126,7 +126,7 @@ def moves(boxes: Boxes, sources, kind: str) -> list[Reposition]:
             continue
         half_length = HALF_EXTENTS[box_of(boxes.features[i])[0]][1]
         for tgt, grasp, release in itertools.product(boxes.names, OFFSETS, OFFSETS):
-            if tgt != src and abs(OFFSET_METRES[grasp]) < half_length:
+            if tgt != src and grasp_on_box(grasp, half_length):
                 out.append(Reposition(Action(src, grasp, tgt, release), kind))
     return out
 

@@ -5,7 +5,7 @@ The effect model predicts, for the objects an action involves (its source and ta
 whatever touches them, as in training: data/exploration.py), each one's displacement at
 the end of the lift and after the release relative to where the carry put it (the effect,
 actions.py). A box predicted to rise with the hand is carried with it: the source's
-centre to the release point (the target's centre shifted along y, actions.release_shift),
+centre to the release point (the target's centre shifted along y, actions.release_centre),
 what rides on it by the same vector. Orientations are kept (a tipped box is predicted
 lying as it was), positions change, and the predicted scene's contacts come from the box
 geometry (boxes.contact_graph). Objects out of the action's reach stay. No simulator: what
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_shift, relevant_objects
+from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
 from drake_symplan.boxes import HALF_EXTENTS, contact_graph
 from drake_symplan.features import box_of
 
@@ -143,7 +143,7 @@ class ContinuousModel:
         """Positions after `action`: the effects of the involved objects `row` [m, 6]
         added to where they were, the carry added to those that rose with the hand."""
         where = boxes.where()
-        land = where[action.target][:2] + [0.0, release_shift(action)]
+        land = release_centre(where[action.target][:2], action)
         carry = np.array([*(land - where[action.source][:2]), 0.0])
         out = boxes.positions.astype(float).copy()
         for i, e in zip(row, effect, strict=True):

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan.abstraction.bilevel import equivalents
-from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action, release_shift
+from drake_symplan.actions import OFFSETS, Action, grasp_on_box, release_centre, release_shift
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
@@ -114,10 +114,9 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
         best = None
         for tgt, grasp, release in ((t, g, r) for t in boxes if t != src
                                     for g in OFFSETS for r in OFFSETS):
-            if abs(OFFSET_METRES[grasp]) >= size[1]:  # the grasp point is off the box
+            if not grasp_on_box(grasp, size[1]):
                 continue
-            shift = release_shift(Action(src, grasp, tgt, release))
-            land = boxes[tgt].position[:2] + [0.0, shift]
+            land = release_centre(boxes[tgt].position[:2], Action(src, grasp, tgt, release))
             shift = land - boxes[src].position[:2]
             miss = max(float(np.linalg.norm(boxes[n].position[:2] + shift - wanted[n][:2]))
                        for n in {src} | load - movers)
