@@ -73,6 +73,10 @@ class Boxes:
             spread = np.sqrt(self.uncertainty() ** 2 + np.asarray(spread) ** 2)
         return Boxes(self.names, features, None, spread if spread is not None else self.spread)
 
+    def half_length(self, name: str) -> float:
+        """Half the length of box `name` along its long axis (local y), by its type."""
+        return HALF_EXTENTS[box_of(self.features[self.names.index(name)])[0]][1]
+
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves
         (actions.relevant_objects)."""
@@ -131,11 +135,7 @@ class ContinuousModel:
 
     def rollout(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
         """The scenes after each action of a sequence, one applied after the other."""
-        out = []
-        for action in actions:
-            boxes = self.predict(boxes, [action])[0]
-            out.append(boxes)
-        return out
+        return rollout(self.predict, boxes, actions)
 
     @staticmethod
     def _positions(boxes: Boxes, action: Action, row: list[int], effect: np.ndarray
@@ -151,3 +151,13 @@ class ContinuousModel:
             out[i] = out[i] + e[:3] + e[3:] + (carry if lifted else 0.0)
         return out
 
+
+def rollout(predict, boxes: Boxes, actions: list) -> list[Boxes]:
+    """The scenes after each of `actions`, one applied after the other from `boxes`, by
+    `predict(boxes, actions) -> [Boxes]` (a ContinuousModel's, or anything that predicts as
+    one does)."""
+    out = []
+    for action in actions:
+        boxes = predict(boxes, [action])[0]
+        out.append(boxes)
+    return out
