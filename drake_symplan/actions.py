@@ -73,10 +73,46 @@ class Action:
         return cls(m[1], m[2], m[3], m[4])
 
 
+# ---------------------------------------------------------------- where the hand goes
+# The action's geometry, the one place every layer reads it from: the fingers close at the
+# source's centre shifted along world y by the grasp offset (whatever the box's yaw), and
+# that grasp point is released over the target's centre shifted along world y by the
+# release offset, so the two offsets compose. Positions are numpy xy or xyz centres.
+
+
+def along_y(metres: float, dims: int = 3) -> np.ndarray:
+    """`metres` along world y as an xy (`dims` 2) or xyz vector."""
+    v = np.zeros(dims)
+    v[1] = metres
+    return v
+
+
+def grasp_point(centre: np.ndarray, action: Action) -> np.ndarray:
+    """Where the fingers close on the source whose centre (xy or xyz) is `centre`."""
+    return centre + along_y(OFFSET_METRES[action.grasp], len(centre))
+
+
+def release_point(centre: np.ndarray, action: Action) -> np.ndarray:
+    """Where the grasp point is released over the target whose centre is `centre`."""
+    return centre + along_y(OFFSET_METRES[action.release], len(centre))
+
+
 def release_shift(action: Action) -> float:
     """How far along world y from the target's centre the source's centre is released: its
     grasp point goes over the target's release point (skills/pick_place.py)."""
     return OFFSET_METRES[action.release] - OFFSET_METRES[action.grasp]
+
+
+def release_centre(centre: np.ndarray, action: Action) -> np.ndarray:
+    """Where the source's centre is released over the target whose centre is `centre`: that
+    centre shifted along world y by `release_shift`."""
+    return centre + along_y(release_shift(action), len(centre))
+
+
+def grasp_on_box(grasp: str, half_length: float) -> bool:
+    """Does the grasp offset keep the grasp point on a box `half_length` long either side
+    of its centre along the offsets' axis (the caller says which half length counts)?"""
+    return abs(OFFSET_METRES[grasp]) < half_length
 
 
 def relevant_objects(scene, action: Action) -> list[str]:

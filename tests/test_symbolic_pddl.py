@@ -12,7 +12,7 @@ from drake_symplan.symbolic.pddl import (
     read_domain,
     read_problem,
 )
-from drake_symplan.symbolic.states import SymbolicState, difference_facts
+from drake_symplan.symbolic.states import SymbolicState, bit_atoms, difference_facts
 from drake_symplan.symbolic.structs import LiftedOperator
 from drake_symplan.symbolic.synthetic import Row, dataset_from_rows
 
@@ -40,6 +40,24 @@ def test_state_facts_are_closed_world_and_positive():
     assert len(facts) == 2 * 1 + 2 * 3  # P per object, K per ordered pair, no self
     assert len(s.facts(self_relations=True)) == 2 + 4 * 3
     assert difference_facts(s.objects) == [("different", "o0", "o1"), ("different", "o1", "o0")]
+
+
+def test_bits_make_one_atom_each_in_one_order_and_uncertain_bits_none():
+    unary = np.array([[1, 0], [0, 1]], bool)
+    rel = np.zeros((1, 2, 2), bool)
+    rel[0, 1, 0] = True
+    atoms, unknown = bit_atoms(unary, rel)  # over slots, no self-relations
+    assert atoms == [("p0", 0), ("not_p1", 0), ("not_p0", 1), ("p1", 1),
+                     ("not_r0", 0, 1), ("r0", 1, 0)] and unknown == []
+    named = bit_atoms(unary, rel, names=("a", "b"), self_relations=True)[0]
+    assert named[4:] == [("not_r0", "a", "a"), ("not_r0", "a", "b"), ("r0", "b", "a"),
+                         ("not_r0", "b", "b")]
+    # Uncertain bits make no atom but a key; only the objects and pairs asked for.
+    atoms, unknown = bit_atoms(unary, rel, [1], [(1, 0)], unary_uncertain=unary,
+                               relational_uncertain=~rel)
+    assert atoms == [("not_p0", 1), ("r0", 1, 0)] and unknown == [("p1", 1)]
+    assert SymbolicState(("a", "b"), unary, rel).facts() == bit_atoms(
+        unary, rel, names=("a", "b"))[0]
 
 
 def test_goal_relations_only_for_contacts():

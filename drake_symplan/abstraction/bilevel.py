@@ -27,10 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Plan
-from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action
-from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS
-from drake_symplan.features import box_of
+from drake_symplan.abstraction.continuous import Boxes, rollout
+from drake_symplan.actions import OFFSETS, Action, grasp_on_box
+from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.planning.planners import WALL_FACTOR, cpu_used
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
@@ -118,15 +117,17 @@ def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> boo
     return max(goal_errors(boxes, goal).values()) <= limit
 
 
-def moves(boxes: Boxes, sources, kind: str) -> list[Reposition]:
-    """Every pick/place of a box in `sources` onto another, at a grasp point on the box."""
+def moves(names, sources, half_length, kind: str = "reposition") -> list[Reposition]:
+    """Every pick/place of a box in `sources` onto another of `names`, at a grasp point on
+    the box (actions.grasp_on_box; `half_length(name)`: the box's half length along the
+    offsets' axis, as the caller measures it), in the order of `names` and OFFSETS."""
     out = []
-    for i, src in enumerate(boxes.names):
+    for src in names:
         if src not in sources:
             continue
-        half_length = HALF_EXTENTS[box_of(boxes.features[i])[0]][1]
-        for tgt, grasp, release in itertools.product(boxes.names, OFFSETS, OFFSETS):
-            if tgt != src and abs(OFFSET_METRES[grasp]) < half_length:
+        length = half_length(src)
+        for tgt, grasp, release in itertools.product(names, OFFSETS, OFFSETS):
+            if tgt != src and grasp_on_box(grasp, length):
                 out.append(Reposition(Action(src, grasp, tgt, release), kind))
     return out
 
@@ -149,9 +150,7 @@ class Refiner:
 
     def rollout(self, boxes: Boxes, steps: list[PlanStep]) -> Boxes:
         """The scene predicted after `steps`, one after the other, from `boxes`."""
-        for step in steps:
-            boxes = self._predict(boxes, [step])[0]
-        return boxes
+        return rollout(self._predict, boxes, steps)[-1] if steps else boxes
 
     def refine(self, skeleton: list[Step], start: Boxes, believed, goal_atoms,
                goal: dict[str, np.ndarray], budget: Budget) -> Refined | None:
@@ -182,7 +181,7 @@ class Refiner:
         if depth >= self.extra_moves or budget.spent():
             return None
         off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
-        options = moves(boxes, off, "reposition")
+        options = moves(boxes.names, off, boxes.half_length, "reposition")
         scored = sorted(zip(self._predict(boxes, options), options, strict=True),
                         key=lambda pair: max(goal_errors(pair[0], goal).values()))
         for after, option in scored[:3]:
@@ -214,7 +213,7 @@ class Refiner:
             if key in seen or len(done.steps) >= self.max_depth:
                 continue
             seen.add(key)
-            options = moves(boxes, set(boxes.names), "move")
+            options = moves(boxes.names, set(boxes.names), boxes.half_length, "move")
             for after, option in zip(self._predict(boxes, options), options, strict=True):
                 distance = h(after)
                 heapq.heappush(frontier, (len(done.steps) + 1 + self.weight * distance,

@@ -5,7 +5,7 @@ The effect model predicts, for the objects an action involves (its source and ta
 whatever touches them, as in training: data/exploration.py), each one's displacement at
 the end of the lift and after the release relative to where the carry put it (the effect,
 actions.py). A box predicted to rise with the hand is carried with it: the source's
-centre to the release point (the target's centre shifted along y, actions.release_shift),
+centre to the release point (the target's centre shifted along y, actions.release_centre),
 what rides on it by the same vector. Orientations are kept (a tipped box is predicted
 lying as it was), positions change, and the predicted scene's contacts come from the box
 geometry (boxes.contact_graph). Objects out of the action's reach stay. No simulator: what
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_shift, relevant_objects
+from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
 from drake_symplan.boxes import HALF_EXTENTS, contact_graph
 from drake_symplan.features import box_of
 
@@ -72,6 +72,10 @@ class Boxes:
         if spread is not None:
             spread = np.sqrt(self.uncertainty() ** 2 + np.asarray(spread) ** 2)
         return Boxes(self.names, features, None, spread if spread is not None else self.spread)
+
+    def half_length(self, name: str) -> float:
+        """Half the length of box `name` along its long axis (local y), by its type."""
+        return HALF_EXTENTS[box_of(self.features[self.names.index(name)])[0]][1]
 
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves
@@ -131,11 +135,7 @@ class ContinuousModel:
 
     def rollout(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
         """The scenes after each action of a sequence, one applied after the other."""
-        out = []
-        for action in actions:
-            boxes = self.predict(boxes, [action])[0]
-            out.append(boxes)
-        return out
+        return rollout(self.predict, boxes, actions)
 
     @staticmethod
     def _positions(boxes: Boxes, action: Action, row: list[int], effect: np.ndarray
@@ -143,7 +143,7 @@ class ContinuousModel:
         """Positions after `action`: the effects of the involved objects `row` [m, 6]
         added to where they were, the carry added to those that rose with the hand."""
         where = boxes.where()
-        land = where[action.target][:2] + [0.0, release_shift(action)]
+        land = release_centre(where[action.target][:2], action)
         carry = np.array([*(land - where[action.source][:2]), 0.0])
         out = boxes.positions.astype(float).copy()
         for i, e in zip(row, effect, strict=True):
@@ -151,3 +151,13 @@ class ContinuousModel:
             out[i] = out[i] + e[:3] + e[3:] + (carry if lifted else 0.0)
         return out
 
+
+def rollout(predict, boxes: Boxes, actions: list) -> list[Boxes]:
+    """The scenes after each of `actions`, one applied after the other from `boxes`, by
+    `predict(boxes, actions) -> [Boxes]` (a ContinuousModel's, or anything that predicts as
+    one does)."""
+    out = []
+    for action in actions:
+        boxes = predict(boxes, [action])[0]
+        out.append(boxes)
+    return out

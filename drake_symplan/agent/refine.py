@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.abstraction.bilevel import equivalents
-from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action, release_shift
+from drake_symplan.abstraction.bilevel import equivalents, moves
+from drake_symplan.actions import release_centre, release_shift
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
@@ -112,12 +112,8 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
     for src in sources:
         size, load = footprint(boxes[src]), loads[src]
         best = None
-        for tgt, grasp, release in ((t, g, r) for t in boxes if t != src
-                                    for g in OFFSETS for r in OFFSETS):
-            if abs(OFFSET_METRES[grasp]) >= size[1]:  # the grasp point is off the box
-                continue
-            shift = release_shift(Action(src, grasp, tgt, release))
-            land = boxes[tgt].position[:2] + [0.0, shift]
+        for move in moves(list(boxes), {src}, lambda _, length=size[1]: length):
+            land = release_centre(boxes[move.action.target].position[:2], move.action)
             shift = land - boxes[src].position[:2]
             miss = max(float(np.linalg.norm(boxes[n].position[:2] + shift - wanted[n][:2]))
                        for n in {src} | load - movers)
@@ -125,7 +121,7 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
                 continue
             if all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
                    for n, o in boxes.items() if n != src and n not in load):
-                best = (miss, Reposition(Action(src, grasp, tgt, release)))
+                best = (miss, move)
         if best is not None:
             return best[1]
     return None

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from drake_symplan.actions import OFFSET_METRES, Action
+from drake_symplan.actions import Action, grasp_point, release_point
 from drake_symplan.boxes import HALF_EXTENTS
 
 TYPE_MISMATCH_COST = 0.3  # m-equivalent
@@ -39,7 +39,7 @@ def _grasp_candidates(before, action: Action) -> list[str]:
     """Objects the closing fingers could hold: the source, and any object whose footprint
     contains the grasp point (an off-centre grasp can land on a touching neighbour)."""
     src = before.object(action.source)
-    point = src.position[:2] + [0.0, OFFSET_METRES[action.grasp]]
+    point = grasp_point(src.position[:2], action)
     names = [action.source]
     for o in before.objects:
         local = (point - o.position[:2]) @ o.R[:2, :2]
@@ -57,9 +57,7 @@ def _predictions(before, action: Action, grasped: str | None) -> np.ndarray:
     held = before.object(grasped)
     tgt = before.object(action.target)
     # TCP goes from source + grasp offset to target + release offset (skills/pick_place).
-    tcp_grasp = src.position + [0, OFFSET_METRES[action.grasp], 0]
-    tcp_release = tgt.position + [0, OFFSET_METRES[action.release], 0]
-    shift = tcp_release - tcp_grasp
+    shift = release_point(tgt.position, action) - grasp_point(src.position, action)
     # Lands on the target's top.
     shift[2] = (tgt.position[2] + (HALF_EXTENTS[tgt.type][2] + HALF_EXTENTS[held.type][2])
                 - held.position[2])

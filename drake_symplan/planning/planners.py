@@ -128,14 +128,9 @@ def _fd_message(out: str, err: str) -> str:
     return "; ".join((picked or lines)[-4:])
 
 
-def fast_downward(
-    domain,
-    problem,
-    timeout: float = DEFAULT_TIMEOUT,
-    search: str = FD_SEARCH,
-    driver: str | Path | None = None,
-    cpu_seconds: float | None = None,
-) -> PlanResult:
+def fast_downward(domain, problem, timeout: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
+                  driver: str | Path | None = None, cpu_seconds: float | None = None
+                  ) -> PlanResult:
     """Fast Downward on PDDL files, in a temporary directory, under a time limit (and a
     CPU budget, see the module docstring)."""
     start = time.perf_counter()
@@ -168,12 +163,8 @@ def fast_downward(
         return _fd_runs(runs, tmp, start, timeout, cpu_seconds)
 
 
-def fast_downward_sas(
-    sas: str,
-    timeout: float = DEFAULT_TIMEOUT,
-    search: str = FD_SEARCH,
-    cpu_seconds: float | None = None,
-) -> PlanResult:
+def fast_downward_sas(sas: str, timeout: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
+                      cpu_seconds: float | None = None) -> PlanResult:
     """Fast Downward's search on a task already translated to SAS+ text
     (planning/grounding.py), under the same limits as `fast_downward`."""
     start = time.perf_counter()
@@ -322,14 +313,9 @@ def _pyperplan_child(conn, domain: str, problem: str, search: str, heuristic: st
         conn.close()
 
 
-def pyperplan_plan(
-    domain,
-    problem,
-    timeout: float = DEFAULT_TIMEOUT,
-    search: str = "astar",
-    heuristic: str | None = "lmcut",
-    cpu_seconds: float | None = None,
-) -> PlanResult:
+def pyperplan_plan(domain, problem, timeout: float = DEFAULT_TIMEOUT, search: str = "astar",
+                   heuristic: str | None = "lmcut", cpu_seconds: float | None = None
+                   ) -> PlanResult:
     """pyperplan on PDDL files in a child process that is killed at the deadline (or
     stops at its CPU budget, see the module docstring)."""
     start = time.perf_counter()

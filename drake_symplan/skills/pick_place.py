@@ -16,7 +16,7 @@ from typing import TypeVar
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_symplan.actions import OFFSET_METRES, Action
+from drake_symplan.actions import Action, grasp_point, release_point
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.ik import ArmIK
@@ -115,8 +115,7 @@ def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGe
         if name not in objects:
             raise ValueError(f"unknown object {name!r} (objects: {sorted(objects)})")
     src, tgt = objects[action.source], objects[action.target]
-    grasp = src.position + np.array([0.0, OFFSET_METRES[action.grasp], 0.0])
-    release = tgt.position + np.array([0.0, OFFSET_METRES[action.release], 0.0])
+    grasp, release = grasp_point(src.position, action), release_point(tgt.position, action)
     release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
     carry_z = max(MIN_CARRY_HEIGHT, max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
     yaw_g = grasp_yaw(src)

@@ -32,6 +32,7 @@ import numpy as np
 from drake_symplan.actions import OFFSETS
 from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic.operators import action_roles
+from drake_symplan.symbolic.states import bit_atoms, ordered_pairs
 from drake_symplan.symbolic.structs import LiftedOperator
 from drake_symplan.symbolic.structs import bit_key as key
 
@@ -100,29 +101,13 @@ def degree_atom(n: int) -> str:
 
 
 def atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree=None):
-    """(atoms, unknown): the certain atoms, and the keys (symbol, slots) of the bits that
-    would make atoms but are uncertain."""
+    """(atoms, unknown): the certain atoms (states.bit_atoms over the real slots, relations
+    of the pairs in contact) and the keys (symbol, slots) of the uncertain bits."""
     slots = np.flatnonzero(real)
-    if contacts is None:
-        contacts = np.ones((len(real), len(real)), bool)
-    out, unknown = [], []
+    out, unknown = bit_atoms(unary, rel, slots, ordered_pairs(slots, contacts=contacts),
+                             unary_uncertain=unary_unc, relational_uncertain=rel_unc)
     if degree is not None:
         out += [(degree_atom(degree[i]), int(i)) for i in slots]
-    for i in slots:
-        for j in range(unary.shape[1]):
-            if unary_unc is None or not unary_unc[i, j]:
-                out.append((f"p{j}" if unary[i, j] else f"not_p{j}", int(i)))
-            else:
-                unknown.append((f"p{j}", int(i)))
-    for i in slots:
-        for j in slots:
-            if i == j or not contacts[i, j]:
-                continue
-            for k in range(rel.shape[0]):
-                if rel_unc is None or not rel_unc[k, i, j]:
-                    out.append((f"r{k}" if rel[k, i, j] else f"not_r{k}", int(i), int(j)))
-                else:
-                    unknown.append((f"r{k}", int(i), int(j)))
     return frozenset(out), frozenset(unknown)
 
 

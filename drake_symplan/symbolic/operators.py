@@ -21,7 +21,8 @@ import numpy as np
 from drake_symplan.actions import IS_SOURCE, IS_TARGET, OFFSETS, Action
 from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic.canonical import canonical_orders, encode, permute
-from drake_symplan.symbolic.structs import Atom, LiftedOperator
+from drake_symplan.symbolic.states import bit_atoms
+from drake_symplan.symbolic.structs import LiftedOperator
 
 # Relative thresholds reported next to the absolute one (fractions of the data size).
 # The paper's 50 of 160k training samples is about 3.1e-4.
@@ -50,28 +51,15 @@ class LearnConfig:
         return self.min_count
 
 
-def slot_facts(unary: np.ndarray, relational: np.ndarray, self_relations: bool = False
-               ) -> list[Atom]:
-    """The closed-world atoms of one canonical state over parameter slots: one per unary
-    bit ([n, P]) and one per relation bit ([K, n, n]) of every ordered pair (and of each
-    slot with itself with `self_relations`)."""
-    n = unary.shape[0]
-    out = [Atom(f"p{j}" if unary[i, j] else f"not_p{j}", i)
-           for i in range(n) for j in range(unary.shape[1])]
-    out += [Atom(f"r{k}" if relational[k, i, j] else f"not_r{k}", i, j)
-            for i in range(n) for j in range(n) if self_relations or i != j
-            for k in range(relational.shape[0])]
-    return out
-
-
 def paper_operator(index: int, grasp: str, release: str, count: int, pre: tuple,
                    post: tuple, self_relations: bool = False, **stats) -> LiftedOperator:
     """The operator of a group whose canonical state before is `pre` and whose most
     frequent state after is `post` ((unary, relational) each): the bits that differ
     become its effects, in positive-STRIPS form (a bit turning on adds `(pJ ..)` and
     deletes `(not_pJ ..)`)."""
-    before = slot_facts(*pre, self_relations)
-    after = slot_facts(*post, self_relations)
+    # The closed-world atoms of each canonical state over parameter slots.
+    before = bit_atoms(*pre, self_relations=self_relations)[0]
+    after = bit_atoms(*post, self_relations=self_relations)[0]
     changed = [(a, b) for a, b in zip(before, after, strict=True) if a != b]
     return LiftedOperator(index, grasp, release, pre[0].shape[0], before,
                           [b for _, b in changed], [a for a, _ in changed], count, **stats)

@@ -39,14 +39,44 @@ def check_name(name: str) -> str:
     return name
 
 
-def unary_atom(j: int, value: bool, x: str) -> Atom:
-    """`(pJ x)` for a true bit, `(not_pJ x)` for a false one."""
-    return Atom(f"p{j}" if value else f"not_p{j}", x)
+def ordered_pairs(objects, self_relations: bool = False, contacts=None) -> list[tuple]:
+    """The ordered pairs (i, j) of the indices `objects`, each object with itself only with
+    `self_relations`, only the pairs in contact where `contacts` [n, n] bool is given."""
+    return [(i, j) for i in objects for j in objects
+            if (self_relations or i != j) and (contacts is None or contacts[i, j])]
 
 
-def relation_atom(k: int, value: bool, x: str, y: str) -> Atom:
-    """`(rK x y)` for a true bit, `(not_rK x y)` for a false one."""
-    return Atom(f"r{k}" if value else f"not_r{k}", x, y)
+def bit_atoms(unary, relational, objects=None, pairs=None, names=None,
+              self_relations: bool = False, unary_uncertain=None, relational_uncertain=None
+              ) -> tuple[list[tuple], list[tuple]]:
+    """(atoms, unknown): a state's bits as closed-world atoms, the one place they are made.
+
+    unary [n, P], relational [K, n, n] bits. For each index i of `objects` (default: all)
+    and unary symbol j, `(pJ x)` for a true bit and `(not_pJ x)` for a false one; then for
+    each ordered index pair (i, j) of `pairs` (default: `ordered_pairs(objects,
+    self_relations)`) and relation k, `(rK x y)` / `(not_rK x y)`; x, y are `names[i]`,
+    `names[j]` (default: the indices, as slots). A bit flagged in `unary_uncertain` [n, P]
+    or `relational_uncertain` [K, n, n] makes no atom: its key (symbol, args) goes to
+    `unknown`. Plain tuples, in that order (an `Atom` compares and hashes alike)."""
+    objects = range(len(unary)) if objects is None else objects
+    pairs = ordered_pairs(objects, self_relations) if pairs is None else pairs
+    names = range(len(unary)) if names is None else names
+    out, unknown = [], []
+    for i in objects:
+        x = names[i]
+        for j in range(unary.shape[1]):
+            if unary_uncertain is None or not unary_uncertain[i, j]:
+                out.append((f"p{j}" if unary[i, j] else f"not_p{j}", x))
+            else:
+                unknown.append((f"p{j}", x))
+    for i, j in pairs:
+        x, y = names[i], names[j]
+        for k in range(relational.shape[0]):
+            if relational_uncertain is None or not relational_uncertain[k, i, j]:
+                out.append((f"r{k}" if relational[k, i, j] else f"not_r{k}", x, y))
+            else:
+                unknown.append((f"r{k}", x, y))
+    return out, unknown
 
 
 def predicate_names(n_unary: int, n_relations: int) -> tuple[list[str], list[str]]:
@@ -119,30 +149,12 @@ class SymbolicState:
         except ValueError:
             raise ValueError(f"unknown object {name!r}; objects are {self.objects}") from None
 
-    def unary_facts(self) -> list[Atom]:
-        return [
-            unary_atom(j, self.unary[i, j], o)
-            for i, o in enumerate(self.objects)
-            for j in range(self.n_unary)
-        ]
-
-    def relation_facts(
-        self, pairs: list[tuple[int, int]] | None = None, self_relations: bool = False
-    ) -> list[Atom]:
-        """Relation atoms for the ordered index pairs `pairs` (default: all of them)."""
-        n = len(self.objects)
-        if pairs is None:
-            pairs = [(i, j) for i in range(n) for j in range(n)]
-        return [
-            relation_atom(k, self.relational[k, i, j], self.objects[i], self.objects[j])
-            for i, j in pairs
-            if self_relations or i != j
-            for k in range(self.n_relations)
-        ]
-
-    def facts(self, self_relations: bool = False) -> list[Atom]:
-        """The full closed-world state: one atom per bit."""
-        return self.unary_facts() + self.relation_facts(self_relations=self_relations)
+    def facts(self, self_relations: bool = False, pairs=None) -> list[Atom]:
+        """The full closed-world state: one atom per bit (`bit_atoms`), relations of the
+        index `pairs` only where given."""
+        atoms = bit_atoms(self.unary, self.relational, pairs=pairs, names=self.objects,
+                          self_relations=self_relations)[0]
+        return [Atom.of(a) for a in atoms]
 
     def goal_facts(
         self, contacts: set[tuple[str, str]] | None, self_relations: bool = False
@@ -165,7 +177,7 @@ class SymbolicState:
             pairs.update({(i, j), (j, i)})
         if self_relations:
             pairs.update((i, i) for i in range(n))
-        return self.unary_facts() + self.relation_facts(sorted(pairs), self_relations)
+        return self.facts(self_relations, sorted(pairs))
 
 
 def difference_facts(objects: tuple[str, ...] | list[str]) -> list[Atom]:
