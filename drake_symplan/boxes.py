@@ -1,9 +1,11 @@
 """The boxes' geometry, in one place for every layer: object types, sizes, yaw symmetry,
-and which boxes touch (the contact graph perception reports and the continuous model
-predicts). A long block's long axis is its local y. No Drake and no torch here.
+which boxes touch (the contact graph perception reports and the continuous model
+predicts), and the goal check (`goal_reached`). A long block's long axis is its local y. No Drake and no torch here.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -27,6 +29,24 @@ def fold_yaw(yaw: float, period: float) -> float:
 
 
 GOAL_TOLERANCE = 0.05  # m: a goal is reached when every box is this near its goal position
+
+
+def goal_distances(where: Mapping[str, np.ndarray], goal: Mapping[str, np.ndarray],
+                   spread: Mapping[str, float] | None = None) -> dict[str, float]:
+    """Per goal box, its distance (m) from `where` (positions by name) to its goal
+    position, plus its `spread` (how unsure a predicted position is) where given."""
+    spread = spread or {}
+    return {n: float(np.linalg.norm(where[n] - goal[n]) + spread.get(n, 0.0)) for n in goal}
+
+
+def goal_reached(distances: Mapping[str, float | None],
+                 tolerance: float = GOAL_TOLERANCE) -> bool:
+    """The goal check, the one place it is written: is every box within `tolerance` of
+    its goal? `distances` (m) by name (goal_distances), None for a box not seen; no
+    boxes, no goal reached. The agent's check on the perceived scene, the monitor's at a
+    plan's end, and bilevel planning's in prediction (with a margin) all ask it."""
+    return bool(distances) and all(d is not None and d <= tolerance
+                                   for d in distances.values())
 
 CONTACT_TOLERANCE = 0.006  # m; perceived boxes are a few mm off, sampled objects >= 2 cm apart
 

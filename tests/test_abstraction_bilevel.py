@@ -10,12 +10,13 @@ from types import SimpleNamespace
 import numpy as np
 import torch
 
-from drake_symplan.abstraction.abstraction import Plan
-from drake_symplan.abstraction.bilevel import PENALTY, Budget, Refiner, plan_bilevel
+from drake_symplan.abstraction.abstraction import Observation, Plan
+from drake_symplan.abstraction.bilevel import PENALTY, Refiner, Search, plan_bilevel
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
 from drake_symplan.actions import Action, release_shift
-from drake_symplan.agent.planning_modes import Planner
+from drake_symplan.agent.planning_modes import BilevelMode, PlanningMode, SymbolicMode
 from drake_symplan.features import object_features
+from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import LiftedOperator, Reposition, Step
 
 ON = (("on", 0, 1),)
@@ -51,8 +52,7 @@ class Skeletons:
     def __init__(self, *plans):
         self.plans = list(plans)
 
-    def plan(self, start, goal, planner, timeout, focus=True, cpu_seconds=None,
-             penalties=None):
+    def plan(self, start, goal, planner, budget, focus=True, penalties=None):
         return self.plans.pop(0) if self.plans else Plan("unsolvable")
 
     def believed(self, reading):
@@ -65,10 +65,15 @@ class Skeletons:
 START = boxes(a=(0.5, 0.2, 0.025), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
 
 
-def solve(abstraction, goal: Boxes, extra_moves=0, planning="bilevel", alternatives=0):
+def observed(scene: Boxes) -> Observation:
+    """A scene as planning gets it, its boxes alone (the fakes read no symbols)."""
+    return Observation(None, None, scene)
+
+
+def solve(abstraction, goal: Boxes, extra_moves=0, skeletons=True, alternatives=0):
     refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=extra_moves)
-    return plan_bilevel(abstraction, refiner, None, None, START, goal, planning,
-                        budget=Budget(10.0, 30.0), alternatives=alternatives)
+    return plan_bilevel(abstraction, refiner, observed(START), observed(goal),
+                        Budget(10.0, 30.0), Search(skeletons, alternatives=alternatives))
 
 
 def test_a_skeleton_whose_predicted_end_misses_the_goal_is_rejected_for_one_that_meets_it():
@@ -91,8 +96,7 @@ class Penalized(Skeletons):
         super().__init__()
         self.asked = []
 
-    def plan(self, start, goal, planner, timeout, focus=True, cpu_seconds=None,
-             penalties=None):
+    def plan(self, start, goal, planner, budget, focus=True, penalties=None):
         self.asked.append(dict(penalties or {}))
         target = "c" if ("a", "b") in (penalties or {}) else "b"
         return Plan("solved", [Step(STACK["center"], ("a", target))])
@@ -137,7 +141,7 @@ def test_the_continuous_fallback_finds_a_two_step_plan_the_symbols_cannot():
                                                Action("a", "center", "b", "center")]
     assert all(isinstance(s, Reposition) and s.kind == "move" for s in found.steps)
     assert [c.source for c in found.candidates] == ["skeleton 1", "skeleton 2", "continuous"]
-    assert solve(Skeletons(), tower, planning="continuous").steps == found.steps
+    assert solve(Skeletons(), tower, skeletons=False).steps == found.steps
 
 
 class Slow(Skeletons):
@@ -185,8 +189,8 @@ def test_with_nothing_verified_the_first_skeleton_runs_on_its_symbols():
     goal = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
     on_b = Plan("solved", [Step(STACK["center"], ("a", "b"))])
     refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=0, max_depth=0)
-    found = plan_bilevel(Skeletons(on_b), refiner, None, None, START, goal,
-                         budget=Budget(10.0, 30.0))
+    found = plan_bilevel(Skeletons(on_b), refiner, observed(START), observed(goal),
+                         Budget(10.0, 30.0))
     assert found.solved and found.level == "symbolic" and found.steps == on_b.steps
     assert "runs on its symbols" in found.message
     assert [c.accepted for c in found.candidates] == [False, False, False]
@@ -228,12 +232,12 @@ def test_a_plan_whose_end_is_uncertain_is_not_accepted_however_close_its_mean():
                  b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
     left = Plan("solved", [Step(STACK["left"], ("a", "c"))])
     sure = plan_bilevel(Skeletons(left), Refiner(list(STACK.values()), Stacking(),
-                                                 extra_moves=0), None, None, START, goal,
-                        budget=Budget(10.0, 30.0))
+                                                 extra_moves=0), observed(START), observed(goal),
+                        Budget(10.0, 30.0))
     assert sure.level == "bilevel" and sure.candidates[0].errors_cm["a"] == 0.0
     unsure = plan_bilevel(Skeletons(left), Refiner(list(STACK.values()), Unsure(),
                                                    extra_moves=0, max_depth=0),
-                          None, None, START, goal, budget=Budget(10.0, 30.0))
+                          observed(START), observed(goal), Budget(10.0, 30.0))
     assert unsure.level == "symbolic"  # nothing verified: the skeleton runs on its symbols
     assert unsure.candidates[0].errors_cm["a"] == 5.0  # the mean on the goal, 5 cm unsure
 
@@ -241,13 +245,13 @@ def test_a_plan_whose_end_is_uncertain_is_not_accepted_however_close_its_mean():
 def test_when_nothing_reaches_the_goal_the_steps_predicted_nearest_it_run():
     tower = boxes(a=(0.7, 0.0, 0.125), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
     refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=0, max_depth=1)
-    found = plan_bilevel(Skeletons(Plan("solved", [])), refiner, None, None, START, tower,
-                         budget=Budget(10.0, 30.0))  # the goal's symbols hold already
+    found = plan_bilevel(Skeletons(Plan("solved", [])), refiner, observed(START),
+                         observed(tower), Budget(10.0, 30.0))  # the goal's symbols hold already
     assert found.solved and found.level == "nearest" and "nearest" in found.message
     assert [s.action for s in found.steps] == [Action("b", "center", "c", "center")]
     # Nothing nearer than the start: the empty plan stands (the agent then fails honestly).
-    assert not plan_bilevel(Skeletons(Plan("solved", [])), refiner, None, None, START,
-                            START, budget=Budget(10.0, 30.0)).steps
+    assert not plan_bilevel(Skeletons(Plan("solved", [])), refiner, observed(START),
+                            observed(START), Budget(10.0, 30.0)).steps
 
 
 class Seen:
@@ -264,8 +268,9 @@ class Seen:
 
 
 def test_a_miss_the_rest_of_the_plan_absorbs_costs_no_replan():
-    planner = object.__new__(Planner)  # the monitor alone: no abstraction needed
-    planner.refiner, planner.level = Refiner(list(STACK.values()), Stacking()), "bilevel"
+    planner = object.__new__(BilevelMode)  # the monitor alone: no abstraction needed
+    planner.refiner = Refiner(list(STACK.values()), Stacking())
+    planner.last = Plan("solved", level="bilevel")
     tower = boxes(a=(0.7, 0.0, 0.075), b=(0.7, 0.0, 0.125), c=(0.7, 0.0, 0.025))
     steps = [Reposition(Action("a", "center", "c", "center"), "move"),
              Reposition(Action("b", "center", "a", "center"), "move")]
@@ -277,19 +282,19 @@ def test_a_miss_the_rest_of_the_plan_absorbs_costs_no_replan():
         return Seen(predicted.moved(where))
 
     def departs(scene):
-        return planner.departs(steps[0], predicted, None, scene, steps[1:], None, None,
-                               Seen(tower))
+        return planner.departs(steps[0], predicted, observe(scene), steps[1:], None, None,
+                               observe(Seen(tower)))
 
     assert not departs(seen(0.0))
     # 3.5 cm off: over the 3 cm deviation, but b follows a and both end within 4 cm.
     assert not departs(seen(0.035))
     assert departs(seen(0.06))  # 6 cm off: the rest cannot make up for it; replan
-    assert not planner.departs(steps[1], predicted, None, seen(0.06), [], None, None,
-                               Seen(tower))  # the last step: the goal check decides
+    assert not planner.departs(steps[1], predicted, observe(seen(0.06)), [], None, None,
+                               observe(Seen(tower)))  # the last step: the goal check decides
 
 
 def test_the_plans_end_is_checked_on_positions_unless_planning_is_symbolic():
-    from drake_symplan.agent.config import SolveConfig
+    from drake_symplan.agent.planning_modes import PLANNING_MODES
 
     goal = boxes(a=(0.7, 0.0, 0.075), b=(0.7, 0.0, 0.025))
     off = boxes(a=(0.7, 0.08, 0.075), b=(0.7, 0.0, 0.025))  # a on b, 8 cm along it
@@ -298,9 +303,34 @@ def test_the_plans_end_is_checked_on_positions_unless_planning_is_symbolic():
         def goal_holds(self, reading, atoms):
             return True  # the symbols say "a on b" for both scenes
 
-    planner = object.__new__(Planner)
-    planner.abs, planner.level = AtomsHold(), "symbolic"  # a skeleton run on its symbols
     for planning, seen in (("symbolic", True), ("bilevel", False), ("continuous", False)):
-        planner.config = SolveConfig(planning=planning)
-        assert planner.goal_seen(None, frozenset(), Seen(off), Seen(goal)) is seen, planning
-        assert planner.goal_seen(None, frozenset(), Seen(goal), Seen(goal))
+        planner = object.__new__(PLANNING_MODES[planning])
+        planner.abs = AtomsHold()
+        planner.last = Plan("solved", level="symbolic")  # a skeleton run on its symbols
+        assert planner.goal_seen(observe(Seen(off)), frozenset(), observe(Seen(goal))) is seen
+        assert planner.goal_seen(observe(Seen(goal)), frozenset(), observe(Seen(goal)))
+
+
+def observe(scene: Seen) -> Observation:
+    """A perceived scene as the monitor gets it (no symbols read)."""
+    return Observation(scene, None, Boxes.of(scene))
+
+
+def test_each_mode_is_one_registered_class_whose_flags_say_what_it_needs():
+    from drake_symplan.agent.config import SolveConfig
+    from drake_symplan.agent.planning_modes import PLANNING_MODES, mode_names
+
+    assert tuple(PLANNING_MODES) == ("bilevel", "symbolic", "continuous", "oracle")
+    assert all(issubclass(m, PlanningMode) and m.name == n for n, m in PLANNING_MODES.items())
+    assert mode_names() == ("bilevel", "symbolic", "continuous")  # solve has no actions
+    assert mode_names(recorded_actions=True) == tuple(PLANNING_MODES)
+    assert [n for n, m in PLANNING_MODES.items() if m.needs_refiner] == ["bilevel",
+                                                                        "continuous"]
+    assert [n for n, m in PLANNING_MODES.items() if m.open_loop_only] == ["oracle"]
+    assert SymbolicMode.needs_refiner is False
+    try:
+        SolveConfig(planning="nowhere")
+    except ValueError as e:
+        assert "bilevel" in str(e)
+    else:
+        raise AssertionError("an unknown mode passed")

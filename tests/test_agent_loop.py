@@ -147,11 +147,11 @@ class OracleAbstraction(Abstraction):
         pairs = {p for a, b in goal.contacts for p in ((a, b), (b, a))}
         return frozenset(a for a in self._atoms(goal, pairs) if a[0] == "on")
 
-    def plan(self, start, goal, planner="fd", timeout=10.0, focus=True, cpu_seconds=None):
+    def plan(self, start, goal, planner="fd", budget=None, focus=True, penalties=None):
         self.plans += 1
         if self.fail_replans and self.plans > 1:
             return Plan("error", message="forced")
-        return super().plan(start, goal, planner, timeout, focus, cpu_seconds)
+        return super().plan(start, goal, planner, budget, focus, penalties)
 
     def mismatches(self, after, step):
         if self.force_mismatches > 0:

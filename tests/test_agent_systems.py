@@ -26,7 +26,7 @@ def test_solves_a_cube_onto_cube_goal_with_the_arm():
                    ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
     goal = Scene([ObjectSpec("o0", "cube", [0.80, 0.10, 0.075]),
                   ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
-    result = solve(start, goal, Abstraction(bundle), SolveConfig("fd", timeout=30.0))
+    result = solve(start, goal, Abstraction(bundle), SolveConfig("fd", cpu_seconds=30.0))
     out = result.to_json()
     assert result.status == "success", out
     assert result.executed, out

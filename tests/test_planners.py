@@ -104,7 +104,7 @@ def _processes_mentioning(text: str) -> list[int]:
 @pytest.mark.parametrize("backend", sorted(PLANNERS))
 def test_timeout_stops_the_planner(backend, hanoi_files):
     result = plan(hanoi_files / "domain.pddl", hanoi_files / "p16.pddl", backend,
-                  timeout=1.0, **({"search": "astar(blind())"} if backend == "fd" else {}))
+                  wall_seconds=1.0, **({"search": "astar(blind())"} if backend == "fd" else {}))
     assert result.status == "timeout", result
     assert result.seconds < 5.0
     assert multiprocessing.active_children() == []
@@ -277,6 +277,6 @@ def test_a_cpu_budget_stops_the_planner_before_its_wall_clock_cap(planner):
                                  costs=costs)
     t0 = time.perf_counter()
     result = plan_pddl(bundle.domain if costs else bundle.domain_strips, problem, planner,
-                       timeout=60.0, cpu_seconds=1.0)
+                       wall_seconds=60.0, cpu_seconds=1.0)
     assert result.status == "timeout", result
     assert time.perf_counter() - t0 < 20.0  # far inside the wall-clock cap

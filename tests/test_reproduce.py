@@ -180,7 +180,7 @@ def test_small_scale_end_to_end_then_a_goal_in_the_arm(tmp_path):
                    ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
     goal = Scene([ObjectSpec("o0", "cube", [0.80, 0.10, 0.075]),
                   ObjectSpec("o1", "cube", [0.80, 0.10, 0.025])])
-    result = solve(start, goal, Abstraction(bundle), SolveConfig("fd", timeout=30.0))
+    result = solve(start, goal, Abstraction(bundle), SolveConfig("fd", cpu_seconds=30.0))
     assert result.status == "success", result.to_json()
     assert all(o["error_cm"] <= 5.0 for o in result.objects.values())
 

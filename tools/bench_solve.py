@@ -7,8 +7,8 @@ planning mode on the same perceived scenes.
 
 Per problem: perceive the goal scene and the start scene (depth cameras, box fitting,
 naming after the scene files) and read both scenes' symbols with the model bundle, once;
-then plan in each mode as the agent does (agent/planning_modes.Planner: the symbolic
-planner, skeletons refined with the continuous model, the continuous search). A mode's
+then plan in each mode as the agent does (agent/planning_modes.PLANNING_MODES: the
+symbolic planner, skeletons refined with the continuous model, the continuous search). A mode's
 planning time is perception + symbols + its own plan; putting a scene on the table and
 letting physics settle it (the simulator's part, `show`) is reported apart. Medians over
 the problems, each mode's median as a multiple of the first mode's, and where its plan
@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_symplan.agent.config import PLANNING
+from drake_symplan.agent.planning_modes import mode_names
 from drake_symplan.cli.options import add_planner_arguments
 
 TARGETS_S = {4: 1.0, 8: 5.0}  # the median planning time with up to N objects
@@ -61,14 +61,13 @@ def bench_problem(agent, abstraction, folder: Path, planners: dict) -> dict:
         scenes[key] = agent.see(scene)
         seconds["perceive"] += time.perf_counter() - t
     t = time.perf_counter()
-    readings = {k: abstraction.read_scene(s.scene) for k, s in scenes.items()}
+    seen = {k: abstraction.observe(s.scene) for k, s in scenes.items()}
     seconds["symbols"] = time.perf_counter() - t
     shared = sum(seconds[p] for p in PHASES)
     modes = {}
     for mode, planner in planners.items():
         t = time.perf_counter()
-        found = planner.plan(readings["start"], readings["goal"], scenes["start"].scene,
-                             scenes["goal"].scene)
+        found = planner.plan(seen["start"], seen["goal"])
         plan_s = time.perf_counter() - t
         modes[mode] = {"status": found.status, "level": found.level,
                        "plan_length": len(found.steps), "plan_s": round(plan_s, 4),
@@ -83,7 +82,7 @@ def spent(found) -> dict[str, float]:
     the continuous search (abstraction/bilevel.py's candidates; none in symbolic mode)."""
     out = dict.fromkeys(SPENT, 0.0)
     for c in found.candidates:
-        out["search" if c.source == "continuous" else "skeletons"] += c.seconds
+        out["search" if c.searched else "skeletons"] += c.seconds
     return {k: round(v, 4) for k, v in out.items()}
 
 
@@ -121,7 +120,7 @@ def main(argv=None) -> int:
     parser.add_argument("--count", type=int, default=20)
     parser.add_argument("--objects", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--planning", nargs="+", choices=PLANNING,
+    parser.add_argument("--planning", nargs="+", choices=mode_names(),
                         default=["bilevel", "continuous", "symbolic"],
                         help="the planning modes to time, on the same perceived scenes")
     add_planner_arguments(parser, per_plan=True)
@@ -131,15 +130,15 @@ def main(argv=None) -> int:
 
     from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.config import SolveConfig
-    from drake_symplan.agent.planning_modes import Planner
+    from drake_symplan.agent.planning_modes import make_planner
     from drake_symplan.agent.problems import load_problems, make_problems
     from drake_symplan.agent.solve import Agent
     from drake_symplan.cli.agent_cmds import load_bundle
 
     bundle = load_bundle(args.model)
     abstraction = Abstraction(bundle)
-    planners = {mode: Planner(abstraction, SolveConfig(planner=args.planner,
-                                                       timeout=args.timeout, planning=mode))
+    planners = {mode: make_planner(abstraction, SolveConfig(
+        planner=args.planner, cpu_seconds=args.timeout, planning=mode))
                 for mode in args.planning}
     t = time.perf_counter()
     agent = Agent("arm")

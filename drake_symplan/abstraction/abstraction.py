@@ -19,15 +19,11 @@ from functools import partial
 
 import numpy as np
 
+from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.learning.readout import read_symbols
+from drake_symplan.planning.budget import Budget
 from drake_symplan.planning.grounding import fast_downward_task
-from drake_symplan.planning.planners import (
-    DEFAULT_TIMEOUT,
-    PlanResult,
-    cpu_used,
-    plan_pddl,
-    search_binary,
-)
+from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PlanResult, plan_pddl, search_binary
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.pddl import problem_from_atoms
 from drake_symplan.symbolic.states import SymbolicState, check_name
@@ -56,11 +52,45 @@ class Reading:
         return c
 
 
+@dataclass(frozen=True)
+class Observation:
+    """One perceived scene as planning sees it, each view made once: the scene
+    (perception's PerceivedScene: names, features(), contacts, objects), its symbols
+    (`reading`) and the continuous model's view of it (`boxes`). `Abstraction.observe`
+    makes one."""
+
+    scene: object
+    reading: Reading | None
+    boxes: Boxes
+
+
+@dataclass(frozen=True)
+class Level:
+    """What the level that found a plan implies for running it: `predicts_positions`, the
+    plan carries the scene predicted after each step and is monitored on positions (else
+    on its symbols); `symbolic`, a plan on symbols alone, which agent/refine.py's offsets
+    and repositionings complete."""
+
+    name: str
+    predicts_positions: bool
+    symbolic: bool
+
+
+# Plan.level's values: the symbolic planner's plan, a refined skeleton, the continuous
+# search's plan, the steps predicted nearest the goal (bilevel.py), the oracle's replay.
+LEVELS = {level.name: level for level in (
+    Level("symbolic", predicts_positions=False, symbolic=True),
+    Level("bilevel", predicts_positions=True, symbolic=False),
+    Level("continuous", predicts_positions=True, symbolic=False),
+    Level("nearest", predicts_positions=True, symbolic=False),
+    Level("oracle", predicts_positions=False, symbolic=False))}
+
+
 @dataclass
 class Plan:
     """What planning gives: the status (planning.planners.STATUSES), the typed steps,
-    seconds; from bilevel planning (bilevel.py) also the level that found it, the scene
-    predicted after each step and the candidate plans looked at."""
+    seconds; the level that found it (LEVELS); from bilevel planning (bilevel.py) also the
+    scene predicted after each step and the candidate plans looked at."""
 
     status: str
     steps: list[PlanStep] = field(default_factory=list)
@@ -71,9 +101,23 @@ class Plan:
     predicted: list = field(default_factory=list)
     candidates: list = field(default_factory=list)
 
+    def __post_init__(self):
+        if self.level not in LEVELS:
+            raise ValueError(f"unknown plan level {self.level!r}; one of {tuple(LEVELS)}")
+
     @property
     def solved(self) -> bool:
         return self.status == "solved"
+
+    @property
+    def predicts_positions(self) -> bool:
+        """Was it checked in continuous space (else: on its symbols)? (Level)"""
+        return LEVELS[self.level].predicts_positions
+
+    @property
+    def symbolic(self) -> bool:
+        """Is it a plan on symbols alone, for agent/refine.py to complete? (Level)"""
+        return LEVELS[self.level].symbolic
 
 
 def problem_text(task: Task, costs: bool) -> str:
@@ -83,18 +127,18 @@ def problem_text(task: Task, costs: bool) -> str:
 
 
 def plan_task(operators, domain: Callable[[], str], task: Task, planner: str = "fd",
-              timeout: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None,
+              wall_seconds: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None,
               penalties: Mapping[tuple[str, str], int] | None = None) -> PlanResult:
     """Plans `task` with `operators`: Fast Downward's search on the task grounded here
     (planning/grounding.py, where `penalties` make moves of (source, target) pairs dearer)
     where its build has a search binary, else the planner on the PDDL `domain()` text
     (with action costs for Fast Downward; no penalties). `cpu_seconds`: a CPU budget,
-    `timeout` then the wall-clock cap (planning/planners.py)."""
+    `wall_seconds` then the wall-clock cap (planning/planners.py)."""
     if planner == "fd" and search_binary() is not None:
-        return fast_downward_task(operators, task, timeout, cpu_seconds=cpu_seconds,
+        return fast_downward_task(operators, task, wall_seconds, cpu_seconds=cpu_seconds,
                                   penalties=penalties)
     options = {} if cpu_seconds is None else {"cpu_seconds": cpu_seconds}
-    return plan_pddl(domain(), problem_text(task, costs=planner == "fd"), planner, timeout,
+    return plan_pddl(domain(), problem_text(task, costs=planner == "fd"), planner, wall_seconds,
                      **options)
 
 
@@ -122,6 +166,10 @@ class Abstraction:
     def read_scene(self, scene) -> Reading:
         """`read` of a perceived scene (names, features(), contacts)."""
         return self.read(scene.names, scene.features(), scene.contacts)
+
+    def observe(self, scene) -> Observation:
+        """A perceived scene with its symbols and its boxes (Observation)."""
+        return Observation(scene, self.read_scene(scene), Boxes.of(scene))
 
     def atoms(self, reading: Reading, guess: bool = False, contacts_only: bool | None = None
               ) -> tuple[frozenset, frozenset]:
@@ -167,15 +215,15 @@ class Abstraction:
         return tuple(n for n in task.objects if n in changed | near)
 
     def plan(self, start: Reading, goal: Reading, planner: str = "fd",
-             timeout: float = DEFAULT_TIMEOUT, focus: bool = True,
-             cpu_seconds: float | None = None,
+             budget: Budget | None = None, focus: bool = True,
              penalties: Mapping[tuple[str, str], int] | None = None) -> Plan:
-        """Plans from start to goal. The `focus` objects first; only if that proves
-        unsolvable, all of them, in the time left (`focus=False`: all of them). The empty
-        plan, without a planner call, when the goal's atoms hold already. With
-        `cpu_seconds` the budget is the planner's CPU time, `timeout` the wall-clock cap;
+        """Plans from start to goal within `budget` (planning.budget.Budget, from now;
+        default DEFAULT_TIMEOUT CPU seconds). The `focus` objects first; only if that
+        proves unsolvable, all of them, in the time left (`focus=False`: all of them). The
+        empty plan, without a planner call, when the goal's atoms hold already.
         `penalties`: see `plan_task`."""
-        t0, cpu0 = time.perf_counter(), cpu_used()
+        t0 = time.perf_counter()
+        budget = budget or Budget.of_cpu(DEFAULT_TIMEOUT)
         task = self.task(start, goal)
         objects = self.focus(task, start, goal)
         if objects and not focus:
@@ -184,11 +232,10 @@ class Abstraction:
             return Plan("solved", [], time.perf_counter() - t0, "", planner)
         for subset in ([objects, None] if len(objects) < len(task.objects) else [None]):
             sub = task if subset is None else task.restricted(subset)
-            cpu = None if cpu_seconds is None else max(
-                cpu_seconds - (cpu_used() - cpu0), 1e-3)
             domain = partial(self.bundle.domain_for, len(sub.objects), planner == "fd")
             found = plan_task(self.bundle.planned, domain, sub, planner,
-                              max(t0 + timeout - time.perf_counter(), 1e-3), cpu, penalties)
+                              max(budget.wall_left(), 1e-3), max(budget.cpu_left(), 1e-3),
+                              penalties)
             if found.status != "unsolvable":
                 break
         steps = [self.step(s) for s in found.plan] if found.solved else []

@@ -11,9 +11,14 @@ A refinement is accepted when every box is predicted within the tolerance less a
 of its goal position; otherwise the search backtracks over choices, then skeletons. When
 no skeleton refines (or the planner finds none) a weighted best-first search over all
 pick/place actions, with the same model and the summed predicted distance to the goal as
-its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap, so a problem
-gets the same answer on a busy host as on a quiet one: one budget per plan, of which the
-skeletons (planner calls and refinement) may use half, the continuous search the rest.
+its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap
+(planning/budget.py), so a problem gets the same answer on a busy host as on a quiet one:
+one budget per plan, of which the skeletons (planner calls and refinement) may use half,
+the continuous search the rest.
+
+`plan_bilevel(abstraction, refiner, start, goal, budget, Search(...))` plans from one
+Observation (abstraction.py: a perceived scene, its symbols, its boxes) to another;
+agent/planning_modes.py's bilevel and continuous modes call it.
 """
 
 from __future__ import annotations
@@ -26,11 +31,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from drake_symplan.abstraction.abstraction import Plan
+from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes, rollout
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
-from drake_symplan.boxes import GOAL_TOLERANCE
-from drake_symplan.planning.planners import WALL_FACTOR, cpu_used
+from drake_symplan.boxes import GOAL_TOLERANCE, goal_distances, goal_reached
+from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
 MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
@@ -41,6 +46,24 @@ SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
+SEARCH = "continuous"  # the Candidate.source of the continuous search
+
+
+@dataclass(frozen=True)
+class Search:
+    """How `plan_bilevel` plans: `skeletons`, refine the symbolic planner's skeletons
+    first (bilevel), else the continuous search alone; `planner`, the symbolic planner's
+    back-end (planning.planners.PLANNERS); `alternatives`, skeletons asked for beyond the
+    first two (`skeletons`)."""
+
+    skeletons: bool = True
+    planner: str = "fd"
+    alternatives: int = 0
+
+    @property
+    def level(self) -> str:
+        """The level of a plan that is not found (abstraction.LEVELS)."""
+        return "bilevel" if self.skeletons else SEARCH
 
 
 def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
@@ -56,40 +79,23 @@ def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> lis
     return out
 
 
-class Budget:
-    """CPU seconds with a wall-clock cap, counted from construction; the CPU is this
-    process's and its finished children's (the symbolic planner runs in child processes)."""
-
-    def __init__(self, cpu_seconds: float, wall_seconds: float):
-        self.cpu, self.wall = cpu_seconds, wall_seconds
-        self.cpu0, self.wall0 = cpu_used(), time.perf_counter()
-
-    def left(self) -> float:
-        """CPU seconds left (the wall-clock cap counted as CPU when it is nearer)."""
-        return min(self.cpu - (cpu_used() - self.cpu0),
-                   self.wall - (time.perf_counter() - self.wall0))
-
-    def spent(self) -> bool:
-        return self.left() <= 0
-
-    def share(self, fraction: float) -> Budget:
-        """A budget of `fraction` of what is left, from now."""
-        left = max(self.left(), 0.0)
-        return Budget(fraction * left, fraction * left * self.wall / max(self.cpu, 1e-9))
-
-
 @dataclass
 class Candidate:
     """A plan the search looked at: its steps, whether it was accepted, why not, the
     predicted distance (cm) of each box to its goal at its end, and the wall seconds it
-    took (a skeleton: the planner call and the refinement; "continuous": the search)."""
+    took (a skeleton: the planner call and the refinement; SEARCH: the search)."""
 
-    source: str  # "skeleton 1", "continuous"
+    source: str  # "skeleton 1", SEARCH
     steps: list[str]
     accepted: bool
     why: str
     errors_cm: dict[str, float] = field(default_factory=dict)
     seconds: float = 0.0
+
+    @property
+    def searched(self) -> bool:
+        """Did the continuous search make it (else a skeleton)?"""
+        return self.source == SEARCH
 
     def to_json(self) -> dict:
         return {"source": self.source, "steps": self.steps, "accepted": self.accepted,
@@ -108,13 +114,14 @@ class Refined:
 def goal_errors(boxes: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
     """Each box's distance (m) to its goal position, as far as it may be: the predicted
     distance plus the prediction's spread (zero for a perceived scene)."""
-    where = boxes.where()
-    spread = dict(zip(boxes.names, boxes.uncertainty(), strict=True))
-    return {n: float(np.linalg.norm(where[n] - goal[n]) + spread[n]) for n in goal}
+    return goal_distances(boxes.where(), goal,
+                          dict(zip(boxes.names, boxes.uncertainty(), strict=True)))
 
 
 def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> bool:
-    return max(goal_errors(boxes, goal).values()) <= limit
+    """Is every box predicted within `limit` of its goal, its spread counted against it
+    (boxes.goal_reached)?"""
+    return goal_reached(goal_errors(boxes, goal), limit)
 
 
 def moves(names, sources, half_length, kind: str = "reposition") -> list[Reposition]:
@@ -223,71 +230,93 @@ class Refiner:
         return None, nearest[1]
 
 
-def plan_bilevel(abstraction, refiner: Refiner, start, goal, start_boxes: Boxes,
-                 goal_boxes: Boxes, planning: str = "bilevel", planner: str = "fd",
-                 timeout: float = 10.0, budget: Budget | None = None,
-                 alternatives: int = 0):
-    """A plan from the perceived `start` to `goal` (their Readings and Boxes): "bilevel"
-    refines the symbolic planner's skeletons, then searches; "continuous" searches only.
-    An abstraction.Plan whose `level` says which found it, with the scene predicted after
-    each step and the candidates looked at (the rejected ones with why); `alternatives`:
-    skeletons asked for beyond the first two (`skeletons`)."""
-    t0 = time.perf_counter()
-    budget = budget or Budget(timeout, WALL_FACTOR * timeout)
-    target = goal_boxes.where()
-    candidates: list[Candidate] = []
-    unverified = None  # the first skeleton, run on its symbols if nothing else is found
-    began = time.perf_counter()  # the candidate being looked at
+class _LookedAt:
+    """The candidates looked at, each with the wall seconds since the one before."""
 
-    def looked_at(candidate: Candidate) -> None:
-        nonlocal began
+    def __init__(self):
+        self.candidates: list[Candidate] = []
+        self.began = time.perf_counter()
+
+    def restart(self) -> None:
+        self.began = time.perf_counter()
+
+    def __call__(self, candidate: Candidate) -> None:
         now = time.perf_counter()
-        candidate.seconds, began = now - began, now
-        candidates.append(candidate)
+        candidate.seconds, self.began = now - self.began, now
+        self.candidates.append(candidate)
 
-    if planning == "bilevel":
-        believed, goal_atoms = abstraction.believed(start), abstraction.goal_atoms(goal)
-        symbolic = budget.share(1 - SEARCH_SHARE)
-        for i, found in enumerate(skeletons(abstraction, start, goal, planner, symbolic,
-                                            alternatives), 1):
-            if not found.solved:
-                looked_at(Candidate(f"skeleton {i}", [], False, f"planner: {found.status}"))
-                continue
-            unverified = unverified or found
-            refined = refiner.refine(found.steps, start_boxes, believed, goal_atoms, target,
-                                     symbolic)
-            looked_at(_candidate(f"skeleton {i}", found.steps, refined, refiner,
-                                 start_boxes, target))
-            if refined is not None:
-                return Plan("solved", refined.steps, time.perf_counter() - t0, "", planner,
-                            level="bilevel", predicted=refined.predicted,
-                            candidates=candidates)
-            if symbolic.spent():
-                break
-    began = time.perf_counter()  # a planner call that gave no new skeleton is not counted
-    refined, nearest = refiner.search(start_boxes, target, budget)
-    looked_at(_candidate("continuous", [], refined, refiner, start_boxes, target))
-    seconds = time.perf_counter() - t0
+
+def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observation,
+                 budget: Budget, search: Search | None = None) -> Plan:
+    """A plan from the perceived `start` to `goal` (abstraction.Observation) within
+    `budget`: with `search.skeletons` the symbolic planner's skeletons refined, then the
+    continuous search; else the search alone (Search). An abstraction.Plan whose `level`
+    says which found it, with the scene predicted after each step and the candidates
+    looked at (the rejected ones with why)."""
+    t0 = time.perf_counter()
+    search = search or Search()
+    target = goal.boxes.where()
+    looked_at = _LookedAt()
+    unverified = None  # the first skeleton, run on its symbols if nothing else is found
+    if search.skeletons:
+        refined, unverified = _refine_skeletons(abstraction, refiner, start, goal, budget,
+                                                search, looked_at)
+        if refined is not None:
+            return Plan("solved", refined.steps, time.perf_counter() - t0, "", search.planner,
+                        level="bilevel", predicted=refined.predicted,
+                        candidates=looked_at.candidates)
+    looked_at.restart()  # a planner call that gave no new skeleton is not counted
+    refined, nearest = refiner.search(start.boxes, target, budget)
+    looked_at(_candidate(SEARCH, [], refined, refiner, start.boxes, target))
+    seconds, candidates = time.perf_counter() - t0, looked_at.candidates
+
+    def found(steps, message: str, level: str, predicted=(), status="solved") -> Plan:
+        return Plan(status, steps, seconds, message, search.planner, level=level,
+                    predicted=list(predicted), candidates=candidates)
+
     if refined is not None:
-        return Plan("solved", refined.steps, seconds, "", planner, level="continuous",
-                    predicted=refined.predicted, candidates=candidates)
+        return found(refined.steps, "", SEARCH, refined.predicted)
     missed = "no plan reaches the goal positions in prediction"
     if unverified is not None and unverified.steps:
         # Predictions are not the world (`symplan eval rollout`): the symbolic plan still
         # has its chance, completed and monitored as a symbolic plan is.
-        return Plan("solved", unverified.steps, seconds, f"{missed}; the first skeleton "
-                    "runs on its symbols", planner, level="symbolic", candidates=candidates)
-    if _nearer(nearest, start_boxes, target):
+        return found(unverified.steps, f"{missed}; the first skeleton runs on its symbols",
+                     "symbolic")
+    if _nearer(nearest, start.boxes, target):
         # Nothing reaches the goal, but these steps are predicted to bring the boxes
         # nearer it; the monitor replans from what is perceived at their end.
-        return Plan("solved", nearest.steps, seconds, f"{missed}; the steps predicted "
-                    "nearest it run, then a replan", planner, level="nearest",
-                    predicted=nearest.predicted, candidates=candidates)
+        return found(nearest.steps, f"{missed}; the steps predicted nearest it run, then "
+                     "a replan", "nearest", nearest.predicted)
     if unverified is not None:  # the goal's symbols hold already: nothing to run
-        return Plan("solved", [], seconds, missed, planner, level="symbolic",
-                    candidates=candidates)
-    return Plan("timeout", [], seconds, missed, planner, level=planning,
-                candidates=candidates)
+        return found([], missed, "symbolic")
+    return found([], missed, search.level, status="timeout")
+
+
+def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: Observation,
+                      budget: Budget, search: Search, looked_at: _LookedAt
+                      ) -> tuple[Refined | None, Plan | None]:
+    """The skeletons' part of `plan_bilevel`, in its share of `budget`: (the first
+    skeleton refined or None, the first skeleton the planner found or None)."""
+    believed = abstraction.believed(start.reading)
+    goal_atoms = abstraction.goal_atoms(goal.reading)
+    target = goal.boxes.where()
+    symbolic = budget.share(1 - SEARCH_SHARE)
+    unverified = None
+    for i, found in enumerate(skeletons(abstraction, start.reading, goal.reading,
+                                        search.planner, symbolic, search.alternatives), 1):
+        if not found.solved:
+            looked_at(Candidate(f"skeleton {i}", [], False, f"planner: {found.status}"))
+            continue
+        unverified = unverified or found
+        refined = refiner.refine(found.steps, start.boxes, believed, goal_atoms, target,
+                                 symbolic)
+        looked_at(_candidate(f"skeleton {i}", found.steps, refined, refiner, start.boxes,
+                             target))
+        if refined is not None:
+            return refined, unverified
+        if symbolic.spent():
+            break
+    return None, unverified
 
 
 def _nearer(plan: Refined, start: Boxes, goal: dict[str, np.ndarray]) -> bool:
@@ -309,9 +338,7 @@ def skeletons(abstraction, start, goal, planner: str, budget: Budget,
     SKELETON_SHARE of the budget left; no further call after a timeout, an unsolved call
     or a plan seen before."""
     def call(**options):
-        share = budget.share(SKELETON_SHARE)
-        return abstraction.plan(start, goal, planner, share.wall, cpu_seconds=share.cpu,
-                                **options)
+        return abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE), **options)
 
     first = call()
     yield first

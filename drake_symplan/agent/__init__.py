@@ -7,7 +7,10 @@ its offsets chosen by `refine` -> after each step perceive again and compare the
 with the step's prediction, replanning on a mismatch -> every object within 5 cm of its
 perceived goal position.
 
-- `config`: `SolveConfig`, how a solve runs (planner, timeout, monitoring, replans, refine).
+- `config`: `SolveConfig`, how a solve runs (planner, CPU seconds per plan, monitoring,
+  replans, refine, planning mode).
+- `planning_modes`: the planning modes (symbolic, bilevel, continuous, oracle), one class
+  each, in the `PLANNING_MODES` registry.
 - `solve`: `Agent.solve(start, goal, abstraction, config)` -> `SolveResult`.
 - `refine`: offsets among interchangeable operators; repositioning steps.
 - `problems`: random problem sets (a start scene, k random actions, the end state as goal).

@@ -25,10 +25,11 @@ import numpy as np
 
 from drake_symplan.abstraction.abstraction import Abstraction
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.planning_modes import PLANNING_MODES
 from drake_symplan.agent.problems import load_problems, recorded_actions
 from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
-from drake_symplan.boxes import GOAL_TOLERANCE
+from drake_symplan.boxes import goal_reached
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
 from drake_symplan.json_files import parse_json, type_name
 from drake_symplan.symbolic.bundle import ModelBundle
@@ -52,11 +53,9 @@ def run_label(run) -> str:
 
 def true_success(objects: dict, goal_scene) -> bool:
     """The simulator's check: every final_true within GOAL_TOLERANCE of goal.yaml."""
-    for o in goal_scene.objects:
-        final = objects.get(o.name, {}).get("final_true")
-        if final is None or np.linalg.norm(np.subtract(final, o.position)) > GOAL_TOLERANCE:
-            return False
-    return True
+    finals = {o.name: objects.get(o.name, {}).get("final_true") for o in goal_scene.objects}
+    return goal_reached({o.name: None if finals[o.name] is None else float(
+        np.linalg.norm(np.subtract(finals[o.name], o.position))) for o in goal_scene.objects})
 
 
 def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
@@ -67,7 +66,7 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
     start, goal = problem.get("scenes") or (load_scene(folder / "start.yaml"),
                                             load_scene(folder / "goal.yaml"))
     given = None
-    if config.planning == "oracle":  # the problem's own actions, replayed open loop
+    if PLANNING_MODES[config.planning].needs_recorded_actions:  # e.g. the oracle's replay
         given = recorded_actions(problem)
     result = agent.solve(start, goal, abstraction, config, given=given)
     return {

@@ -28,11 +28,11 @@ import numpy as np
 from pydrake.geometry import Box, Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from drake_symplan.abstraction.abstraction import Abstraction, reliability
+from drake_symplan.abstraction.abstraction import Abstraction, Observation, reliability
 from drake_symplan.abstraction.bilevel import goal_errors
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
-from drake_symplan.agent.planning_modes import Planner
+from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.solve import Agent
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
@@ -339,8 +339,9 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
         goal_reading = abstraction.read_scene(goal.scene)
         result["goal"] = symbol_view(goal.scene, goal_reading)
         result["goal"]["atoms"] = sorted(a.text() for a in abstraction.goal_atoms(goal_reading))
-        found = Planner(abstraction, config).plan(start_reading, goal_reading, start.scene,
-                                                  goal.scene)
+        found = make_planner(abstraction, config).plan(
+            Observation(start.scene, start_reading, Boxes.of(start.scene)),
+            Observation(goal.scene, goal_reading, Boxes.of(goal.scene)))
         result["plan_status"], result["plan_level"] = found.status, found.level
         result["plan"] = plan_view(found.steps)
         result["candidates"] = [c.to_json() for c in found.candidates]

@@ -1,99 +1,209 @@
-"""How the agent gets its plan (SolveConfig.planning): from the symbols alone, bilevel
-(skeletons refined with the learned continuous model), in continuous space alone, or, for
-the evaluation's oracle row, replayed from the actions that made the problem.
+"""How the agent gets its plan (SolveConfig.planning, `--planning`): one class per planning
+mode, all in the PLANNING_MODES registry, which the CLI's choices, SolveConfig's check,
+the evaluation and the reproduction read.
 
-`Planner.plan(now, goal, now_scene, goal_scene)` returns an abstraction.Plan; `departs`
-says whether what is perceived after a step has left the plan's prediction (the monitor
-then replans): the symbols against the step's operator for symbolic plans, the perceived
-positions against the predicted ones (DEVIATION) for plans checked in continuous space.
+- `bilevel` (the default): the symbolic planner's skeletons refined with the learned
+  continuous model, its search as the fallback (abstraction/bilevel.py);
+- `symbolic`: plans from the symbols alone;
+- `continuous`: the continuous model's search alone;
+- `oracle`: the problem's recorded actions replayed open loop, the evaluation's ceiling.
+
+A mode is made per solve, `make_planner(abstraction, config, given)`. `plan(now, goal)`
+plans from one perceived abstraction.Observation to another and returns an
+abstraction.Plan, whose level says whether it was checked in continuous space (Plan's
+`predicts_positions`, abstraction.LEVELS); `departs` says whether what is perceived after
+a step has left the plan (the monitor then replans): the perceived positions against the
+predicted ones (DEVIATION) for a plan checked in continuous space, else the symbols against
+the step's operator; `goal_seen` is the monitor's check at the plan's end.
+
+A mode's flags say what the rest of the agent needs to know of it: `needs_refiner` (it
+plans with the learned continuous model), `needs_recorded_actions` (it replays the
+problem's own actions: only `eval planning` has them, so `solve` does not offer it),
+`open_loop_only` (evaluated open loop only). A new mode is a PlanningMode subclass (here
+or in a module beside it) and its entry in PLANNING_MODES.
+
+Importing this module loads no torch (SolveConfig and the CLI read the registry): the
+learned models' modules are imported when a mode is made.
 """
 
 from __future__ import annotations
 
-import numpy as np
-import torch
+from typing import TYPE_CHECKING, ClassVar
 
-from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
-from drake_symplan.abstraction.bilevel import Budget, Refiner, plan_bilevel, reaches_goal
-from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
-from drake_symplan.actions import Action
-from drake_symplan.agent.config import SolveConfig
-from drake_symplan.boxes import GOAL_TOLERANCE
-from drake_symplan.planning.planners import WALL_FACTOR
+import numpy as np
+
+from drake_symplan.boxes import goal_distances, goal_reached
+from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import PlanStep, Reposition, reaches
+
+if TYPE_CHECKING:
+    from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
+    from drake_symplan.abstraction.continuous import Boxes
+    from drake_symplan.actions import Action
+    from drake_symplan.agent.config import SolveConfig
 
 # m: a box perceived this far from its predicted position (beyond the prediction's spread)
 # departs the plan
 DEVIATION = 0.03
 
 
-class Planner:
-    """The agent's planning for one solve (module docstring); `given`: the replayed plan
-    of the oracle mode."""
+class PlanningMode:
+    """One solve's planning (module docstring); `given`: the actions a mode that
+    `needs_recorded_actions` replays."""
+
+    name: ClassVar[str]
+    help: ClassVar[str]  # for --planning
+    needs_refiner: ClassVar[bool] = False
+    needs_recorded_actions: ClassVar[bool] = False
+    open_loop_only: ClassVar[bool] = False
 
     def __init__(self, abstraction: Abstraction, config: SolveConfig,
                  given: list[Action] | None = None):
-        self.abs, self.config = abstraction, config
-        self.given = given
-        self.level = "symbolic"  # of the plan returned last
+        import torch  # here, not at the top: see the module docstring
+
+        self.abs, self.config, self.given = abstraction, config, given
+        self.last: Plan | None = None  # the plan returned last
         self.refiner = None
         # The networks see batches of tens of actions, where more threads spin more than
         # they compute: one thread makes 1.2x the predictions per CPU second of torch's
         # default on a quiet 2-core host, up to 7x beside other work (tools/bench_search.py).
         torch.set_num_threads(1)
-        if config.planning in ("bilevel", "continuous"):
-            self.refiner = Refiner(abstraction.bundle.operators,
-                                   ContinuousModel(abstraction.bundle.continuous))
 
-    def plan(self, now: Reading, goal: Reading, now_scene, goal_scene) -> Plan:
-        found = self._plan(now, goal, now_scene, goal_scene)
-        self.level = found.level
-        return found
+    def plan(self, now: Observation, goal: Observation) -> Plan:
+        self.last = self._plan(now, goal)
+        return self.last
 
-    def _plan(self, now: Reading, goal: Reading, now_scene, goal_scene) -> Plan:
-        mode = self.config.planning
-        if mode == "oracle":
-            if self.given is None:
-                raise ValueError("the oracle replays a problem's recorded actions; none given")
-            return Plan("solved", [Reposition(a, "move") for a in self.given], 0.0, "",
-                        "oracle", level="oracle")
-        cpu, wall = self.config.timeout, WALL_FACTOR * self.config.timeout
-        if mode == "symbolic":
-            return self.abs.plan(now, goal, self.config.planner, wall, cpu_seconds=cpu)
-        return plan_bilevel(self.abs, self.refiner, now, goal, Boxes.of(now_scene),
-                            Boxes.of(goal_scene), mode, self.config.planner, cpu,
-                            Budget(cpu, wall), self.config.alternatives)
+    def _plan(self, now: Observation, goal: Observation) -> Plan:
+        raise NotImplementedError
+
+    def budget(self) -> Budget:
+        """One plan's budget: the config's CPU seconds, from now."""
+        return Budget.of_cpu(self.config.cpu_seconds)
 
     @property
     def predicts_positions(self) -> bool:
         """Was the last plan checked in continuous space (else: on its symbols)?"""
-        return self.level in ("bilevel", "continuous", "nearest")
+        return self.last is not None and self.last.predicts_positions
 
-    def departs(self, step: PlanStep, predicted: Boxes | None, seen: Reading, seen_scene,
-                rest: list[PlanStep], believed, goal_atoms, goal_scene=None) -> bool:
-        """Has the scene perceived after `step` left the plan? A plan checked in continuous
-        space has left it when a box is off its predicted position and the rest of the
-        plan, predicted again from what is seen, no longer reaches the goal (a small
-        miss that the rest absorbs costs no replan); at its end the goal check decides."""
-        if self.predicts_positions:
-            if predicted is None or not rest:
-                return False
-            where = predicted.where()
-            spread = dict(zip(predicted.names, predicted.uncertainty(), strict=True))
-            off = any(np.linalg.norm(o.position - where[o.name]) > DEVIATION + spread[o.name]
-                      for o in seen_scene.objects if o.name in where)
-            if not off or goal_scene is None:
-                return off
-            end = self.refiner.rollout(Boxes.of(seen_scene), rest)
-            return not reaches_goal(end, Boxes.of(goal_scene).where(), self.refiner.limit)
+    @property
+    def symbolic_plan(self) -> bool:
+        """Is the last plan one on symbols alone, which agent/refine.py completes?"""
+        return self.last is None or self.last.symbolic
+
+    def departs(self, step: PlanStep, predicted: Boxes | None, seen: Observation,
+                rest: list[PlanStep], believed, goal_atoms, goal: Observation | None = None
+                ) -> bool:
+        """Has the scene `seen` after `step` left the plan? A plan on symbols: the step's
+        operator's prediction did not come true (a repositioning, which has none: the
+        rest no longer applies)."""
         if isinstance(step, Reposition):  # no symbolic prediction: the rest must apply
             return not reaches(rest, believed, goal_atoms)
-        return bool(self.abs.mismatches(seen, step))
+        return bool(self.abs.mismatches(seen.reading, step))
 
-    def goal_seen(self, reading: Reading, goal_atoms, scene, goal_scene) -> bool:
-        """At the plan's end: the goal's atoms seen (symbolic planning), or every box seen
-        within the tolerance of its goal (bilevel and continuous planning: also after a
-        skeleton that ran on its symbols, whose atoms can hold with a box far off)."""
-        if self.config.planning == "symbolic":
-            return self.abs.goal_holds(reading, goal_atoms)
-        return reaches_goal(Boxes.of(scene), Boxes.of(goal_scene).where(), GOAL_TOLERANCE)
+    def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
+        """At the plan's end: every box seen within the tolerance of its goal (also after
+        a skeleton that ran on its symbols, whose atoms can hold with a box far off)."""
+        return goal_reached(goal_distances(seen.boxes.where(), goal.boxes.where()))
+
+
+class SymbolicMode(PlanningMode):
+    name = "symbolic"
+    help = "plans from the symbols alone"
+
+    def _plan(self, now: Observation, goal: Observation) -> Plan:
+        return self.abs.plan(now.reading, goal.reading, self.config.planner, self.budget())
+
+    def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
+        """At the plan's end: the goal's atoms seen (the planner's own criterion)."""
+        return self.abs.goal_holds(seen.reading, goal_atoms)
+
+
+class _ContinuousModelMode(PlanningMode):
+    """A mode that plans with the learned continuous model (abstraction/bilevel.py),
+    `skeletons` first or not."""
+
+    needs_refiner = True
+    skeletons: ClassVar[bool]
+
+    def __init__(self, abstraction: Abstraction, config: SolveConfig,
+                 given: list[Action] | None = None):
+        super().__init__(abstraction, config, given)
+        from drake_symplan.abstraction.bilevel import Refiner
+        from drake_symplan.abstraction.continuous import ContinuousModel
+
+        self.refiner = Refiner(abstraction.bundle.operators,
+                               ContinuousModel(abstraction.bundle.continuous))
+
+    def _plan(self, now: Observation, goal: Observation) -> Plan:
+        from drake_symplan.abstraction.bilevel import Search, plan_bilevel
+
+        return plan_bilevel(self.abs, self.refiner, now, goal, self.budget(),
+                            Search(self.skeletons, self.config.planner,
+                                   self.config.alternatives))
+
+    def departs(self, step: PlanStep, predicted: Boxes | None, seen: Observation,
+                rest: list[PlanStep], believed, goal_atoms, goal: Observation | None = None
+                ) -> bool:
+        """A plan checked in continuous space has left it when a box is off its predicted
+        position and the rest of the plan, predicted again from what is seen, no longer
+        reaches the goal (a small miss that the rest absorbs costs no replan); at its end
+        the goal check decides. A skeleton run on its symbols: as a symbolic plan."""
+        if not self.predicts_positions:
+            return super().departs(step, predicted, seen, rest, believed, goal_atoms, goal)
+        from drake_symplan.abstraction.bilevel import reaches_goal
+
+        if predicted is None or not rest:
+            return False
+        where = predicted.where()
+        spread = dict(zip(predicted.names, predicted.uncertainty(), strict=True))
+        off = any(np.linalg.norm(o.position - where[o.name]) > DEVIATION + spread[o.name]
+                  for o in seen.scene.objects if o.name in where)
+        if not off or goal is None:
+            return off
+        end = self.refiner.rollout(seen.boxes, rest)
+        return not reaches_goal(end, goal.boxes.where(), self.refiner.limit)
+
+
+class BilevelMode(_ContinuousModelMode):
+    name = "bilevel"
+    help = ("symbolic skeletons checked and completed with the learned continuous model, "
+            "a continuous search as the fallback")
+    skeletons = True
+
+
+class ContinuousMode(_ContinuousModelMode):
+    name = "continuous"
+    help = "that search alone"
+    skeletons = False
+
+
+class OracleMode(PlanningMode):
+    name = "oracle"
+    help = "replay the actions that made the problem, open loop"
+    needs_recorded_actions = True
+    open_loop_only = True
+
+    def _plan(self, now: Observation, goal: Observation) -> Plan:
+        from drake_symplan.abstraction.abstraction import Plan
+
+        if self.given is None:
+            raise ValueError("the oracle replays a problem's recorded actions; none given")
+        return Plan("solved", [Reposition(a, "move") for a in self.given], 0.0, "",
+                    self.name, level=self.name)
+
+
+PLANNING_MODES: dict[str, type[PlanningMode]] = {
+    mode.name: mode for mode in (BilevelMode, SymbolicMode, ContinuousMode, OracleMode)}
+
+
+def mode_names(recorded_actions: bool = False) -> tuple[str, ...]:
+    """The modes a command offers: those that replay recorded actions only where it has
+    them (`recorded_actions`: eval planning, not solve)."""
+    return tuple(name for name, mode in PLANNING_MODES.items()
+                 if recorded_actions or not mode.needs_recorded_actions)
+
+
+def make_planner(abstraction: Abstraction, config: SolveConfig,
+                 given: list[Action] | None = None) -> PlanningMode:
+    """The planning mode `config.planning` for one solve."""
+    return PLANNING_MODES[config.planning](abstraction, config, given)

@@ -9,9 +9,10 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
    (agent/beliefs.py). The start scene likewise, then the robot stays in it.
 2. The bundle reads both scenes' symbols and writes the problem: the start's certain atoms,
    the goal's unary atoms and relation atoms only between objects perceived in contact in
-   the goal scene. The planner (Fast Downward or pyperplan) plans; with
-   `config.planning` "bilevel" or "continuous" the plan is checked and completed with the
-   learned continuous model, or found by it (agent/planning_modes.py).
+   the goal scene. The planning mode `config.planning` (agent/planning_modes.py) plans:
+   the planner (Fast Downward or pyperplan) alone, or its plan checked and completed with
+   the learned continuous model, or found by that model's search. Each scene is planned
+   from as an abstraction.Observation (the scene, its symbols, its boxes), made once.
 3. Each step is executed by the back-end on the perceived objects (the arm: IK-planned
    pick/place in full physics); the scene perceived after it keeps the names through
    perception's association. Before it runs, its offsets may be swapped for an
@@ -26,7 +27,7 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
    replans too. At most `max_replans` replans; after that the current plan runs on.
    Without monitoring the first plan runs open-loop, as in the paper.
 5. The check: every object within GOAL_TOLERANCE (5 cm) of its perceived goal position,
-   on the scene perceived after the last step. The simulator's positions are reported
+   on the scene perceived after the last step (boxes.goal_reached). The simulator's positions are reported
    beside it (`final_true`), for evaluation only: no decision reads them.
 """
 
@@ -36,12 +37,13 @@ import dataclasses as dc
 import time
 from contextlib import contextmanager
 
-from drake_symplan.abstraction.abstraction import Abstraction, Plan
+from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
+from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
-from drake_symplan.agent.planning_modes import Planner
+from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.refine import REPOSITIONS_PER_OBJECT, refine_step, reposition_step
-from drake_symplan.boxes import GOAL_TOLERANCE
+from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
 from drake_symplan.symbolic.structs import PlanStep, Step
 from drake_symplan.world.visualization import StartMeshcat
@@ -170,67 +172,85 @@ class _Stop(Exception):
         self.scene, self.cause, self.message = scene, cause, message
 
 
+@dc.dataclass
+class _Planned:
+    """A step to run, with the scene the plan predicted after it (None: a plan on
+    symbols, a repositioning)."""
+
+    step: PlanStep
+    predicted: Boxes | None = None
+
+
 class _Run:
     """The loop of one solve (module docstring): `go` plans, then executes the plan step
-    by step (`_execute`), monitoring each (`_monitor`) and the end (`_goal_seen`)."""
+    by step (`_execute`), monitoring each (`_monitor`) and the end (`_goal_seen`). `scene`
+    is the scene perceived last, `now` the Observation last read (they differ open loop,
+    where nothing is read after the start)."""
 
     def __init__(self, agent: Agent, abstraction: Abstraction, clock: _Clock,
                  config: SolveConfig, on_plan=None, given=None):
         self.agent, self.abs, self.clock, self.config = agent, abstraction, clock, config
         self.on_plan = on_plan
-        self.planner = Planner(abstraction, config, given)
+        self.planner = make_planner(abstraction, config, given)
         self.refine = config.refine
-        self.predicted: list = []
         self.result = SolveResult("failure")
-        self.goal = self.goal_reading = None
+        self.goal_scene = None
+        self.goal: Observation | None = None
         self.goal_atoms = frozenset()
-        self.now = self.reading = None
+        self.scene = None
+        self.now: Observation | None = None
         self.believed = frozenset()
-        self.steps: list[PlanStep] = []
+        self.todo: list[_Planned] = []
         self.repositions = 0
 
+    @property
+    def rest(self) -> list[PlanStep]:
+        """The steps still to run."""
+        return [p.step for p in self.todo]
+
     def go(self, start: beliefs.Named, goal: beliefs.Named) -> SolveResult:
-        self.goal = goal.scene
+        self.goal_scene = goal.scene
         if goal.lost or start.lost:
             lost = [f"{n} (goal)" for n in goal.lost] + [f"{n} (start)" for n in start.lost]
             return self._end(start.scene, "perception", f"perception lost {', '.join(lost)}")
         try:
             with self.clock("symbols"):
-                self.goal_reading = self.abs.read_scene(self.goal)
-                self.goal_atoms = self.abs.goal_atoms(self.goal_reading)
+                self.goal = self.abs.observe(self.goal_scene)
+                self.goal_atoms = self.abs.goal_atoms(self.goal.reading)
                 self._perceived(start.scene)
             first = self._search()
             if self.on_plan is not None:
                 self.on_plan(first, start, goal)
             self.result.candidates, self.result.level = first.candidates, first.level
-            self.steps = self._steps(first)
-            self.result.plan = list(self.steps)
+            self.todo = self._steps(first)
+            self.result.plan = self.rest
             while True:
                 while self._next():
-                    self._execute(self.steps.pop(0))
+                    self._execute(self.todo.pop(0))
                 if not self._goal_seen():
                     break
         except _Stop as stop:
             return self._end(stop.scene, stop.cause, stop.message)
-        return self._end(self.now, "execution", "")
+        return self._end(self.scene, "execution", "")
 
     # --- plan -----------------------------------------------------------------------
 
     def _search(self) -> Plan:
         """Plans from the scene perceived now."""
         with self.clock("plan"):
-            return self.planner.plan(self.reading, self.goal_reading, self.now, self.goal)
+            return self.planner.plan(self.now, self.goal)
 
-    def _steps(self, found: Plan) -> list[PlanStep]:
+    def _steps(self, found: Plan) -> list[_Planned]:
         """The steps of a plan found; _Stop when the planner found none."""
         if not found.solved:
             cause = PLANNER_STATUS.get(found.status, "error")
-            raise _Stop(self.now, cause, f"planner {self.config.planner}: {found.status}: "
-                                         f"{found.message}".strip())
-        self.predicted = list(found.predicted)
-        return list(found.steps)
+            raise _Stop(self.scene, cause, f"planner {self.config.planner}: {found.status}: "
+                                           f"{found.message}".strip())
+        predicted = list(found.predicted)
+        return [_Planned(s, predicted[i] if i < len(predicted) else None)
+                for i, s in enumerate(found.steps)]
 
-    def _replan(self) -> list[PlanStep]:
+    def _replan(self) -> list[_Planned]:
         self.result.replans += 1
         return self._steps(self._search())
 
@@ -239,40 +259,42 @@ class _Run:
     def _next(self) -> bool:
         """Is there a step to run? With `refine`, a repositioning goes first where a box
         the rest of the plan leaves alone is off its goal spot."""
-        limit = REPOSITIONS_PER_OBJECT * len(self.now.names)
+        limit = REPOSITIONS_PER_OBJECT * len(self.scene.names)
         if self._heuristics() and self.repositions < limit:
-            extra = reposition_step(self.steps, self.now, self.goal, GOAL_TOLERANCE)
+            extra = reposition_step(self.rest, self.scene, self.goal_scene, GOAL_TOLERANCE)
             if extra is not None:
-                self.steps.insert(0, extra)
+                self.todo.insert(0, _Planned(extra))
                 self.repositions += 1
-        return bool(self.steps)
+        return bool(self.todo)
 
     def _heuristics(self) -> bool:
-        """Do agent/refine.py's choices complete the plan? For symbolic plans only: plans
+        """Do agent/refine.py's choices complete the plan? For plans on symbols only: plans
         checked in continuous space chose offsets and moves by search, the oracle replays."""
-        return self.refine and self.planner.level == "symbolic"
+        return self.refine and self.planner.symbolic_plan
 
-    def _execute(self, step: PlanStep) -> None:
-        """Runs `step` with the robot (its offsets refined first), perceives the result."""
+    def _execute(self, planned: _Planned) -> None:
+        """Runs a step with the robot (its offsets refined first), perceives the result."""
+        step = planned.step
         if self._heuristics() and isinstance(step, Step):
             with self.clock("symbols"):
-                step = refine_step(self.abs.bundle.operators, step, self.steps, self.believed,
-                                   self.goal_atoms, beliefs.positions(self.now),
-                                   beliefs.positions(self.goal), self.goal.contacts)
+                step = refine_step(self.abs.bundle.operators, step, self.rest, self.believed,
+                                   self.goal_atoms, beliefs.positions(self.scene),
+                                   beliefs.positions(self.goal_scene),
+                                   self.goal_scene.contacts)
         with self.clock("execute"):
-            execution = self.agent.robot.execute(step.action, self.now, lift=False)
+            execution = self.agent.robot.execute(step.action, self.scene, lift=False)
         self.result.executed.append(step)
         if execution.status == "infeasible":
-            raise _Stop(self.now, "infeasible", f"{step}: {execution.message}")
+            raise _Stop(self.scene, "infeasible", f"{step}: {execution.message}")
         if execution.status != "ok":
-            raise _Stop(self.now, "error", f"{step}: {execution.message}")
-        seen = self._follow(self.now, execution.after, step.action)
+            raise _Stop(self.scene, "error", f"{step}: {execution.message}")
+        seen = self._follow(self.scene, execution.after, step.action)
         if seen.lost:
             raise _Stop(seen.scene, "perception",
                         f"after {step} perception lost {', '.join(seen.lost)}")
-        self.now = seen.scene
+        self.scene = seen.scene
         if self.config.monitor:
-            self._monitor(step)
+            self._monitor(step, planned.predicted)
         else:  # open loop: the state is what the step predicts
             self.believed = step.apply(self.believed)
 
@@ -289,23 +311,22 @@ class _Run:
     # --- monitor --------------------------------------------------------------------
 
     def _perceived(self, scene) -> None:
-        self.now = scene
-        self.reading = self.abs.read_scene(scene)
-        self.believed = self.abs.believed(self.reading)
+        self.scene = scene
+        self.now = self.abs.observe(scene)
+        self.believed = self.abs.believed(self.now.reading)
 
-    def _monitor(self, step: PlanStep) -> None:
+    def _monitor(self, step: PlanStep, predicted: Boxes | None) -> None:
         """Reads the symbols now; if the scene departs from the step's prediction
-        (planning_modes.Planner.departs), replans."""
-        predicted = self.predicted.pop(0) if self.predicted else None
+        (planning_modes.PlanningMode.departs), replans."""
         with self.clock("symbols"):
-            self._perceived(self.now)
-            wrong = self.planner.departs(step, predicted, self.reading, self.now, self.steps,
+            self._perceived(self.scene)
+            wrong = self.planner.departs(step, predicted, self.now, self.rest,
                                          self.believed, self.goal_atoms, self.goal)
         if wrong and self.result.replans < self.config.max_replans:
             try:
-                self.steps = self._replan()
+                self.todo = self._replan()
             except _Stop:
-                if not self.steps:
+                if not self.todo:
                     raise
                 # The planner found nothing from here (timeout, no plan): the current
                 # plan runs on, as it would open loop.
@@ -317,33 +338,33 @@ class _Run:
         if not self.config.monitor or self.result.replans >= self.config.max_replans:
             return False
         with self.clock("symbols"):
-            reached = self.planner.goal_seen(self.reading, self.goal_atoms, self.now,
-                                             self.goal)
+            reached = self.planner.goal_seen(self.now, self.goal_atoms, self.goal)
         if reached:
             return False
-        self.steps = self._replan()
-        return bool(self.steps)
+        self.todo = self._replan()
+        return bool(self.todo)
 
     # --- check ----------------------------------------------------------------------
 
     def _end(self, final, cause: str, message: str) -> SolveResult:
         """The check on the last perceived scene `final`: success if every goal object is
-        within GOAL_TOLERANCE, else the status for `cause`."""
+        within GOAL_TOLERANCE (boxes.goal_reached), else the status for `cause`."""
         result = self.result
         truth = {n: s.position for n, s in self.agent.robot.ground_truth_states().items()}
-        result.objects = beliefs.goal_errors(beliefs.positions(self.goal),
+        result.objects = beliefs.goal_errors(beliefs.positions(self.goal_scene),
                                              beliefs.positions(final), truth)
-        errors = [o["error_cm"] for o in result.objects.values()]
-        if errors and all(e is not None and e <= GOAL_TOLERANCE * 100 for e in errors) \
+        errors = {n: o["error_cm"] for n, o in result.objects.items()}
+        # error_cm is rounded to 0.01 cm: the check reads what the result reports
+        if goal_reached({n: None if e is None else e / 100 for n, e in errors.items()}) \
                 and cause != "perception":
             result.status = "success"
             return result
-        if self.goal_reading is not None and set(self.goal.names) <= set(final.names):
+        if self.goal is not None and set(self.goal_scene.names) <= set(final.names):
             result.symbolic_goal_reached = self.abs.goal_holds(self.abs.read_scene(final),
                                                                self.goal_atoms)
         if cause == "execution":
-            far = {n: o["error_cm"] for n, o in result.objects.items()
-                   if o["error_cm"] is not None and o["error_cm"] > GOAL_TOLERANCE * 100}
+            far = {n: e for n, e in errors.items()
+                   if e is not None and e > GOAL_TOLERANCE * 100}
             message = message or f"objects farther than {GOAL_TOLERANCE * 100:g} cm from " \
                                  f"their goal: {far}"
         result.status = cause if cause in ("no_plan", "timeout", "infeasible", "error") \

@@ -8,7 +8,8 @@ import argparse
 import importlib
 from pathlib import Path
 
-from drake_symplan.agent.config import DEFAULT_SOLVE, PLANNING, PLANNING_MODES, SolveConfig
+from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.planning_modes import PLANNING_MODES, mode_names
 from drake_symplan.cli.main import CommandError
 from drake_symplan.planning.planners import WALL_FACTOR
 
@@ -55,8 +56,8 @@ def add_planner_arguments(p: argparse.ArgumentParser, per_plan: bool = False,
     what = ("CPU seconds per plan (bilevel and continuous: the whole search's)" + cap
             if per_plan else "CPU seconds per planner call" + cap if cpu
             else "planner seconds per call")
-    p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.timeout,
-                   help=f"{what} (default {DEFAULT_SOLVE.timeout:g})")
+    p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.cpu_seconds,
+                   help=f"{what} (default {DEFAULT_SOLVE.cpu_seconds:g})")
 
 
 def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None:
@@ -66,14 +67,12 @@ def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None
 
 
 def add_planning_argument(p: argparse.ArgumentParser, oracle: bool = False) -> None:
-    """--planning; with `oracle` it may replay the problems' recorded actions."""
-    p.add_argument("--planning", choices=PLANNING_MODES if oracle else PLANNING,
-                   default=DEFAULT_SOLVE.planning,
-                   help="bilevel: symbolic skeletons checked and completed with the learned "
-                   "continuous model, a continuous search as the fallback; symbolic: plans "
-                   "from the symbols alone; continuous: that search alone"
-                   + ("; oracle: replay the actions that made the problem, open loop"
-                      if oracle else "") + f" (default {DEFAULT_SOLVE.planning})")
+    """--planning, an agent.planning_modes.PLANNING_MODES key; with `oracle` also the modes
+    that replay the problems' recorded actions."""
+    names = mode_names(recorded_actions=oracle)
+    p.add_argument("--planning", choices=names, default=DEFAULT_SOLVE.planning,
+                   help="; ".join(f"{n}: {PLANNING_MODES[n].help}" for n in names)
+                   + f" (default {DEFAULT_SOLVE.planning})")
 
 
 def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
@@ -114,7 +113,7 @@ def solve_config(args: argparse.Namespace) -> SolveConfig:
 def planner_settings(args: argparse.Namespace) -> tuple[str, float]:
     """(--planner, --timeout), checked as a SolveConfig checks them."""
     config = solve_config(args)
-    return config.planner, config.timeout
+    return config.planner, config.cpu_seconds
 
 
 def add_model_argument(p: argparse.ArgumentParser) -> None:

@@ -25,6 +25,7 @@ from pathlib import Path
 # `symplan` imports this module to build its parser, so the stages' code (results tables,
 # collection: Drake and torch) is imported inside the functions that need it.
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.planning_modes import PLANNING_MODES
 from drake_symplan.atomic import write_atomic
 from drake_symplan.json_files import read_json
 from drake_symplan.pipelines.stages import Stage, StageFailed, StageRunner
@@ -74,7 +75,7 @@ MODELS = {  # Table I's three models; RelationalDeepSym in its permutation-invar
     "deepsym": ["--model", "deepsym"],
 }
 LEARNERS = {"relational": ("effect", "paper"), "attentive": ("effect",)}
-MODE_ROWS = ("bilevel", "symbolic", "continuous", "oracle")  # compared on seed 0's problems
+MODE_ROWS = tuple(PLANNING_MODES)  # compared on seed 0's problems
 
 
 class Reproduction(StageRunner):
@@ -207,7 +208,8 @@ class Reproduction(StageRunner):
                 ["eval", "planning", "--runs", run, "--problems", self.out / "problems",
                  "--records", out.with_suffix(".jsonl"), "--json",
                  *self.solve.replace(planning=mode).flags(),
-                 "--monitor", "off" if main or mode == "oracle" else "on", *self._workers()],
+                 "--monitor", "off" if main or PLANNING_MODES[mode].open_loop_only else "on",
+                 *self._workers()],
                 out.with_suffix(".json"), stdout=out.with_suffix(".json")))
         return sorted(stages, key=lambda st: st.name.endswith("open loop"))
 

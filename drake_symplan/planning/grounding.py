@@ -143,12 +143,12 @@ def sas_text(task: GroundTask) -> str:
 
 
 def fast_downward_task(operators: Sequence[LiftedOperator], task: Task,
-                       timeout: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
+                       wall_seconds: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
                        cpu_seconds: float | None = None,
                        penalties: Mapping[tuple[str, str], int] | None = None) -> PlanResult:
     """Fast Downward's search on `task` grounded here (with `penalties`, see `ground`);
     the grounding's CPU time (this thread's: `eval operators` plans in threads) counts
-    against `cpu_seconds` and its seconds against `timeout`."""
+    against `cpu_seconds` and its seconds against `wall_seconds`."""
     start, cpu0 = time.perf_counter(), time.thread_time()
     grounded = ground(operators, task, penalties)
 
@@ -162,7 +162,7 @@ def fast_downward_task(operators: Sequence[LiftedOperator], task: Task,
     if not grounded.goal - grounded.init:
         return result("solved")
     used = time.perf_counter() - start
-    found = fast_downward_sas(sas_text(grounded), max(timeout - used, 1e-3), search,
+    found = fast_downward_sas(sas_text(grounded), max(wall_seconds - used, 1e-3), search,
                               None if cpu_seconds is None else
                               max(cpu_seconds - (time.thread_time() - cpu0), 1e-3))
     found.seconds += used

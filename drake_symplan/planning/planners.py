@@ -1,6 +1,6 @@
 """Planner back-ends behind one interface: Fast Downward (subprocess) and pyperplan.
 
-`plan(domain_path, problem_path, planner="fd" | "pyperplan", timeout=10.0)` returns a
+`plan(domain_path, problem_path, planner="fd" | "pyperplan", wall_seconds=10.0)` returns a
 `PlanResult` whose status is one of solved / unsolvable / timeout / error, with the
 plan as PDDL step strings `"(action arg ...)"` and the planner's own message when
 something went wrong. Nothing here raises for a planner failure: a malformed PDDL
@@ -18,7 +18,7 @@ file, an unsolvable task, a timeout or a missing planner all come back as result
   killed, so a timeout really stops the work.
 
 With `cpu_seconds`, both also stop when their processes have used that much CPU (an
-RLIMIT_CPU on each child, what is left of the budget), `timeout` then being the wall-clock
+RLIMIT_CPU on each child, what is left of the budget), `wall_seconds` then being the wall-clock
 cap: a busy host gives the planner the same work as a quiet one.
 
 Both default to optimal A* with LM-cut, so on unit-cost tasks their plans have equal
@@ -128,7 +128,7 @@ def _fd_message(out: str, err: str) -> str:
     return "; ".join((picked or lines)[-4:])
 
 
-def fast_downward(domain, problem, timeout: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
+def fast_downward(domain, problem, wall_seconds: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
                   driver: str | Path | None = None, cpu_seconds: float | None = None
                   ) -> PlanResult:
     """Fast Downward on PDDL files, in a temporary directory, under a time limit (and a
@@ -160,10 +160,10 @@ def fast_downward(domain, problem, timeout: float = DEFAULT_TIMEOUT, search: str
             runs = [([sys.executable, "-S", "-m", "fast_downward.translate", str(domain),
                       str(problem), "--sas-file", "output.sas"], env, None),
                     _search_run(search_exe, search, plan_file, Path(tmp) / "output.sas")]
-        return _fd_runs(runs, tmp, start, timeout, cpu_seconds)
+        return _fd_runs(runs, tmp, start, wall_seconds, cpu_seconds)
 
 
-def fast_downward_sas(sas: str, timeout: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
+def fast_downward_sas(sas: str, wall_seconds: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
                       cpu_seconds: float | None = None) -> PlanResult:
     """Fast Downward's search on a task already translated to SAS+ text
     (planning/grounding.py), under the same limits as `fast_downward`."""
@@ -176,7 +176,7 @@ def fast_downward_sas(sas: str, timeout: float = DEFAULT_TIMEOUT, search: str = 
     with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
         (Path(tmp) / "output.sas").write_text(sas)
         run = _search_run(search_exe, search, Path(tmp) / "sas_plan", Path(tmp) / "output.sas")
-        return _fd_runs([run], tmp, start, timeout, cpu_seconds)
+        return _fd_runs([run], tmp, start, wall_seconds, cpu_seconds)
 
 
 def _search_run(search_exe: Path, search: str, plan_file: Path, sas_file: Path):
@@ -185,20 +185,20 @@ def _search_run(search_exe: Path, search: str, plan_file: Path, sas_file: Path):
             None, sas_file)
 
 
-def _fd_runs(runs, tmp: str, start: float, timeout: float, cpu_seconds: float | None
+def _fd_runs(runs, tmp: str, start: float, wall_seconds: float, cpu_seconds: float | None
              ) -> PlanResult:
     """Runs FD's phases one after the other in `tmp` (a phase's failure stops them) and
     reads the outcome by FD's exit codes and its plan files."""
     def result(status, plan=(), message=""):
         return PlanResult(status, list(plan), time.perf_counter() - start, message, "fd")
 
-    deadline = start + timeout
+    deadline = start + wall_seconds
     used = children_cpu()
     for phase, (cmd, env, stdin) in enumerate(runs):
         left = None if cpu_seconds is None else cpu_seconds - (children_cpu() - used)
         code, out, err = _run_group(cmd, tmp, env, stdin, deadline, left)
         if code is None:
-            return result("timeout", message=f"Fast Downward killed after {timeout:g} s")
+            return result("timeout", message=f"Fast Downward killed after {wall_seconds:g} s")
         if code != 0:
             if phase == 0 and len(runs) == 2 and code not in (20, 21, 31):
                 code = 30  # the translator crashed, as the driver reports it
@@ -313,7 +313,7 @@ def _pyperplan_child(conn, domain: str, problem: str, search: str, heuristic: st
         conn.close()
 
 
-def pyperplan_plan(domain, problem, timeout: float = DEFAULT_TIMEOUT, search: str = "astar",
+def pyperplan_plan(domain, problem, wall_seconds: float = DEFAULT_TIMEOUT, search: str = "astar",
                    heuristic: str | None = "lmcut", cpu_seconds: float | None = None
                    ) -> PlanResult:
     """pyperplan on PDDL files in a child process that is killed at the deadline (or
@@ -339,7 +339,7 @@ def pyperplan_plan(domain, problem, timeout: float = DEFAULT_TIMEOUT, search: st
     send.close()
     ready = False
     try:
-        ready = recv.poll(max(timeout - (time.perf_counter() - start), 0.0))
+        ready = recv.poll(max(wall_seconds - (time.perf_counter() - start), 0.0))
         message = recv.recv() if ready else None
     except (EOFError, OSError):
         proc.join(5.0)
@@ -353,7 +353,7 @@ def pyperplan_plan(domain, problem, timeout: float = DEFAULT_TIMEOUT, search: st
         proc.join(5.0)
         recv.close()
     if message is None:
-        return result("timeout", message=f"pyperplan stopped after {timeout:g} s" + (
+        return result("timeout", message=f"pyperplan stopped after {wall_seconds:g} s" + (
             "" if cpu_seconds is None else f" or {cpu_seconds:g} s of CPU"))
     status, payload = message
     if status == "solved":
@@ -369,21 +369,21 @@ PLANNERS: dict[str, Callable[..., PlanResult]] = {
 }
 
 
-def plan(domain, problem, planner: str = "fd", timeout: float = DEFAULT_TIMEOUT,
+def plan(domain, problem, planner: str = "fd", wall_seconds: float = DEFAULT_TIMEOUT,
          **options) -> PlanResult:
     """Plans with a registered back-end on PDDL files."""
     if planner not in PLANNERS:
         raise ValueError(f"unknown planner {planner!r}; one of {sorted(PLANNERS)}")
-    if not timeout > 0:
-        raise ValueError(f"timeout must be positive, got {timeout}")
-    return PLANNERS[planner](domain, problem, timeout=timeout, **options)
+    if not wall_seconds > 0:
+        raise ValueError(f"timeout must be positive, got {wall_seconds}")
+    return PLANNERS[planner](domain, problem, wall_seconds=wall_seconds, **options)
 
 
 def plan_pddl(domain_text: str, problem_text: str, planner: str = "fd",
-              timeout: float = DEFAULT_TIMEOUT, **options) -> PlanResult:
+              wall_seconds: float = DEFAULT_TIMEOUT, **options) -> PlanResult:
     """Plans on PDDL given as text (written to a temporary directory)."""
     with tempfile.TemporaryDirectory(prefix="symplan-pddl-") as tmp:
         d, p = Path(tmp) / "domain.pddl", Path(tmp) / "problem.pddl"
         d.write_text(domain_text)
         p.write_text(problem_text)
-        return plan(d, p, planner, timeout, **options)
+        return plan(d, p, planner, wall_seconds, **options)
