@@ -9,6 +9,7 @@ import sys
 import types
 
 import pytest
+from conftest import assert_bad_input, run
 
 from drake_symplan.cli import main as cli_main
 from drake_symplan.cli.main import NegativeAnswer
@@ -18,19 +19,6 @@ DOMAIN = """(define (domain d) (:requirements :strips) (:predicates (p ?x) (q ?x
   (:action a :parameters (?x) :precondition (q ?x) :effect (p ?x)))
 """
 UNSOLVABLE = "(define (problem u) (:domain d) (:objects o) (:init) (:goal (p o)))\n"
-
-
-def run(argv, capsys):
-    code = cli_main.main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def assert_bad_input(code, out, err, *expected):
-    assert code == 2 and out == ""
-    assert err.count("\n") == 1 and err.endswith("\n"), err
-    for text in expected:
-        assert text in err, err
 
 
 @pytest.mark.parametrize("command", ["act", "perceive"])

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_inspect import bundle_for_tests  # tests/ is on sys.path under pytest
+from conftest import bundle_for_tests
 
 REPO = Path(__file__).resolve().parents[1]
 DEMO = REPO / "tools" / "run_demo.py"
