@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 from conftest import parse_learning_args
+from synthetic_rule import same_group_rule
 
 from drake_symplan.cli import learning_cmds
 from drake_symplan.learning.checkpoint import load_run
@@ -21,7 +22,6 @@ from drake_symplan.learning.evaluate import (
     summarize_errors,
 )
 from drake_symplan.learning.readout import read_symbols, readout_dataset
-from drake_symplan.learning.synthetic import same_group_rule
 from drake_symplan.learning.trainer import TrainConfig, _check_resumable, train
 from drake_symplan.shards import write_manifest, write_shard
 
