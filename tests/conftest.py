@@ -3,7 +3,9 @@
 (`from conftest import ...`: tests/ is on sys.path under pytest)."""
 
 import argparse
+import base64
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -73,3 +75,14 @@ def bundle_for_tests() -> Path:
         if candidate.is_dir():
             return candidate
     pytest.skip("no model bundle (set SYMPLAN_TEST_BUNDLE to one)")
+
+
+def recorded_paths(page: str, prefix: str | None = None) -> set[str]:
+    """The Meshcat paths under `prefix` (default: the inspection's) that a static page
+    (StaticHtml) sets: its scene commands are base64 msgpack blobs, whose path strings
+    are read back here."""
+    if prefix is None:
+        from drake_symplan.agent.inspection import PREFIX as prefix
+    data = b"".join(base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]+)", page))
+    return {m.decode() for m in re.findall(re.escape(prefix.encode()) + rb"/[A-Za-z0-9_/]+",
+                                           data)}

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import bundle_for_tests, run
+from conftest import bundle_for_tests, recorded_paths, run
 
 from drake_symplan.abstraction.abstraction import Reading
 from drake_symplan.actions import Action
@@ -24,7 +24,6 @@ from drake_symplan.agent.inspection import (
     pattern,
     plan_view,
     readable_step,
-    recorded_paths,
     symbol_view,
 )
 from drake_symplan.symbolic.states import SymbolicState
