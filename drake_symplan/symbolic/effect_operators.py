@@ -85,23 +85,19 @@ class EffectOperatorSet:
 # ---------------------------------------------------------------- states as atom sets
 
 
-def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real, degree=None) -> frozenset:
-    """The atoms of one state over object slots (see the module docstring).
-
-    unary [N, P], rel [K, N, N] bits; *_unc their uncertainty flags (None: all certain);
-    contacts [N, N] bool (None: every pair); real [N] bool; degree [N]: how many objects
-    of the whole scene each one touches (None: no contact-degree atoms)."""
-    return atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree)[0]
-
-
 def degree_atom(n: int) -> str:
     """`touching0` .. `touching3` (3 or more): how many objects an object touches."""
     return f"touching{min(int(n), MAX_DEGREE)}"
 
 
 def atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree=None):
-    """(atoms, unknown): the certain atoms, and the keys (symbol, slots) of the bits that
-    would make atoms but are uncertain."""
+    """(atoms, unknown) of one state over object slots (see the module docstring): the
+    certain atoms, and the keys (symbol, slots) of the bits that would make atoms but are
+    uncertain.
+
+    unary [N, P], rel [K, N, N] bits; *_unc their uncertainty flags (None: all certain);
+    contacts [N, N] bool (None: every pair); real [N] bool; degree [N]: how many objects
+    of the whole scene each one touches (None: no contact-degree atoms)."""
     slots = np.flatnonzero(real)
     if contacts is None:
         contacts = np.ones((len(real), len(real)), bool)
