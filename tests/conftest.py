@@ -1,9 +1,17 @@
-"""Shared fixtures: one station diagram and one IK planner per test session (building is
-slow); a copy of the shipped bundle and a tiny data set for the CLI's input checks."""
+"""Shared fixtures and helpers: one station diagram and one IK planner per test session
+(building is slow), a camera station per module, and the helpers several test files use
+(`from conftest import ...`: tests/ is on sys.path under pytest)."""
 
+import argparse
+import base64
+import os
+import re
 from pathlib import Path
 
 import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+DEV_BUNDLE = REPO / "runs" / "dev_ops" / "relational_inv_s0" / "bundle_effect"
 
 
 @pytest.fixture(scope="session")
@@ -48,3 +56,63 @@ def tiny_dataset(tmp_path):
     write_shard(out, 0, arrays)
     write_manifest(out, {"config": {"made": "by hand"}})
     return out
+
+
+@pytest.fixture(scope="module")
+def camera_station():
+    """A station with the default depth cameras, one per test module."""
+    from drake_symplan.world.cameras import default_cameras
+    from drake_symplan.world.station import Station, StationConfig
+
+    return Station(StationConfig(cameras=default_cameras()))
+
+
+def run(argv, capsys):
+    """(exit status, stdout, stderr) of `symplan ARGV` run in process."""
+    from drake_symplan.cli import main as cli_main
+
+    code = cli_main.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_bad_input(code, out, err, *expected):
+    """Exit status 2, nothing on stdout, one line on stderr holding every `expected`."""
+    assert code == 2 and out == "", (code, out, err)
+    assert err.count("\n") == 1 and err.endswith("\n"), err
+    for text in expected:
+        assert text in err, err
+
+
+def parse_learning_args(argv):
+    """The learning commands' parser (train, eval effects, ...) on `argv`."""
+    from drake_symplan.cli import learning_cmds
+
+    parser = argparse.ArgumentParser()
+    learning_cmds.register(parser.add_subparsers(dest="command", required=True))
+    return parser.parse_args(argv)
+
+
+def bundle_for_tests() -> Path:
+    """$SYMPLAN_TEST_BUNDLE, else the shipped default, else the development bundle under
+    runs/ (not in a clone); skips without one."""
+    path = os.environ.get("SYMPLAN_TEST_BUNDLE")
+    if path:
+        return Path(path)
+    from drake_symplan.symbolic.bundle import default_bundle_dir
+
+    for candidate in (default_bundle_dir(), DEV_BUNDLE):
+        if candidate.is_dir():
+            return candidate
+    pytest.skip("no model bundle (set SYMPLAN_TEST_BUNDLE to one)")
+
+
+def recorded_paths(page: str, prefix: str | None = None) -> set[str]:
+    """The Meshcat paths under `prefix` (default: the inspection's) that a static page
+    (StaticHtml) sets: its scene commands are base64 msgpack blobs, whose path strings
+    are read back here."""
+    if prefix is None:
+        from drake_symplan.agent.inspection import PREFIX as prefix
+    data = b"".join(base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]+)", page))
+    return {m.decode() for m in re.findall(re.escape(prefix.encode()) + rb"/[A-Za-z0-9_/]+",
+                                           data)}

@@ -4,26 +4,13 @@ line on stderr, before any station is built."""
 from __future__ import annotations
 
 import pytest
+from conftest import assert_bad_input, run
 
-from drake_symplan.cli import main as cli_main
 from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
 
 A = ObjectSpec("a", "cube", [0.6, 0.0, 0.025])
 B = ObjectSpec("b", "cube", [0.8, 0.1, 0.025])
 A_ON_B = ObjectSpec("a", "cube", [0.8, 0.1, 0.075])
-
-
-def run(argv, capsys):
-    code = cli_main.main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def assert_bad_input(code, out, err, *expected):
-    assert code == 2 and out == "", (code, out, err)
-    assert err.count("\n") == 1 and err.endswith("\n"), err
-    for text in expected:
-        assert text in err, err
 
 
 @pytest.fixture

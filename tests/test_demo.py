@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_inspect import bundle_for_tests  # tests/ is on sys.path under pytest
+from conftest import bundle_for_tests, recorded_paths
 
 REPO = Path(__file__).resolve().parents[1]
 DEMO = REPO / "tools" / "run_demo.py"
@@ -68,8 +68,6 @@ def test_other_bad_input(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_the_demo_solves_a_small_random_goal_and_records_it(tmp_path):
-    from drake_symplan.agent.inspection import recorded_paths
-
     out = tmp_path / "demo.html"
     proc = subprocess.run([sys.executable, str(DEMO), "--model", str(bundle_for_tests()),
                            "--objects", "2", "--seed", "1", "--json", "--out", str(out)],

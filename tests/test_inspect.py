@@ -5,12 +5,12 @@ with a model bundle whose recording holds the drawn objects."""
 from __future__ import annotations
 
 import json
-import os
 import types
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import bundle_for_tests, recorded_paths, run
 
 from drake_symplan.abstraction.abstraction import Reading
 from drake_symplan.actions import Action
@@ -24,16 +24,13 @@ from drake_symplan.agent.inspection import (
     pattern,
     plan_view,
     readable_step,
-    recorded_paths,
     symbol_view,
 )
-from drake_symplan.cli import main as cli_main
 from drake_symplan.symbolic.states import SymbolicState
 from drake_symplan.symbolic.structs import LiftedOperator, Reposition, parse_step
 from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
 
 REPO = Path(__file__).resolve().parents[1]
-DEV_BUNDLE = REPO / "runs" / "dev_ops" / "relational_inv_s0" / "bundle_effect"
 
 
 def scene_and_reading():
@@ -105,12 +102,6 @@ def test_plan_steps_are_grounded_and_the_panel_holds_them():
     assert "pre: p0(b)" in page and "add: r0(a, b)" in page and "del: touching0(a)" in page
 
 
-def run(argv, capsys):
-    code = cli_main.main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     start = tmp_path / "start.yaml"
     save_scene(Scene([ObjectSpec("a", "cube", [0.6, 0.0, 0.025]),
@@ -126,20 +117,6 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
         code, out, err = run(argv, capsys)
         assert code == 2 and out == "" and err.count("\n") == 1, (argv, code, out, err)
         assert text in err, err
-
-
-def bundle_for_tests() -> Path:
-    """$SYMPLAN_TEST_BUNDLE, else the shipped default, else the development bundle under
-    runs/ (not in a clone); skips without one. test_demo.py uses it too."""
-    path = os.environ.get("SYMPLAN_TEST_BUNDLE")
-    if path:
-        return Path(path)
-    from drake_symplan.symbolic.bundle import default_bundle_dir
-
-    for candidate in (default_bundle_dir(), DEV_BUNDLE):
-        if candidate.is_dir():
-            return candidate
-    pytest.skip("no model bundle (set SYMPLAN_TEST_BUNDLE to one)")
 
 
 @pytest.mark.slow

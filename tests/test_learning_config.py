@@ -3,11 +3,11 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 from pathlib import Path
 
 import pytest
+from conftest import parse_learning_args
 
 from drake_symplan.cli import learning_cmds
 from drake_symplan.cli.main import CommandError
@@ -25,12 +25,6 @@ class Example:
     limit: int | None = None
     flag: bool = False
     options: dict = dataclasses.field(default_factory=dict)
-
-
-def _parse(argv):
-    parser = argparse.ArgumentParser()
-    learning_cmds.register(parser.add_subparsers(dest="command", required=True))
-    return parser.parse_args(argv)
 
 
 def test_defaults_are_table1_settings():
@@ -81,19 +75,19 @@ def test_train_flags_override_the_config_file_which_overrides_defaults(tmp_path)
     path = tmp_path / "run.yaml"
     path.write_text("model: attentive\ndata: D\nout: O\nepochs: 2\nlr: 5.0e-4\n"
                     "model_kwargs: {n_heads: 2, n_unary: 4}\n")
-    cfg = learning_cmds.train_config(_parse(
+    cfg = learning_cmds.train_config(parse_learning_args(
         ["train", "--config", str(path), "--epochs", "7", "--model-option", "n_unary=2",
          "--no-progress"]))
     assert (cfg.model, cfg.data, cfg.out) == ("attentive", "D", "O")
     assert cfg.epochs == 7 and cfg.lr == 5e-4 and cfg.patience == 30
     assert cfg.model_kwargs == {"n_heads": 2, "n_unary": 2} and cfg.progress is False
-    cfg = learning_cmds.train_config(_parse(
+    cfg = learning_cmds.train_config(parse_learning_args(
         ["train", "--config", str(TABLE1), "--model", "deepsym", "--data", "D", "--out", "O",
          "--seed", "2", "--soft"]))
     assert (cfg.epochs, cfg.lr, cfg.patience, cfg.threads, cfg.seed) == (300, 1e-3, 30, 1, 2)
     assert cfg.hard is False and cfg.progress is True
-    plain = learning_cmds.train_config(_parse(["train", "--model", "deepsym", "--data", "D",
+    plain = learning_cmds.train_config(parse_learning_args(["train", "--model", "deepsym", "--data", "D",
                                                "--out", "O"]))
     assert plain == TrainConfig("deepsym", "D", "O")
     with pytest.raises(CommandError, match="give --data, --out, as flags or in the --config"):
-        learning_cmds.train_config(_parse(["train", "--model", "deepsym"]))
+        learning_cmds.train_config(parse_learning_args(["train", "--model", "deepsym"]))

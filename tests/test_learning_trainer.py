@@ -9,6 +9,8 @@ import dataclasses
 import numpy as np
 import pytest
 import torch
+from conftest import parse_learning_args
+from synthetic_rule import same_group_rule
 
 from drake_symplan.cli import learning_cmds
 from drake_symplan.learning.checkpoint import load_run
@@ -20,7 +22,6 @@ from drake_symplan.learning.evaluate import (
     summarize_errors,
 )
 from drake_symplan.learning.readout import read_symbols, readout_dataset
-from drake_symplan.learning.synthetic import same_group_rule
 from drake_symplan.learning.trainer import TrainConfig, _check_resumable, train
 from drake_symplan.shards import write_manifest, write_shard
 
@@ -36,12 +37,6 @@ def data_dir(tmp_path_factory):
     write_shard(out, 0, arrays.subset(np.arange(150)))
     write_shard(out, 1, arrays.subset(np.arange(150, 300)))
     return out
-
-
-def _parse(argv):
-    parser = argparse.ArgumentParser()
-    learning_cmds.register(parser.add_subparsers(dest="command", required=True))
-    return parser.parse_args(argv)
 
 
 def test_split_is_by_episode_seeded_and_complete():
@@ -151,7 +146,7 @@ def test_train_resume_eval_and_symbols(data_dir, tmp_path):
     with open(tmp_path / "b" / "log.csv") as f:
         assert [row["epoch"] for row in csv.DictReader(f)] == ["1", "2", "3"]
 
-    args = _parse(["eval", "effects", str(tmp_path / "a"), str(tmp_path / "b"),
+    args = parse_learning_args(["eval", "effects", str(tmp_path / "a"), str(tmp_path / "b"),
                    "--json", "--plot", str(tmp_path / "plot.png")])
     result = args.func(args)
     stats = result["models"]["relational"]["error_cm"]
@@ -159,7 +154,7 @@ def test_train_resume_eval_and_symbols(data_dir, tmp_path):
     assert result["runs"][0]["error_cm"] == pytest.approx(straight["test"]["error_cm"])
     assert (tmp_path / "plot.png").stat().st_size > 0
 
-    args = _parse(["symbols", str(tmp_path / "a"), "--data", str(data_dir),
+    args = parse_learning_args(["symbols", str(tmp_path / "a"), "--data", str(data_dir),
                    "--out", str(tmp_path / "symbols.npz"), "--json"])
     summary = args.func(args)
     assert summary["transitions"] == 300 and summary["relations"] == 3
@@ -197,7 +192,7 @@ def test_evaluate_runs_checks_the_data_fingerprint(data_dir, tmp_path):
 
 
 def test_baseline_readout_has_no_relations(data_dir, tmp_path):
-    args = _parse(["train", "--model", "deepsym", "--data", str(data_dir), "--out",
+    args = parse_learning_args(["train", "--model", "deepsym", "--data", str(data_dir), "--out",
                    str(tmp_path / "d"), "--epochs", "1", "--threads", "1", "--no-progress",
                    "--temperature", "2", "--model-option", "n_unary=2", "--json"])
     result = args.func(args)

@@ -8,14 +8,8 @@ from drake_symplan.features import FEATURE_DIM, object_features
 from drake_symplan.perception.association import associate
 from drake_symplan.perception.evaluation import compare
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene, Perceiver
-from drake_symplan.world.cameras import DepthNoise, default_cameras
+from drake_symplan.world.cameras import DepthNoise
 from drake_symplan.world.scenes import ObjectSpec, Scene
-from drake_symplan.world.station import Station, StationConfig
-
-
-@pytest.fixture(scope="module")
-def camera_station():
-    return Station(StationConfig(cameras=default_cameras()))
 
 
 def perceive(station, objects, settle=0.5, q_arm=None, noise=None):

@@ -11,9 +11,7 @@ from drake_symplan.perception.box_fitting import upright_blocks
 from drake_symplan.perception.evaluation import compare
 from drake_symplan.perception.fitted_box import FittedBox
 from drake_symplan.perception.perceive import Perceiver
-from drake_symplan.world.cameras import default_cameras
 from drake_symplan.world.scenes import ObjectSpec, Scene
-from drake_symplan.world.station import Station, StationConfig
 
 I3 = np.eye(3)
 
@@ -95,11 +93,6 @@ def test_five_stacked_cubes_are_one_upright_block():
     np.testing.assert_allclose(block.center, [0.7, 0.1, 0.125], atol=1e-9)
     np.testing.assert_allclose(np.abs(block.R[:, 1]), [0, 0, 1], atol=1e-9)  # long axis up
     assert upright_blocks(column[:4]) == column[:4]  # a tower of four stays a tower
-
-
-@pytest.fixture(scope="module")
-def camera_station():
-    return Station(StationConfig(cameras=default_cameras()))
 
 
 def _perceive(station, objects, prior=None):

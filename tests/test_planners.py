@@ -9,12 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pddl_reader import check_plan
 
 from drake_symplan.cli import main as cli_main
 from drake_symplan.planning.planners import PLANNERS, PlanResult, fast_downward, plan, plan_pddl
 from drake_symplan.symbolic import synthetic
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
-from drake_symplan.symbolic.pddl import check_plan, domain_pddl, problem_pddl
+from drake_symplan.symbolic.pddl import domain_pddl, problem_pddl
 from drake_symplan.symbolic.structs import parse_step
 
 HANOI = """

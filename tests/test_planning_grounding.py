@@ -4,6 +4,7 @@ domains."""
 
 import numpy as np
 import pytest
+from pddl_reader import check_plan
 
 from drake_symplan.abstraction import abstraction
 from drake_symplan.abstraction.abstraction import plan_task, problem_text
@@ -12,7 +13,7 @@ from drake_symplan.planning.grounding import fast_downward_task, ground, sas_tex
 from drake_symplan.planning.planners import plan_pddl, search_binary
 from drake_symplan.symbolic import synthetic
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
-from drake_symplan.symbolic.pddl import check_plan, domain_pddl
+from drake_symplan.symbolic.pddl import domain_pddl
 from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task, parse_step
 
 needs_search = pytest.mark.skipif(search_binary() is None,

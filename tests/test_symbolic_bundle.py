@@ -112,7 +112,7 @@ def test_a_missing_or_incomplete_bundle_is_one_clear_error(tmp_path, bundle):
 
 
 def test_plans_on_the_cost_domain_check_with_the_strips_reader(bundle):
-    from drake_symplan.symbolic.pddl import check_plan
+    from pddl_reader import check_plan
 
     start, goal = reading([1, 1, 0]), reading([1, 1, 0], on=[("a", "b")],
                                               contacts=[("a", "b")])

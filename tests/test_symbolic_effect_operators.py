@@ -9,11 +9,16 @@ from drake_symplan.actions import Action, encode_action
 from drake_symplan.datasets import SymbolDataset
 from drake_symplan.symbolic.effect_operators import (
     EffectLearnConfig,
+    atoms_and_unknown,
     learn_effect_operators,
     lift_transitions,
     predicts,
-    state_atoms,
 )
+
+
+def state_atoms(*args, **kwargs) -> frozenset:
+    """The certain atoms of one state (effect_operators.atoms_and_unknown)."""
+    return atoms_and_unknown(*args, **kwargs)[0]
 
 
 def dataset(rows) -> SymbolDataset:

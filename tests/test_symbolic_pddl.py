@@ -2,16 +2,10 @@
 
 import numpy as np
 import pytest
+from pddl_reader import check_plan, read_domain, read_problem
 
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
-from drake_symplan.symbolic.pddl import (
-    check_plan,
-    domain_pddl,
-    parse_sexpr,
-    problem_pddl,
-    read_domain,
-    read_problem,
-)
+from drake_symplan.symbolic.pddl import domain_pddl, parse_sexpr, problem_pddl
 from drake_symplan.symbolic.states import SymbolicState, bit_atoms, difference_facts
 from drake_symplan.symbolic.structs import LiftedOperator
 from drake_symplan.symbolic.synthetic import Row, dataset_from_rows

@@ -89,7 +89,7 @@ def bench_engines(backend: str, transitions: int, workers: int, objects: int, ru
             "median_ray_startup_seconds": med["ray"]["startup_seconds"]}
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--workers", type=int, default=2)
@@ -104,8 +104,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="compare Ray actors with the local workers on this machine")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--out", help="also write the JSON result here")
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
 
+
+def run_benchmarks(args: argparse.Namespace) -> dict:
+    """Each back-end's rate (local workers, or local against Ray with --ray), and parity."""
     result: dict = {"backends": {}}
     sizes = {"hand": args.hand_transitions, "arm": args.arm_transitions}
     bench = bench_backend
@@ -131,6 +134,28 @@ def main(argv: list[str] | None = None) -> int:
         parity.pop("rows")
         parity["seconds"] = round(time.perf_counter() - t0, 1)
         result["parity"] = parity
+    return result
+
+
+def print_summary(result: dict, ray: bool) -> None:
+    for name, b in result["backends"].items():
+        if ray:
+            print(f"{name}: local {b['median_local_rate_per_s']}/s, Ray "
+                  f"{b['median_ray_rate_per_s']}/s (x{b['ray_over_local']}); start-up "
+                  f"{b['median_local_startup_seconds']} s / "
+                  f"{b['median_ray_startup_seconds']} s ({b['workers']} workers)")
+        else:
+            print(f"{name}: {b['median_rate_per_s']}/s end to end, "
+                  f"{b['median_steady_rate_per_s']}/s steady ({b['workers']} workers)")
+    if "parity" in result:
+        p = result["parity"]
+        print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']}, "
+              f"effect diff median {p['effect_diff_median_m']} m")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    result = run_benchmarks(args)
     text = json.dumps(result, indent=2)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)  # --out may name a new folder
@@ -138,19 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(text)
     else:
-        for name, b in result["backends"].items():
-            if args.ray:
-                print(f"{name}: local {b['median_local_rate_per_s']}/s, Ray "
-                      f"{b['median_ray_rate_per_s']}/s (x{b['ray_over_local']}); start-up "
-                      f"{b['median_local_startup_seconds']} s / "
-                      f"{b['median_ray_startup_seconds']} s ({b['workers']} workers)")
-            else:
-                print(f"{name}: {b['median_rate_per_s']}/s end to end, "
-                      f"{b['median_steady_rate_per_s']}/s steady ({b['workers']} workers)")
-        if "parity" in result:
-            p = result["parity"]
-            print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']}, "
-                  f"effect diff median {p['effect_diff_median_m']} m")
+        print_summary(result, args.ray)
     return 0
 
 

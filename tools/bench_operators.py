@@ -129,7 +129,7 @@ def bench_planning_real(ops, data: dict, problems: int, objects: int, timeout: f
             **out}
 
 
-def main() -> int:
+def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--transitions", type=int, default=50_000)
     parser.add_argument("--symbols", type=Path,
@@ -147,7 +147,12 @@ def main() -> int:
     args = parser.parse_args()
     if args.runs < 3 or args.problems < 10:
         parser.error("use --runs >= 3 and --problems >= 10 for medians worth reporting")
+    return args
 
+
+def load_data(args: argparse.Namespace):
+    """(the symbolic transitions, the seconds to load or generate them); --symbols sets
+    args.transitions to the read-out's count."""
     t = time.perf_counter()
     if args.symbols:
         from drake_symplan.symbolic.operators import load_symbols
@@ -156,7 +161,12 @@ def main() -> int:
         args.transitions = int(data["mask"].shape[0])
     else:
         data = synthetic.random_transitions(args.transitions, seed=args.seed)
-    generate_s = time.perf_counter() - t
+    return data, time.perf_counter() - t
+
+
+def run_benchmark(args: argparse.Namespace) -> dict:
+    """Learning both ways and planning on the data `args` names: the result's JSON."""
+    data, generate_s = load_data(args)
     learning, ops = bench_learning(data, args.runs, args.min_count)
     effect = (bench_effect_learning(data, args.runs, args.effect_min_count)
               if data.contacts is not None else None)
@@ -165,7 +175,7 @@ def main() -> int:
     else:
         planning = bench_planning(ops, args.problems, args.objects, args.seed + 1,
                                   args.timeout)
-    result = {
+    return {
         "benchmark": "operators",
         "source": str(args.symbols) if args.symbols else "synthetic",
         "transitions": args.transitions,
@@ -183,9 +193,14 @@ def main() -> int:
         "machine": {"python": platform.python_version(), "processor": platform.processor(),
                     "platform": platform.platform()},
     }
+
+
+def main() -> int:
+    args = parse_args()
+    result = run_benchmark(args)
+    learning, planning = result["learning"], result["planning"]
     text = json.dumps(result, indent=2)
     if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.parent.mkdir(parents=True, exist_ok=True)  # --out may name a new folder
         args.out.write_text(text + "\n")
     if args.json:

@@ -111,7 +111,7 @@ def summary(rows: list[dict], modes: list[str]) -> dict:
     return out
 
 
-def main(argv=None) -> int:
+def parse_args(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", type=Path, default=None,
@@ -126,20 +126,15 @@ def main(argv=None) -> int:
     add_planner_arguments(parser, per_plan=True)
     parser.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     parser.add_argument("--json", action="store_true")
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
 
-    from drake_symplan.abstraction.abstraction import Abstraction
-    from drake_symplan.agent.config import SolveConfig
-    from drake_symplan.agent.planning_modes import make_planner
+
+def time_problems(args: argparse.Namespace, abstraction, planners) -> tuple[list, float]:
+    """(a row per problem, the seconds the station took to build): the problems of
+    args.problems, or args.count made here, each planned in every mode after a warm-up."""
     from drake_symplan.agent.problems import load_problems, make_problems
     from drake_symplan.agent.solve import Agent
-    from drake_symplan.cli.agent_cmds import load_bundle
 
-    bundle = load_bundle(args.model)
-    abstraction = Abstraction(bundle)
-    planners = {mode: make_planner(abstraction, SolveConfig(
-        planner=args.planner, cpu_seconds=args.timeout, planning=mode))
-                for mode in args.planning}
     t = time.perf_counter()
     agent = Agent("arm")
     setup = time.perf_counter() - t
@@ -154,6 +149,23 @@ def main(argv=None) -> int:
         # imports, the renderer, the page cache
         rows = [bench_problem(agent, abstraction, Path(p["dir"]), planners)
                 for p in problems]
+    return rows, setup
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+
+    from drake_symplan.abstraction.abstraction import Abstraction
+    from drake_symplan.agent.config import SolveConfig
+    from drake_symplan.agent.planning_modes import make_planner
+    from drake_symplan.cli.options import load_bundle
+
+    bundle = load_bundle(args.model)
+    abstraction = Abstraction(bundle)
+    planners = {mode: make_planner(abstraction, SolveConfig(
+        planner=args.planner, cpu_seconds=args.timeout, planning=mode))
+                for mode in args.planning}
+    rows, setup = time_problems(args, abstraction, planners)
     result = {
         "host": {"machine": platform.machine(), "python": platform.python_version(),
                  "processor": platform.processor()},

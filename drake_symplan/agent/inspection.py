@@ -19,9 +19,7 @@ a panel added to the recording's HTML (`panel_html`, `annotate_html`) and to the
 
 from __future__ import annotations
 
-import base64
 import html as _html
-import re
 from pathlib import Path
 
 import numpy as np
@@ -298,14 +296,6 @@ def annotate_html(page: str, panel: str) -> str:
     """The Meshcat page with `panel` added before </body>."""
     at = page.rfind("</body>")
     return page[:at] + panel + page[at:] if at >= 0 else page + panel
-
-
-def recorded_paths(page: str, prefix: str = PREFIX) -> set[str]:
-    """The Meshcat paths under `prefix` that a static page (StaticHtml) sets: its scene
-    commands are base64 msgpack blobs, whose path strings are read back here."""
-    data = b"".join(base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]+)", page))
-    return {m.decode() for m in re.findall(re.escape(prefix.encode()) + rb"/[A-Za-z0-9_/]+",
-                                           data)}
 
 
 def write_recording(meshcat, path: str | Path, panel: str) -> Path:

@@ -5,7 +5,8 @@ the hand's perceived names and mapped to the arm's by nearest perceived position
 execute it; we compare the outcome classes (exploration.classify) and the effect vectors
 of the relevant objects (exploration.effects; per object the norm of the 6-d difference).
 Pairs the arm cannot reach, or whose scene either perception miscounts, are skipped and
-counted. Scenes come from `scenes.sample_scene` or, when given, a fixed list.
+counted. Scenes come from `scenes.sample_scene` or, when given, a fixed list. A measurement
+for tools/bench_collect.py (`--parity-pairs`) and test_data_collect; the pipeline does not use it.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ sets the width of the surrogate gradient. The layers in front of a Gumbel-sigmoi
 produce logits up to +-9 (norm-3 inputs and weights), where sigmoid' at T = 1 is
 ~1e-4: relation heads that saturate early (every pair related, or none) then stay
 stuck. At T = 3 the gradient at |logit| = 9 is sigmoid'(3) ~ 0.045, and on the
-synthetic relational rule (`synthetic.py`) every seed tried recovered the relation
+synthetic relational rule (tests/synthetic_rule.py) every seed tried recovered the relation
 where T = 1 recovered it in about half of them.
 
 In eval mode the activation is deterministic: the bit is the sign of the logit, the

@@ -86,15 +86,6 @@ class EffectOperatorSet:
 # ---------------------------------------------------------------- states as atom sets
 
 
-def state_atoms(unary, unary_unc, rel, rel_unc, contacts, real, degree=None) -> frozenset:
-    """The atoms of one state over object slots (see the module docstring).
-
-    unary [N, P], rel [K, N, N] bits; *_unc their uncertainty flags (None: all certain);
-    contacts [N, N] bool (None: every pair); real [N] bool; degree [N]: how many objects
-    of the whole scene each one touches (None: no contact-degree atoms)."""
-    return atoms_and_unknown(unary, unary_unc, rel, rel_unc, contacts, real, degree)[0]
-
-
 def degree_atom(n: int) -> str:
     """`touching0` .. `touching3` (3 or more): how many objects an object touches."""
     return f"touching{min(int(n), MAX_DEGREE)}"

@@ -1,4 +1,7 @@
-"""A toy symbolic blocks world with known operators, for tests and benchmarks.
+"""A toy symbolic blocks world with known operators: a test and benchmark aid, no part of
+the pipeline. tools/bench_operators.py (its synthetic transitions and problems) and the
+tests test_symbolic_operators, test_symbolic_pddl, test_planners and
+test_planning_grounding use it; nothing in the package does.
 
 Objects are cubes or long blocks (one unary bit, p0 = long). Every object rests on the
 table or on one other object, and supports at most one. K = 3 relations:
