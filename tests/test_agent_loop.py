@@ -304,7 +304,7 @@ def test_scene_pairs_must_hold_the_same_objects():
 def test_evaluate_planning_on_a_fake_world(tmp_path):
     import json
 
-    from drake_symplan.agent.evaluation import evaluate_planning
+    from drake_symplan.evaluation.planning import evaluate_planning
     from drake_symplan.world.scenes import save_scene
 
     folder = tmp_path / "set" / "p000"
@@ -330,7 +330,7 @@ def test_evaluate_planning_on_a_fake_world(tmp_path):
 def test_the_oracle_replays_a_recorded_problem(tmp_path):
     import json
 
-    from drake_symplan.agent.evaluation import evaluate_planning
+    from drake_symplan.evaluation.planning import evaluate_planning
     from drake_symplan.world.scenes import save_scene
 
     folder = tmp_path / "set" / "p000"
@@ -352,8 +352,8 @@ def test_the_oracle_replays_a_recorded_problem(tmp_path):
 
 @pytest.mark.slow
 def test_eval_planning_on_local_workers_gives_the_in_process_records(tmp_path):
-    from drake_symplan.agent.evaluation import evaluate_planning
-    from drake_symplan.agent.problems import make_problems
+    from drake_symplan.evaluation.planning import evaluate_planning
+    from drake_symplan.evaluation.problems import make_problems
     from drake_symplan.world.station import models_dir
 
     problems = tmp_path / "problems"
@@ -375,7 +375,7 @@ def test_eval_planning_on_local_workers_gives_the_in_process_records(tmp_path):
 def test_a_records_file_cut_while_writing_resumes_without_the_cut_line(tmp_path):
     import json
 
-    from drake_symplan.agent.evaluation import _resume
+    from drake_symplan.evaluation.planning import _resume
 
     records = tmp_path / "records.jsonl"
     done = {"run": "a/b", "monitor": True, "problem": "p000", "status": "success",

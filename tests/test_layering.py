@@ -1,5 +1,5 @@
 """The package's layers: no module imports a layer above its own, and learning, symbolic,
-planning and abstraction import without pydrake and without the collection code."""
+planning, abstraction and the symbolic-level evaluations import without pydrake and without the collection code."""
 
 import ast
 import subprocess
@@ -13,7 +13,7 @@ LAYERS = (
     ("drake_symplan", "actions", "datasets", "boxes", "features", "atomic", "typed_yaml",
      "json_files", "shards", "cluster"),
     ("world",), ("perception",), ("skills",), ("robot",), ("data",), ("learning",),
-    ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",),
+    ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",), ("evaluation",),
     ("pipelines",), ("cli",),
 )
 RANK = {name: i for i, names in enumerate(LAYERS) for name in names}
@@ -67,6 +67,8 @@ class NoDrake:
 sys.meta_path.insert(0, NoDrake())
 names = ["drake_symplan.actions", "drake_symplan.datasets", "drake_symplan.shards", "drake_symplan.atomic",
          "drake_symplan.typed_yaml", "drake_symplan.json_files", "drake_symplan.features", "drake_symplan.boxes"]
+names += ["drake_symplan.evaluation.effects", "drake_symplan.evaluation.operators",
+          "drake_symplan.evaluation.rollouts"]  # the Drake-free measurements
 for package in ("learning", "symbolic", "planning", "abstraction"):
     pkg = importlib.import_module(f"drake_symplan.{package}")
     names += [f"drake_symplan.{package}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]

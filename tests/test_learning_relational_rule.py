@@ -14,7 +14,7 @@ import torch
 from synthetic_rule import LIFT, same_group_rule
 
 from drake_symplan.learning.dataset import TensorSet, normalization_stats
-from drake_symplan.learning.evaluate import effect_metrics, evaluate_loss
+from drake_symplan.learning.effect_error import effect_metrics, evaluate_loss
 from drake_symplan.learning.models import build_model
 from drake_symplan.learning.readout import read_symbols
 from drake_symplan.learning.trainer import make_optimizer, train_step

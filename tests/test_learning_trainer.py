@@ -13,14 +13,10 @@ from conftest import parse_learning_args
 from synthetic_rule import same_group_rule
 
 from drake_symplan.cli import learning_cmds
+from drake_symplan.evaluation.effects import aggregate_runs
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.dataset import split_by_episode
-from drake_symplan.learning.evaluate import (
-    aggregate_runs,
-    effect_metrics,
-    object_errors_cm,
-    summarize_errors,
-)
+from drake_symplan.learning.effect_error import effect_metrics, object_errors_cm, summarize_errors
 from drake_symplan.learning.readout import read_symbols, readout_dataset
 from drake_symplan.learning.trainer import TrainConfig, _check_resumable, train
 from drake_symplan.shards import write_manifest, write_shard
@@ -177,7 +173,7 @@ def test_train_resume_eval_and_symbols(data_dir, tmp_path):
 
 
 def test_evaluate_runs_checks_the_data_fingerprint(data_dir, tmp_path):
-    from drake_symplan.learning.evaluate import evaluate_runs, format_summary
+    from drake_symplan.evaluation.effects import evaluate_runs, format_summary
 
     train(TrainConfig("deepsym", str(data_dir), str(tmp_path / "r"), **{**SMALL, "epochs": 1}))
     result = evaluate_runs([tmp_path / "r"], outcome_names=("a", "b"))

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.abstraction.operator_eval import familiarity, prediction_scores
 from drake_symplan.actions import Action, encode_action
 from drake_symplan.datasets import SymbolDataset
+from drake_symplan.evaluation.operators import familiarity, prediction_scores
 from drake_symplan.symbolic.effect_operators import (
     EffectLearnConfig,
     atoms_and_unknown,

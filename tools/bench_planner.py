@@ -24,7 +24,7 @@ from functools import partial
 from pathlib import Path
 
 from drake_symplan.abstraction.abstraction import plan_task, problem_text
-from drake_symplan.abstraction.operator_eval import EvalConfig, make_problems, readout_scenes
+from drake_symplan.evaluation.operators import EvalConfig, make_problems, readout_scenes
 from drake_symplan.planning.planners import WALL_FACTOR, plan_pddl
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.structs import parse_step

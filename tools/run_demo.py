@@ -6,7 +6,7 @@
                              [--from-scratch --budget-minutes M [--work DIR]]
 
 The same command as `symplan demo` (drake_symplan/cli/demo_cmds.py; the episode in
-drake_symplan/agent/demo.py, --from-scratch's stages in
+drake_symplan/pipelines/demo.py, --from-scratch's stages in
 drake_symplan/pipelines/from_scratch.py), with the recording and --from-scratch's work
 under this repository's out/ and the default problem its models/demo/, wherever it is
 run from. `--help` tells every option.

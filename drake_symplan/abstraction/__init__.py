@@ -5,6 +5,6 @@ perceived scene (names, features, contacts) -> `abstraction.Abstraction.read` (l
 read-out) -> atoms under the bundle's semantics -> `Task` -> `Abstraction.plan` (planning's
 back-ends on the bundle's domain) -> typed `Step`s. `continuous` rolls the learned effect
 model forward on positions; `bilevel` checks and completes symbolic plans with it and
-searches in continuous space. `operator_eval` (`symplan eval operators`) and
-`rollout_eval` (`symplan eval rollout`) measure a bundle at this level on held-out episodes.
+searches in continuous space. evaluation/operators.py and evaluation/rollouts.py
+measure a bundle at this level on held-out episodes.
 """

@@ -143,7 +143,7 @@ def cmd_solve(args: argparse.Namespace) -> dict:
 
 
 def cmd_problems_make(args: argparse.Namespace) -> dict:
-    from drake_symplan.agent.problems import make_problems
+    from drake_symplan.evaluation.problems import make_problems
 
     check_objects(args.objects)
     check_output_dir(args.out)
@@ -159,7 +159,7 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
 
 def cmd_eval_planning(args: argparse.Namespace) -> dict:
     from drake_symplan.abstraction.abstraction import Abstraction
-    from drake_symplan.agent.evaluation import evaluate_planning, plot_planning
+    from drake_symplan.evaluation.planning import evaluate_planning, plot_planning
 
     config = solve_config(args)
     for run in args.runs:

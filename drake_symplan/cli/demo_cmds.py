@@ -9,7 +9,7 @@
    cubes and two long blocks, the goal two arm actions away), the same on every machine.
    `--seed N` samples a new one: a random scene with `--objects` boxes, then k = 2 or 3
    random pick/place actions executed by the UR10; the scene they leave is the goal
-   (agent/problems.py, as the planning evaluation makes them), kept only if the same
+   (evaluation/problems.py, as the planning evaluation makes them), kept only if the same
    actions replayed from the start as saved reach it again (`symplan problems make
    --reproducible`: a goal that a tenth of a millimetre turns into another is dropped).
    Sampled goals come from simulated physics, which differs slightly between machines, so
@@ -126,7 +126,7 @@ def main(argv: list[str] | None, prog: str, out_dir: Path = Path("out"),
 def check_inputs(args: argparse.Namespace):
     """(bundle, start, goal): None for a bundle to learn (--from-scratch) or scenes to
     sample (--seed); bad input is a CommandError. Nothing heavier than the bundle loads."""
-    from drake_symplan.agent.demo import shipped_problem
+    from drake_symplan.pipelines.demo import shipped_problem
     from drake_symplan.pipelines.from_scratch import MIN_BUDGET_MINUTES
 
     if (args.start is None) != (args.goal is None):
@@ -153,7 +153,7 @@ def check_inputs(args: argparse.Namespace):
 def cmd_demo(args: argparse.Namespace) -> int:
     """Runs the demo; prints its lines (on stderr with --json), then its JSON; returns the
     exit status (0 success; 1 a failed verdict, no plan, no goal, no model learned)."""
-    from drake_symplan.agent.demo import DemoSettings, run_demo
+    from drake_symplan.pipelines.demo import DemoSettings, run_demo
 
     bundle, start, goal = check_inputs(args)
     config = solve_config(args)

@@ -257,7 +257,7 @@ def cmd_bundle(args) -> dict:
 def cmd_eval_operators(args) -> dict:
     import json
 
-    from drake_symplan.abstraction.operator_eval import EvalConfig, evaluate_bundle, plot_report
+    from drake_symplan.evaluation.operators import EvalConfig, evaluate_bundle, plot_report
     from drake_symplan.symbolic.bundle import ModelBundle
 
     planner_settings(args)
@@ -289,7 +289,7 @@ def cmd_eval_operators(args) -> dict:
 
 
 def cmd_eval_rollout(args) -> dict:
-    from drake_symplan.abstraction.rollout_eval import RolloutConfig, evaluate_rollouts
+    from drake_symplan.evaluation.rollouts import RolloutConfig, evaluate_rollouts
     from drake_symplan.symbolic.bundle import CONTINUOUS, ModelBundle
 
     if args.run is not None:

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from drake_symplan.learning import checkpoint as ckpt_io
 from drake_symplan.learning.dataset import TensorSet, normalization_stats, split_by_episode
-from drake_symplan.learning.evaluate import effect_loss, effect_metrics, evaluate_loss
+from drake_symplan.learning.effect_error import effect_loss, effect_metrics, evaluate_loss
 from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE
 from drake_symplan.learning.models import MODELS, build_model
 from drake_symplan.shards import fingerprint, load_transitions

@@ -10,9 +10,15 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_symplan.agent.evaluation import MODES, plot_planning, read_records, run_label, summarise
-from drake_symplan.agent.problems import load_problems
 from drake_symplan.atomic import write_atomic
+from drake_symplan.evaluation.planning import (
+    MODES,
+    plot_planning,
+    read_records,
+    run_label,
+    summarise,
+)
+from drake_symplan.evaluation.problems import load_problems
 from drake_symplan.json_files import read_json
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from drake_symplan.agent.evaluation import plot_planning, summarise, true_success
+from drake_symplan.evaluation.planning import plot_planning, summarise, true_success
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 

@@ -26,11 +26,11 @@ import numpy as np
 from drake_symplan.abstraction.abstraction import Abstraction
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import PLANNING_MODES
-from drake_symplan.agent.problems import load_problems, recorded_actions
 from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
 from drake_symplan.boxes import goal_reached
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
+from drake_symplan.evaluation.problems import load_problems, recorded_actions
 from drake_symplan.json_files import parse_json, type_name
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene

@@ -66,7 +66,7 @@ class DemoOutcome:
 
 def make_goal(agent, seed: int, objects: int, k: int | None, say):
     """(start, goal, info) of the first non-trivial reproducible random problem, or None."""
-    from drake_symplan.agent.problems import make_problem, problem_seed
+    from drake_symplan.evaluation.problems import make_problem, problem_seed
 
     k = k or int(np.random.default_rng(seed).integers(2, 4))
     for attempt in range(MAX_ATTEMPTS):

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.abstraction import operator_eval
-from drake_symplan.abstraction.operator_eval import EvalConfig, make_problems, solve_problems
 from drake_symplan.datasets import SceneSymbols
+from drake_symplan.evaluation import operators as operator_eval
+from drake_symplan.evaluation.operators import EvalConfig, make_problems, solve_problems
 from drake_symplan.planning.planners import PlanResult
 from drake_symplan.symbolic.effect_operators import EFFECT
 from drake_symplan.symbolic.structs import LiftedOperator
