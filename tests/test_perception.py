@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from drake_symplan.actions import Action
+from drake_symplan.evaluation.perception import compare
 from drake_symplan.features import FEATURE_DIM, object_features
 from drake_symplan.perception.association import associate
-from drake_symplan.perception.evaluation import compare
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene, Perceiver
 from drake_symplan.world.cameras import DepthNoise
 from drake_symplan.world.scenes import ObjectSpec, Scene

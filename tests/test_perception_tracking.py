@@ -5,10 +5,10 @@ from collections import Counter
 import numpy as np
 import pytest
 
+from drake_symplan.evaluation.perception import compare
 from drake_symplan.perception import segmentation as seg
 from drake_symplan.perception import tracking
 from drake_symplan.perception.box_fitting import upright_blocks
-from drake_symplan.perception.evaluation import compare
 from drake_symplan.perception.fitted_box import FittedBox
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.world.scenes import ObjectSpec, Scene

@@ -20,8 +20,8 @@ import numpy as np
 from tqdm import tqdm
 
 from drake_symplan.actions import OFFSETS, Action
+from drake_symplan.evaluation.perception import compare, match_to_truth
 from drake_symplan.perception.association import associate
-from drake_symplan.perception.evaluation import compare, match_to_truth
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place

@@ -27,7 +27,7 @@ def cmd_perceive(args: argparse.Namespace) -> dict:
 
     scene = load_scene_file(args.scene)  # before Drake is loaded: bad input is told fast
 
-    from drake_symplan.perception.evaluation import compare
+    from drake_symplan.evaluation.perception import compare
     from drake_symplan.perception.perceive import Perceiver
     from drake_symplan.world.cameras import DepthNoise, default_cameras
     from drake_symplan.world.station import Station, StationConfig
