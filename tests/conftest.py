@@ -23,9 +23,9 @@ def station():
 
 @pytest.fixture(scope="session")
 def planner():
-    from drake_symplan.skills.pick_place import PickPlacePlanner
+    from drake_symplan.skills.pick_place import PickPlaceMotions
 
-    return PickPlacePlanner()
+    return PickPlaceMotions()
 
 
 @pytest.fixture

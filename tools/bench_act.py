@@ -20,7 +20,7 @@ import numpy as np
 
 from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action
 from drake_symplan.datasets import ObjectState
-from drake_symplan.skills.pick_place import PickPlacePlanner, action_geometry, pick_place
+from drake_symplan.skills.pick_place import PickPlaceMotions, action_geometry, pick_place
 from drake_symplan.world.scenes import sample_scene
 from drake_symplan.world.station import Station
 
@@ -38,7 +38,7 @@ def placement(action: Action, beliefs: dict, end: dict) -> tuple[bool, float]:
 
 
 def bench(num_objects: int, actions: int, seed: int) -> dict:
-    station, planner = Station(), PickPlacePlanner()
+    station, planner = Station(), PickPlaceMotions()
     rng = np.random.default_rng(seed)
     seconds, cpu_seconds, sim_seconds, statuses, errors = [], [], [], {}, []
     # One warm-up action: first-call costs (hydroelastic meshes, SNOPT setup) are not per-action.

@@ -24,7 +24,7 @@ from drake_symplan.evaluation.perception import compare, match_to_truth
 from drake_symplan.perception.association import associate
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
-from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
+from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import sample_structured_scene
 from drake_symplan.world.station import Station, StationConfig
@@ -75,7 +75,7 @@ def bench_scenes(station, perceiver, n_scenes: int, seed: int, noise: DepthNoise
 def bench_association(station, perceiver, n: int, seed: int) -> dict:
     """Identity association on arm-executed transitions, checked against ground truth."""
     rng = np.random.default_rng(seed + 1)
-    planner = PickPlacePlanner()
+    planner = PickPlaceMotions()
     correct, total, skipped, left_view = 0, 0, 0, 0
     failures = []
     with tqdm(total=n, desc="transitions") as bar:

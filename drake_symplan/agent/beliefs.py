@@ -96,7 +96,7 @@ def check_scene_pair(start, goal) -> None:
             raise ScenePairError(f"object name {name!r} cannot be planned with: {e}") from None
 
 
-def goal_errors(goal: dict[str, np.ndarray], final: dict[str, np.ndarray],
+def goal_report(goal: dict[str, np.ndarray], final: dict[str, np.ndarray],
                 truth: dict[str, np.ndarray]) -> dict[str, dict]:
     """Per goal object: goal, final (perceived; None if lost), final_true (simulator) as xyz
     lists in metres, and error_cm (perceived final to goal; None if lost)."""

@@ -351,7 +351,7 @@ class _Run:
         within GOAL_TOLERANCE (boxes.goal_reached), else the status for `cause`."""
         result = self.result
         truth = {n: s.position for n, s in self.agent.robot.ground_truth_states().items()}
-        result.objects = beliefs.goal_errors(beliefs.positions(self.goal_scene),
+        result.objects = beliefs.goal_report(beliefs.positions(self.goal_scene),
                                              beliefs.positions(final), truth)
         errors = {n: o["error_cm"] for n, o in result.objects.items()}
         # error_cm is rounded to 0.01 cm: the check reads what the result reports

@@ -85,13 +85,13 @@ def cmd_act(args: argparse.Namespace) -> dict:
     for name in (action.source, action.target):
         scene.object(name)  # clear error for an unknown name
 
-    from drake_symplan.skills.pick_place import PickPlacePlanner, pick_place
+    from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
     from drake_symplan.world.station import Station
     from drake_symplan.world.visualization import StartMeshcat, recording
 
     meshcat = StartMeshcat() if (args.meshcat or args.record) else None
     station = Station(meshcat=meshcat)
-    planner = PickPlacePlanner()
+    planner = PickPlaceMotions()
     station.reset(scene)
     # The scene file is the caller's belief about where the objects are.
     beliefs = {o.name: _belief(o) for o in scene.objects}

@@ -242,7 +242,7 @@ def _seconds(records: list[dict]) -> dict:
             for phase in ("total", "execute") if all(phase in r["seconds"] for r in records)}
 
 
-def _goal_errors(records: list[dict]) -> dict | None:
+def _goal_error_summary(records: list[dict]) -> dict | None:
     """Perceived distances of the goal objects from their goal positions in successful
     solves (placement accuracy): median and 90th percentile over objects, in cm."""
     errors = [e for r in records for e in r["error_cm"].values() if e is not None]
@@ -276,7 +276,7 @@ def summarise(records: list[dict]) -> dict:
             "plan_seconds": {"median": round(statistics.median(plan_s), 4),
                              "mean": round(float(np.mean(plan_s)), 4)},
             "solve_seconds": _seconds(rs),
-            "goal_error_cm": _goal_errors([r for r in rs if r["status"] == "success"]),
+            "goal_error_cm": _goal_error_summary([r for r in rs if r["status"] == "success"]),
             "plan_length_minus_k": round(float(np.mean(
                 [r["plan_length"] - r["k"] for r in solved])), 3) if solved else None,
             "replans_mean": round(float(np.mean([r["replans"] for r in rs])), 3),

@@ -28,7 +28,7 @@ from scipy.spatial import QhullError
 from drake_symplan.actions import Action
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.skills.hand_place import hand_pick_place
-from drake_symplan.skills.pick_place import InfeasibleAction, PickPlacePlanner, run_motion
+from drake_symplan.skills.pick_place import InfeasibleAction, PickPlaceMotions, run_motion
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import Scene
 from drake_symplan.world.station import Station, StationConfig
@@ -157,7 +157,7 @@ class ArmBackend(Backend):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        self.planner = PickPlacePlanner()
+        self.planner = PickPlaceMotions()
 
     def execute(self, action: Action, before, lift: bool = True) -> Execution:
         try:

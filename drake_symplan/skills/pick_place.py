@@ -123,7 +123,7 @@ def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGe
     return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
 
 
-class PickPlacePlanner:
+class PickPlaceMotions:
     """Turns an action and the caller's object states into a joint trajectory."""
 
     def __init__(self, ik: ArmIK | None = None):
@@ -194,7 +194,7 @@ def run_motion(station: Station, motion: Motion, at_lift: Callable[[], T]) -> T:
 
 def pick_place(
     station: Station,
-    planner: PickPlacePlanner,
+    planner: PickPlaceMotions,
     action: Action,
     objects: dict[str, ObjectState],
 ) -> Outcome:
