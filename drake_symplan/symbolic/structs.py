@@ -259,13 +259,17 @@ class PlanningOperators:
 
     def __init__(self, learned: Iterable[LiftedOperator]):
         self.learned = list(learned)
-        groups: dict[tuple, list[LiftedOperator]] = {}
-        for op in self.learned:
-            groups.setdefault(_signature(op), []).append(op)
-        position = {id(op): i for i, op in enumerate(self.learned)}
-        self.operators = sorted((PlanningOperator(tuple(g)) for g in groups.values()),
-                                key=lambda p: position[id(p.planned)])
-        self._of = {id(v): p for p in self.operators for v in p.variants}
+        groups: dict[tuple, list[int]] = {}  # positions in `learned` (no ids: it pickles)
+        for i, op in enumerate(self.learned):
+            groups.setdefault(_signature(op), []).append(i)
+        members = [(PlanningOperator(tuple(self.learned[i] for i in g)), g)
+                   for g in groups.values()]
+        members.sort(key=lambda pair: self.learned.index(pair[0].planned))
+        self.operators = [p for p, _ in members]
+        self._group = [0] * len(self.learned)  # each learned operator's in `operators`
+        for k, (_, positions) in enumerate(members):
+            for i in positions:
+                self._group[i] = k
 
     @property
     def planned(self) -> list[LiftedOperator]:
@@ -278,13 +282,12 @@ class PlanningOperators:
         learned operators' order: the candidates for the step's offsets."""
         fits: dict[int, bool] = {}
         out = [step]
-        for op in self.learned:
+        for op, k in zip(self.learned, self._group, strict=True):
             if op.n_params != step.operator.n_params or op is step.operator:
                 continue
-            group = self._of[id(op)]
-            if id(group) not in fits:
-                fits[id(group)] = group.fits(step.args, rest, state, goal)
-            if fits[id(group)]:
+            if k not in fits:
+                fits[k] = self.operators[k].fits(step.args, rest, state, goal)
+            if fits[k]:
                 out.append(step.with_operator(op))
         return out
 
