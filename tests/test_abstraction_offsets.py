@@ -87,7 +87,7 @@ def test_without_goal_contact_the_absolute_goal_position_counts():
     assert str(geometric(now, goal, set())) == "(pick_center_place_right_n10_op1 a b)"
 
 
-def test_the_predicted_scorer_orders_by_the_predicted_distance_to_the_goal():
+def test_the_predicted_scorer_orders_by_the_predicted_distance_to_the_goal(monkeypatch):
     from drake_symplan.abstraction.offsets import PredictedScorer, ranked
 
     class Shifted:  # "predicts" a's y: the release shift from b's centre
@@ -107,14 +107,9 @@ def test_the_predicted_scorer_orders_by_the_predicted_distance_to_the_goal():
     def errors(boxes, goal):
         return {n: float(np.linalg.norm(p - goal[n])) for n, p in boxes.where().items()}
 
-    import drake_symplan.abstraction.offsets as offsets
-
-    saved, offsets.goal_errors = offsets.goal_errors, errors
-    try:
-        order = ranked(PlanningOperators(OPERATORS), STEP, [], STATE, GOAL_ATOMS,
-                       PredictedScorer(predict, None, {"a": np.array([0.0, -0.15, 0.0])}))
-    finally:
-        offsets.goal_errors = saved
+    monkeypatch.setattr("drake_symplan.abstraction.offsets.goal_errors", errors)
+    order = ranked(PlanningOperators(OPERATORS), STEP, [], STATE, GOAL_ATOMS,
+                   PredictedScorer(predict, None, {"a": np.array([0.0, -0.15, 0.0])}))
     # op5 lands a 15 cm left of b's centre, right on its goal; a tie keeps the order.
     assert [o.step.operator.index for o in order] == [5, 2, 0, 1, 4]
     assert order[0].predicted.positions == {"a": -0.15}
