@@ -22,7 +22,7 @@ from drake_symplan.features import object_features
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
 from drake_symplan.robot.backends import Execution
 from drake_symplan.symbolic.states import SymbolicState
-from drake_symplan.symbolic.structs import Atom, LiftedOperator
+from drake_symplan.symbolic.structs import Atom, LiftedOperator, PlanningOperators
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 DOMAIN = """(define (domain symplan) (:requirements :strips :typing :action-costs) (:types obj)
@@ -93,11 +93,12 @@ def _on(a, b) -> bool:
 
 class OracleBundle:
     """A model bundle's data for the fake world: its one operator, for choosing offsets
-    (agent/refine.py; nothing to choose) and for reading plan steps."""
+    (abstraction/offsets.py; nothing to choose) and for reading plan steps."""
 
     domain, domain_strips = DOMAIN, DOMAIN_STRIPS
     operators = [LiftedOperator(0, "center", "center", 2, (("free", 0), ("free", 1)),
                                 (("on", 0, 1),), (("free", 1),), 1)]
+    planning = PlanningOperators(operators)
     planned, by_name = operators, {op.name: op for op in operators}
     path = "oracle"
 

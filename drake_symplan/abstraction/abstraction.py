@@ -68,8 +68,9 @@ class Observation:
 class Level:
     """What the level that found a plan implies for running it: `predicts_positions`, the
     plan carries the scene predicted after each step and is monitored on positions (else
-    on its symbols); `symbolic`, a plan on symbols alone, which agent/refine.py's offsets
-    and repositionings complete."""
+    on its symbols); `symbolic`, a plan on symbols alone, which the agent completes as it
+    runs: offsets (abstraction/offsets.py, the geometric scorer) and repositionings
+    (agent/reposition.py)."""
 
     name: str
     predicts_positions: bool
@@ -116,7 +117,7 @@ class Plan:
 
     @property
     def symbolic(self) -> bool:
-        """Is it a plan on symbols alone, for agent/refine.py to complete? (Level)"""
+        """Is it a plan on symbols alone, for the agent to complete? (Level)"""
         return LEVELS[self.level].symbolic
 
 

@@ -4,9 +4,10 @@ continuous search when no skeleton refines. No simulator: every check is a predi
 As predicators' SeSamE and the paper's successor (Dogangun et al. 2026): the symbolic
 planner proposes a skeleton (the focus objects' plan, then the plan over every object);
 refining it chooses what the symbols leave open, depth first: each step's offsets among
-the operators interchangeable with it (agent/refine.py's `equivalents`: same arguments,
-the rest of the skeleton still reaches the goal's atoms), ordered by the predicted
-distance to the goal, then up to `extra_moves` moves that put a box down at its goal spot.
+its offset variants (abstraction/offsets.py with its PredictedScorer: the learned
+operators over the same objects after which the rest of the skeleton still reaches the
+goal's atoms, ordered by the predicted distance to the goal), then up to `extra_moves`
+moves that put a box down at its goal spot.
 A refinement is accepted when every box is predicted within the tolerance less a margin
 of its goal position; otherwise the search backtracks over choices, then skeletons. When
 no skeleton refines (or the planner finds none) a weighted best-first search over all
@@ -32,11 +33,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
-from drake_symplan.abstraction.continuous import Boxes, rollout
+from drake_symplan.abstraction.continuous import Boxes, goal_errors, rollout
+from drake_symplan.abstraction.offsets import PredictedScorer, ranked
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
-from drake_symplan.boxes import GOAL_TOLERANCE, goal_distances, goal_reached
+from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.planning.budget import Budget
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
+from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Reposition, Step
 
 MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
 # Of the CPU budget left: the symbolic planner's call for a skeleton, then the share kept for
@@ -64,19 +66,6 @@ class Search:
     def level(self) -> str:
         """The level of a plan that is not found (abstraction.LEVELS)."""
         return "bilevel" if self.skeletons else SEARCH
-
-
-def equivalents(operators, step: Step, rest: list[PlanStep], state, goal) -> list[Step]:
-    """`step`, then the steps of `operators` with the same arguments that apply in `state`
-    (a set of ground atoms) and after which `rest` still reaches `goal`."""
-    out = [step]
-    for other in operators:
-        if other.n_params != step.operator.n_params or other is step.operator:
-            continue
-        option = step.with_operator(other)
-        if option.applicable(state) and reaches(rest, option.apply(state), goal):
-            out.append(option)
-    return out
 
 
 @dataclass
@@ -111,13 +100,6 @@ class Refined:
     predicted: list[Boxes]
 
 
-def goal_errors(boxes: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
-    """Each box's distance (m) to its goal position, as far as it may be: the predicted
-    distance plus the prediction's spread (zero for a perceived scene)."""
-    return goal_distances(boxes.where(), goal,
-                          dict(zip(boxes.names, boxes.uncertainty(), strict=True)))
-
-
 def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> bool:
     """Is every box predicted within `limit` of its goal, its spread counted against it
     (boxes.goal_reached)?"""
@@ -141,12 +123,17 @@ def moves(names, sources, half_length, kind: str = "reposition") -> list[Reposit
 
 class Refiner:
     """The continuous level: refines skeletons and searches (module docstring).
-    `continuous` has `predict(boxes, actions) -> [Boxes]` (abstraction/continuous.py)."""
+    `operators`: the learned operators (a list, or symbolic/structs.py's
+    PlanningOperators); `continuous` has `predict(boxes, actions) -> [Boxes]`
+    (abstraction/continuous.py)."""
 
     def __init__(self, operators, continuous, tolerance: float = GOAL_TOLERANCE,
                  margin: float = MARGIN, extra_moves: int = 2, max_depth: int = 6,
                  weight: float = 1.5):
-        self.operators, self.continuous = operators, continuous
+        # the planning operators whose offset variants a skeleton's steps choose among
+        self.operators = operators if isinstance(operators, PlanningOperators) \
+            else PlanningOperators(operators)
+        self.continuous = continuous
         self.limit = tolerance - margin
         self.extra_moves, self.max_depth, self.weight = extra_moves, max_depth, weight
         self.predictions = 0
@@ -166,13 +153,12 @@ class Refiner:
         def extend(i: int, boxes: Boxes, state, done: Refined) -> Refined | None:
             if i == len(skeleton):
                 return self.finish(boxes, done, goal, budget)
-            rest = skeleton[i + 1:]
-            options = equivalents(self.operators, skeleton[i], rest, state, goal_atoms)
-            scored = sorted(zip(self._predict(boxes, options), options, strict=True),
-                            key=lambda pair: sum(goal_errors(pair[0], goal).values()))
-            for after, option in scored:
-                found = extend(i + 1, after, option.apply(state),
-                               Refined(done.steps + [option], done.predicted + [after]))
+            scorer = PredictedScorer(self._predict, boxes, goal)
+            for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
+                                 goal_atoms, scorer):
+                after, step = option.predicted, option.step
+                found = extend(i + 1, after, step.apply(state),
+                               Refined(done.steps + [step], done.predicted + [after]))
                 if found is not None or budget.spent():
                     return found
             return None

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
-from drake_symplan.boxes import HALF_EXTENTS, contact_graph
+from drake_symplan.boxes import HALF_EXTENTS, contact_graph, goal_distances
 from drake_symplan.features import box_of
 
 
@@ -161,3 +161,10 @@ def rollout(predict, boxes: Boxes, actions: list) -> list[Boxes]:
         boxes = predict(boxes, [action])[0]
         out.append(boxes)
     return out
+
+
+def goal_errors(boxes: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
+    """Each box's distance (m) to its goal position, as far as it may be: the predicted
+    distance plus the prediction's spread (zero for a perceived scene)."""
+    return goal_distances(boxes.where(), goal,
+                          dict(zip(boxes.names, boxes.uncertainty(), strict=True)))

@@ -15,8 +15,9 @@ class SolveConfig:
     (planning/budget.py: CPU seconds with a wall-clock cap; bilevel and continuous
     planning: the whole search's), the CLI's --timeout; monitor: perceive after each step
     and replan on a mismatch (False: open loop, as the paper); max_replans: replans per
-    solve; refine: with symbolic planning, choose each step's offsets among
-    interchangeable operators and put boxes down at their goal spot (agent/refine.py);
+    solve; refine (the CLI's --no-refine turns it off): complete a plan on symbols as it
+    runs, each step's offsets chosen among its offset variants (abstraction/offsets.py's
+    geometric scorer) and boxes put down at their goal spot (agent/reposition.py);
     planning: a key of agent.planning_modes.PLANNING_MODES; alternatives: bilevel
     planning's skeletons beyond the first two when none refines (abstraction/bilevel.py:
     skeletons)."""

@@ -49,7 +49,7 @@ RELEASE = {"center": "centre", "left": "left", "right": "right"}
 
 def readable_step(step: PlanStep) -> str:
     """(pick_center_place_left_n86_op2 o3 o1) -> 'pick o3 at its centre, release on o1's
-    left'; a repositioning (agent/refine.py) says so."""
+    left'; a repositioning (agent/reposition.py) says so."""
     a = step.action
     text = f"pick {a.source} {GRASP[a.grasp]}, release on {a.target}'s {RELEASE[a.release]}"
     if isinstance(step, Reposition):

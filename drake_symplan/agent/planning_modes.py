@@ -87,7 +87,8 @@ class PlanningMode:
 
     @property
     def symbolic_plan(self) -> bool:
-        """Is the last plan one on symbols alone, which agent/refine.py completes?"""
+        """Is the last plan one on symbols alone, which the agent completes as it runs
+        (its offsets, abstraction/offsets.py; repositionings, agent/reposition.py)?"""
         return self.last is None or self.last.symbolic
 
     def departs(self, step: PlanStep, predicted: Boxes | None, seen: Observation,
@@ -131,7 +132,7 @@ class _ContinuousModelMode(PlanningMode):
         from drake_symplan.abstraction.bilevel import Refiner
         from drake_symplan.abstraction.continuous import ContinuousModel
 
-        self.refiner = Refiner(abstraction.bundle.operators,
+        self.refiner = Refiner(abstraction.bundle.planning,
                                ContinuousModel(abstraction.bundle.continuous))
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:

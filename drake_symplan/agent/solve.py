@@ -15,10 +15,13 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
    from as an abstraction.Observation (the scene, its symbols, its boxes), made once.
 3. Each step is executed by the back-end on the perceived objects (the arm: IK-planned
    pick/place in full physics); the scene perceived after it keeps the names through
-   perception's association. Before it runs, its offsets may be swapped for an
-   interchangeable operator's that land the source nearer its goal, and a box that the
-   symbols leave off its goal position on the table may be put down beside another first,
-   a `Reposition` step (agent/refine.py; both with `refine`).
+   perception's association. A plan on symbols is completed as it runs (with
+   `config.refine`, the CLI's default; `--no-refine` turns it off): before a step runs,
+   its offsets are chosen among its offset variants by the geometric scorer, landing the
+   source nearer its goal (abstraction/offsets.py; bilevel planning chose a plan's
+   offsets with the same chooser and the learned model's scorer), and a box that the
+   symbols leave off its goal position on the table may be put down beside another
+   first, a `Reposition` step (agent/reposition.py).
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
    step's operator predicted (a plan checked in continuous space: the perceived positions
    with the predicted ones); on a departure the agent replans from the perceived state
@@ -39,10 +42,11 @@ from contextlib import contextmanager
 
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes
+from drake_symplan.abstraction.offsets import GeometricScorer, choose
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
-from drake_symplan.agent.refine import REPOSITIONS_PER_OBJECT, refine_step, reposition_step
+from drake_symplan.agent.reposition import REPOSITIONS_PER_OBJECT, reposition_step
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
 from drake_symplan.symbolic.structs import PlanStep, Step
@@ -192,7 +196,6 @@ class _Run:
         self.agent, self.abs, self.clock, self.config = agent, abstraction, clock, config
         self.on_plan = on_plan
         self.planner = make_planner(abstraction, config, given)
-        self.refine = config.refine
         self.result = SolveResult("failure")
         self.goal_scene = None
         self.goal: Observation | None = None
@@ -257,30 +260,37 @@ class _Run:
     # --- execute --------------------------------------------------------------------
 
     def _next(self) -> bool:
-        """Is there a step to run? With `refine`, a repositioning goes first where a box
-        the rest of the plan leaves alone is off its goal spot."""
+        """Is there a step to run? Completing a plan on symbols, a repositioning goes first
+        where a box the rest of the plan leaves alone is off its goal spot."""
         limit = REPOSITIONS_PER_OBJECT * len(self.scene.names)
-        if self._heuristics() and self.repositions < limit:
+        if self._completes() and self.repositions < limit:
             extra = reposition_step(self.rest, self.scene, self.goal_scene, GOAL_TOLERANCE)
             if extra is not None:
                 self.todo.insert(0, _Planned(extra))
                 self.repositions += 1
         return bool(self.todo)
 
-    def _heuristics(self) -> bool:
-        """Do agent/refine.py's choices complete the plan? For plans on symbols only: plans
-        checked in continuous space chose offsets and moves by search, the oracle replays."""
-        return self.refine and self.planner.symbolic_plan
+    def _completes(self) -> bool:
+        """Does the agent complete the plan as it runs (offsets, repositionings)? For plans
+        on symbols only: plans checked in continuous space chose offsets and moves by
+        search, the oracle replays."""
+        return self.config.refine and self.planner.symbolic_plan
+
+    def _offsets(self, step: PlanStep) -> PlanStep:
+        """`step` with the offsets the geometric scorer chooses, completing a plan on
+        symbols (abstraction/offsets.py), else as planned."""
+        if not (self._completes() and isinstance(step, Step)):
+            return step
+        with self.clock("symbols"):
+            scorer = GeometricScorer(beliefs.positions(self.scene),
+                                     beliefs.positions(self.goal_scene),
+                                     self.goal_scene.contacts)
+            return choose(self.abs.bundle.planning, step, self.rest, self.believed,
+                          self.goal_atoms, scorer)
 
     def _execute(self, planned: _Planned) -> None:
-        """Runs a step with the robot (its offsets refined first), perceives the result."""
-        step = planned.step
-        if self._heuristics() and isinstance(step, Step):
-            with self.clock("symbols"):
-                step = refine_step(self.abs.bundle.operators, step, self.rest, self.believed,
-                                   self.goal_atoms, beliefs.positions(self.scene),
-                                   beliefs.positions(self.goal_scene),
-                                   self.goal_scene.contacts)
+        """Runs a step with the robot (its offsets chosen first), perceives the result."""
+        step = self._offsets(planned.step)
         with self.clock("execute"):
             execution = self.agent.robot.execute(step.action, self.scene, lift=False)
         self.result.executed.append(step)

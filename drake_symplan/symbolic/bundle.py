@@ -45,7 +45,7 @@ from drake_symplan.symbolic.effect_operators import (
 )
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
 from drake_symplan.symbolic.pddl import domain_pddl
-from drake_symplan.symbolic.structs import LiftedOperator
+from drake_symplan.symbolic.structs import LiftedOperator, PlanningOperators
 
 FILES = ("model.pt", "operators.json", "domain.pddl", "domain_strips.pddl", "provenance.json")
 CONTINUOUS = "continuous.pt"
@@ -60,20 +60,6 @@ class BundleError(ValueError):
 def default_bundle_dir() -> Path:
     """The shipped default model: models/learned/ in the repo (package data when installed)."""
     return Path(str(resources.files("drake_symplan_models"))) / "learned"
-
-
-def planning_operators(operators: list[LiftedOperator]) -> list[LiftedOperator]:
-    """The operators the planner sees: of those with the same preconditions and effects
-    (they differ in their offsets only), the cheapest (most reliable; the more frequent on
-    a tie). Fewer actions to ground; the agent picks the offsets among all of them when it
-    executes a step (agent/refine.py)."""
-    best: dict[tuple, LiftedOperator] = {}
-    for op in operators:  # most frequent first
-        key = (op.n_params, frozenset(op.pre), frozenset(op.add), frozenset(op.delete))
-        if key not in best or op.cost < best[key].cost:
-            best[key] = op
-    kept = {id(op) for op in best.values()}
-    return [op for op in operators if id(op) in kept]
 
 
 def operators_json(operators: list[LiftedOperator], semantics: Semantics, info: dict) -> dict:
@@ -109,7 +95,10 @@ def read_operators_json(data: dict) -> tuple[list[LiftedOperator], Semantics, di
 
 class ModelBundle:
     """A loaded bundle (see the module docstring): the model, its operators (all of them;
-    `planned` is the planner's share), the semantics, the learner's info, provenance."""
+    `planning` groups them as the planner sees them, symbolic/structs.py's
+    PlanningOperators, and `planned` is the planner's share: of those with the same
+    preconditions and effects, the cheapest), the semantics, the learner's info,
+    provenance."""
 
     def __init__(self, path: Path, model, operators: list[LiftedOperator],
                  semantics: Semantics, info: dict, provenance: dict,
@@ -121,7 +110,8 @@ class ModelBundle:
             semantics, info, provenance, margin)
         self.by_name = {op.name: op for op in operators}
         self.n_unary, self.n_relations = info["n_unary"], info["n_relations"]
-        self.planned = planning_operators(operators)
+        self.planning = PlanningOperators(operators)
+        self.planned = self.planning.planned
         self.domain = domain_pddl(self.planned, self.n_unary, self.n_relations, costs=True)
         self.domain_strips = domain_pddl(self.planned, self.n_unary, self.n_relations,
                                          costs=False)
@@ -209,7 +199,7 @@ def write_bundle(out: str | Path, run_dir: str | Path, operators, semantics: Sem
     data = operators_json(operators, semantics, {
         **info, "n_unary": model.n_unary, "n_relations": model.n_relations, "margin": margin})
     write_atomic(out / "operators.json", json.dumps(data, indent=1))
-    planned = planning_operators(operators)
+    planned = PlanningOperators(operators).planned
     for name, costs in (("domain.pddl", True), ("domain_strips.pddl", False)):
         write_atomic(out / name, domain_pddl(planned, model.n_unary, model.n_relations,
                                              costs=costs))

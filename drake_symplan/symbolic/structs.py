@@ -3,8 +3,10 @@
 Everything that plans, checks or shows a plan speaks these types (as predicators'
 structs.py). An atom is a predicate with its arguments, `Atom("r0", "o1", "o2")`; lifted
 atoms name parameter slots by index (`Atom("r0", 0, 1)` is `(r0 ?o0 ?o1)`). A
-`LiftedOperator` is what both learners produce (effect-first and the paper's); a `Step`
-binds one to objects, a `Reposition` is the agent's move that no operator names. Plan
+`LiftedOperator` is what both learners produce (effect-first and the paper's); a
+`PlanningOperator` is what the planner sees: the learned operators that differ in their
+offsets only (`PlanningOperators` groups a list of them). A `Step` binds an operator to
+objects, a `Reposition` is the agent's move that no operator names. Plan
 steps are parsed once (`parse_step`), where they come back from the planner; `apply` is
 the one place an effect is applied to a state.
 """
@@ -225,6 +227,71 @@ class Step:
         return hash(str(self))
 
 
+def _signature(op: LiftedOperator) -> tuple:
+    """What the planner tells operators apart by: arity, preconditions and effects."""
+    return op.n_params, frozenset(op.pre), frozenset(op.add), frozenset(op.delete)
+
+
+@dataclass(frozen=True, eq=False)
+class PlanningOperator:
+    """An operator over objects only: the learned operators (`variants`, most frequent
+    first) with the same preconditions and effects, which differ in their offsets only.
+    The planner sees it as its `planned` variant (the cheapest, the more frequent on a
+    tie), whose name its plan steps carry; the offsets a step runs with are chosen among
+    the variants (abstraction/offsets.py)."""
+
+    variants: tuple[LiftedOperator, ...]
+
+    @cached_property
+    def planned(self) -> LiftedOperator:
+        return min(self.variants, key=lambda op: op.cost)  # the first of the cheapest
+
+    def fits(self, args, rest: Sequence, state, goal) -> bool:
+        """Does it apply to `args` in `state`, and does `rest` then still reach `goal`?"""
+        step = Step(self.planned, tuple(args))
+        return step.applicable(state) and reaches(rest, step.apply(state), goal)
+
+
+class PlanningOperators:
+    """A list of learned operators as the planner sees them: one PlanningOperator per
+    preconditions and effects (`operators`, in the order of their planned variants), and
+    the offset variants a step may run with (`variants`)."""
+
+    def __init__(self, learned: Iterable[LiftedOperator]):
+        self.learned = list(learned)
+        groups: dict[tuple, list[int]] = {}  # positions in `learned` (no ids: it pickles)
+        for i, op in enumerate(self.learned):
+            groups.setdefault(_signature(op), []).append(i)
+        members = [(PlanningOperator(tuple(self.learned[i] for i in g)), g)
+                   for g in groups.values()]
+        members.sort(key=lambda pair: self.learned.index(pair[0].planned))
+        self.operators = [p for p, _ in members]
+        self._group = [0] * len(self.learned)  # each learned operator's in `operators`
+        for k, (_, positions) in enumerate(members):
+            for i in positions:
+                self._group[i] = k
+
+    @property
+    def planned(self) -> list[LiftedOperator]:
+        """The operators the planner's domain has (pddl.domain_pddl, grounding)."""
+        return [p.planned for p in self.operators]
+
+    def variants(self, step: Step, rest: Sequence, state, goal) -> list[Step]:
+        """`step`, then its objects bound to every other learned operator of its arity
+        whose planning operator `fits` there (its own variants among them), in the
+        learned operators' order: the candidates for the step's offsets."""
+        fits: dict[int, bool] = {}
+        out = [step]
+        for op, k in zip(self.learned, self._group, strict=True):
+            if op.n_params != step.operator.n_params or op is step.operator:
+                continue
+            if k not in fits:
+                fits[k] = self.operators[k].fits(step.args, rest, state, goal)
+            if fits[k]:
+                out.append(step.with_operator(op))
+        return out
+
+
 MOVE_KINDS = ("reposition", "move")
 
 
@@ -232,7 +299,7 @@ MOVE_KINDS = ("reposition", "move")
 class Reposition:
     """A step no operator names: the pick/place `action` chosen for where it puts the
     boxes, not for a symbolic effect, so it predicts none. `kind` "reposition": a box put
-    down beside another at its goal spot (agent/refine.py, bilevel extra moves); "move": a
+    down beside another at its goal spot (agent/reposition.py, bilevel extra moves); "move": a
     step of a plan found in continuous space (abstraction/bilevel.py)."""
 
     action: Action

@@ -1,19 +1,6 @@
-"""Choosing a plan step's offsets so the placed object lands where the goal scene has it.
+"""Putting a box down at its goal spot on the table, which the symbols do not say.
 
-The learned symbols say that a box ends on another, not where along it: a plan step
-`pick o3 at its centre, release on o1's right` and the same step released at o1's centre
-can predict the same symbolic effect. The planner picks either; the 5 cm check cannot
-accept both. Before a step runs, `refine_step` looks for the domain's operators that are
-interchangeable with it here (same arguments, preconditions that hold in the believed
-state, and from its predicted successor the rest of the plan still applies and reaches the
-goal's atoms) and takes the one whose offsets
-put the source nearest its perceived goal position, as an NSRT's sampler picks the
-continuous parameters of a step (here: among the three discrete offsets per hand).
-
-Where the source rests on the target in the goal scene, the position that counts is the
-one relative to the target (the target may move later); otherwise it is absolute.
-
-The symbols do not say where on the table a box stands either, so a plan can reach the
+The symbols do not say where on the table a box stands, so a plan can reach the
 goal's atoms with a stack built 20 cm from where the goal has it. `reposition_step` fills
 that gap before each step and after the last: a box that rests on nothing in the goal, is
 off its goal position (or carries one that is) and is moved by no later step, is put
@@ -21,50 +8,23 @@ down beside another box (the same pick/place action) so that it lands within the
 tolerance of its goal, on a free spot of the table; what rests on it rides along (a
 stack built in the wrong place moves as one, released relative to its own top if need
 be). Its learned operators have no symbolic effect to predict; the monitor checks
-afterwards that the rest of the plan still applies.
+afterwards that the rest of the plan still applies. (Which offsets a step runs with is
+abstraction/offsets.py's choice.)
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.abstraction.bilevel import equivalents, moves
-from drake_symplan.actions import release_centre, release_shift
+from drake_symplan.abstraction.bilevel import moves
+from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
+from drake_symplan.symbolic.structs import PlanStep, Reposition
 
-MIN_GAIN = 0.01  # m: a change of offsets must bring the source this much nearer its goal
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
 CLEARANCE = 0.01  # m: free table between a repositioned box and every other box
 RESTS_ON = 0.03  # m: a box in contact with another and this much higher rests on it
 REPOSITIONS_PER_OBJECT = 2  # a solve's repositionings at most, per object
-
-
-def landing_error(step: PlanStep, now: dict[str, np.ndarray], goal: dict[str, np.ndarray],
-                  goal_contacts) -> float:
-    """How far (m, along world y, the offsets' axis) the step's source would land from its
-    goal position, with the source's grasp point released over the target's release point."""
-    action = step.action
-    shift = release_shift(action)
-    src, tgt = action.source, action.target
-    if tuple(sorted((src, tgt))) in goal_contacts:
-        want = goal[src][1] - goal[tgt][1]
-    else:
-        want = goal[src][1] - now[tgt][1]
-    return abs(shift - want)
-
-
-def refine_step(operators, step: Step, rest: list[PlanStep], state, goal_atoms,
-                now: dict[str, np.ndarray], goal: dict[str, np.ndarray], goal_contacts) -> Step:
-    """`step`, or the interchangeable step (see `equivalents`) that lands its source at
-    least MIN_GAIN nearer its goal; `now` and `goal` are perceived positions by name."""
-    options = equivalents(operators, step, rest, state, goal_atoms)
-    if len(options) == 1:
-        return step
-    contacts = {tuple(sorted(p)) for p in goal_contacts}
-    errors = [landing_error(s, now, goal, contacts) for s in options]
-    best = int(np.argmin(errors))
-    return options[best] if errors[0] - errors[best] >= MIN_GAIN else step
 
 
 def footprint(obj) -> np.ndarray:

@@ -1,0 +1,111 @@
+"""Choosing a plan step's offsets: one chooser, scorers that say how well each choice lands.
+
+The learned symbols say that a box ends on another, not where along it: a plan step `pick
+o3 at its centre, release on o1's right` and the same step released at o1's centre can
+predict the same symbolic effect. The planner sees one operator over objects for them (a
+symbolic/structs.py PlanningOperator, named after its planned variant); the 5 cm check
+cannot accept both. `ranked(operators, step, rest, state, goal_atoms, scorer)` takes the
+step's candidates (`PlanningOperators.variants`: the learned operators over the same
+objects that apply in the believed `state` and after which the `rest` of the plan still
+reaches the goal's atoms, the step itself first) and orders them by the scorer, best
+first, as an NSRT's sampler picks a step's continuous parameters (here: among the three
+discrete offsets per hand); `choose` takes the best. The planner's own choice stays first
+unless another scores at least the scorer's `keep` better.
+
+A scorer is called with the candidates and returns a `Scored` for each (lower is better):
+
+- `GeometricScorer` (the agent, for a plan on symbols, before each step runs): how far
+  along world y the source would land from its perceived goal position, its grasp point
+  released over the target's release point (actions.release_shift); relative to the
+  target where the two touch in the goal scene (the target may move later), else
+  absolute. `keep` MIN_GAIN.
+- `PredictedScorer` (bilevel planning, abstraction/bilevel.py's Refiner, while it refines
+  a skeleton): the summed distance of the boxes to their goal positions in the scene the
+  learned continuous model predicts after the step (continuous.goal_errors); it keeps
+  the prediction for the search to go on from. `keep` 0.
+
+A new scorer is a class with `keep` and `__call__(options) -> [Scored]` (docs/layout.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from drake_symplan.abstraction.continuous import Boxes, goal_errors
+from drake_symplan.actions import release_shift
+from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Step
+
+MIN_GAIN = 0.01  # m: the geometric scorer's change of offsets lands the source this much nearer
+
+
+@dataclass(frozen=True)
+class Scored:
+    """A candidate step, its score (lower is better) and the scene a scorer predicted
+    after it (None where it predicts none)."""
+
+    step: Step
+    score: float
+    predicted: Boxes | None = None
+
+
+class GeometricScorer:
+    """How far (m, along world y, the offsets' axis) each candidate would land its source
+    from its goal position; `now` and `goal`: perceived positions by name, `goal_contacts`
+    the pairs in contact in the goal scene (module docstring)."""
+
+    keep = MIN_GAIN
+
+    def __init__(self, now: dict[str, np.ndarray], goal: dict[str, np.ndarray],
+                 goal_contacts):
+        self.now, self.goal = now, goal
+        self.contacts = {tuple(sorted(p)) for p in goal_contacts}
+
+    def landing_error(self, step: PlanStep) -> float:
+        action = step.action
+        src, tgt = action.source, action.target
+        if tuple(sorted((src, tgt))) in self.contacts:
+            want = self.goal[src][1] - self.goal[tgt][1]
+        else:
+            want = self.goal[src][1] - self.now[tgt][1]
+        return abs(release_shift(action) - want)
+
+    def __call__(self, options: list[Step]) -> list[Scored]:
+        return [Scored(s, self.landing_error(s)) for s in options]
+
+
+class PredictedScorer:
+    """The summed distance (m) of the boxes to their `goal` positions in the scene that
+    `predict(boxes, actions) -> [Boxes]` predicts after each candidate from `boxes`."""
+
+    keep = 0.0
+
+    def __init__(self, predict: Callable, boxes: Boxes, goal: dict[str, np.ndarray]):
+        self.predict, self.boxes, self.goal = predict, boxes, goal
+
+    def __call__(self, options: list[Step]) -> list[Scored]:
+        after = self.predict(self.boxes, options)
+        return [Scored(s, sum(goal_errors(b, self.goal).values()), b)
+                for s, b in zip(options, after, strict=True)]
+
+
+def ranked(operators: PlanningOperators, step: Step, rest: list[PlanStep], state,
+           goal_atoms, scorer) -> list[Scored]:
+    """The candidates for `step`'s offsets (module docstring), best first by `scorer`
+    (ties in the candidates' order); `step` first unless another scores `scorer.keep`
+    better."""
+    scored = scorer(operators.variants(step, rest, state, goal_atoms))
+    order = sorted(scored, key=lambda s: s.score)
+    planned = scored[0]
+    if order[0] is not planned and planned.score - order[0].score < scorer.keep:
+        order.remove(planned)
+        order.insert(0, planned)
+    return order
+
+
+def choose(operators: PlanningOperators, step: Step, rest: list[PlanStep], state,
+           goal_atoms, scorer) -> Step:
+    """The best of `ranked`: `step` with the offsets that score best."""
+    return ranked(operators, step, rest, state, goal_atoms, scorer)[0].step

@@ -1,0 +1,82 @@
+"""Repositioning (agent/reposition.py): a box the symbols leave off its goal spot on the
+table is put down beside another box, a stack moves as one."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_symplan.actions import Action
+from drake_symplan.symbolic.structs import LiftedOperator, Reposition, parse_step
+
+ON = LiftedOperator(0, "center", "center", 2, (("p0", 0), ("p0", 1)), (("r0", 0, 1),),
+                    (("p0", 1),), 10, 10, 10)
+
+
+def step(text):
+    return parse_step(text, {ON.name: ON})
+
+
+def scene(boxes, contacts=()):
+    """A perceived scene of upright boxes: name -> (type, xyz)."""
+    from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
+
+    return PerceivedScene([PerceivedObject(n, t, np.array(p, float), 0.0, 0.0, np.zeros(9),
+                                           False, np.eye(3)) for n, (t, p) in boxes.items()],
+                          set(contacts))
+
+
+def cubes(**xy):
+    return scene({n: ("cube", (x, y, 0.025)) for n, (x, y) in xy.items()})
+
+
+def test_a_box_off_its_goal_on_the_table_is_put_down_beside_another():
+    from drake_symplan.agent.reposition import reposition_step
+
+    now = cubes(a=(0.5, 0.3), b=(0.6, 0.0), c=(0.4, -0.2))
+    goal = cubes(a=(0.6, 0.08), b=(0.6, 0.0), c=(0.4, -0.2))
+    # a's goal is 8 cm to b's right: a cube is grasped at its centre, released at b's right.
+    move = reposition_step([], now, goal, 0.05)
+    assert move == Reposition(Action("a", "center", "b", "right"))
+    assert str(move) == "(reposition_center_right a b)"
+    # Within the tolerance already: nothing to do.
+    assert reposition_step([], goal, goal, 0.05) is None
+    # A later step moves a: that step decides where it goes.
+    assert reposition_step([step("(pick_center_place_center_n10_op0 a c)")], now, goal,
+                           0.05) is None
+    # No box offers a landing within LAND_TOLERANCE of the goal.
+    far = cubes(a=(0.6, 0.2), b=(0.6, 0.0), c=(0.4, -0.2))
+    assert reposition_step([], now, far, 0.05) is None
+
+
+def test_no_repositioning_onto_an_occupied_spot_of_a_box_that_carries_or_is_carried():
+    from drake_symplan.agent.reposition import reposition_step
+
+    goal = cubes(a=(0.6, 0.08), b=(0.6, 0.0), c=(0.4, -0.2))
+    taken = cubes(a=(0.5, 0.3), b=(0.6, 0.0), c=(0.6, 0.1))  # c stands where a would land
+    assert reposition_step([], taken, goal, 0.05) is None
+    carrying = scene({"a": ("cube", (0.5, 0.3, 0.025)), "b": ("cube", (0.6, 0.0, 0.025)),
+                      "c": ("cube", (0.5, 0.3, 0.075))}, [("a", "c")])
+    goal_c = cubes(a=(0.6, 0.08), b=(0.6, 0.0), c=(0.5, 0.3))
+    assert reposition_step([], carrying, goal_c, 0.05) is None  # c would fall off a
+    # In the goal a rests on b: the plan's step onto b places it, not a repositioning.
+    on_b = scene({"a": ("cube", (0.6, 0.0, 0.075)), "b": ("cube", (0.6, 0.0, 0.025)),
+                  "c": ("cube", (0.4, -0.2, 0.025))}, [("a", "b")])
+    assert reposition_step([], cubes(a=(0.5, 0.3), b=(0.6, 0.0), c=(0.4, -0.2)), on_b,
+                           0.05) is None
+
+
+def test_a_stack_in_the_wrong_place_moves_as_one():
+    from drake_symplan.agent.reposition import carried, reposition_step
+
+    def stack(y):  # a rests on b at (0.6, y)
+        return scene({"a": ("cube", (0.6, y, 0.075)), "b": ("cube", (0.6, y, 0.025))},
+                     [("a", "b")])
+
+    assert carried(stack(0.0), "b") == {"a"} and carried(stack(0.0), "a") == set()
+    # The goal has the stack 7.5 cm to the left: pick b (a rides along), release at a's
+    # left, a's position taken before the move.
+    assert str(reposition_step([], stack(0.0), stack(-0.075), 0.05)) == \
+        "(reposition_center_left b a)"
+    # A later step moves a: b alone is off by 7.5 cm and goes all the same.
+    assert str(reposition_step([step("(pick_center_place_center_n10_op0 a b)")], stack(0.0),
+                               stack(-0.075), 0.05)) == "(reposition_center_left b a)"
