@@ -151,7 +151,7 @@ class Agent:
         file for the Meshcat recording of the execution (with a Meshcat); `on_plan(plan,
         start, goal)` is told the first plan (abstraction.Plan, solved or not) and the
         perceived scenes (beliefs.Named) before anything moves; `given`: the actions the
-        oracle replays (config.planning "oracle")."""
+        oracle replays (a mode that needs_recorded_actions)."""
         beliefs.check_scene_pair(start_scene, goal_scene)
         clock = _Clock(self.robot)
         t0 = time.perf_counter()

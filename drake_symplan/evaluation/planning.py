@@ -103,7 +103,7 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     for problem in problems:
         for name in ("start.yaml", "goal.yaml"):
             load_scene(Path(problem["dir"]) / name)
-        if config.planning == "oracle":
+        if PLANNING_MODES[config.planning].needs_recorded_actions:
             recorded_actions(problem)
     done, records = _resume(records_path, warn)
     if records_path is not None:

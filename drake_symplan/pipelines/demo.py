@@ -174,7 +174,7 @@ def plan_teller(abstraction, timeout: float, demo: dict, say):
             say("plan: empty, the goal's symbols already hold in the start scene")
         else:
             say(f"plan ({len(plan.steps)} step(s), {plan_quality(plan, goal_seen)}, "
-                f"{plan.seconds:.1f} s" + ("" if plan.level == "symbolic"
+                f"{plan.seconds:.1f} s" + ("" if plan.symbolic
                                            else f", {plan.level}") + "):")
         if plan.message:
             say(f"  ({plan.message})")
