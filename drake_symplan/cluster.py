@@ -2,7 +2,11 @@
 `run_jobs_local`, the same on local worker processes where Ray is not installed.
 
 `ray_session(address)` joins the cluster at `address` (`""`: `ray.init()` on this machine)
-unless Ray is already initialised, and shuts down what it started. `run_jobs` creates one
+unless Ray is already initialised, and shuts down what it started. A HOST:PORT is checked
+first, quietly (no head there, a token the head refuses or that is missing here: one
+ValueError naming the fix, not Ray's retries and GCS warnings on stderr); Ray's token
+authentication (on by default since Ray 2.5x) needs `RAY_AUTH_MODE=token` and the head's
+token on every node and on the driver, see docs/cluster.md. `run_jobs` creates one
 `StationWorker` actor per worker (one CPU each); an actor calls `setup(*setup_args)` once
 (a collection back-end, an agent) and then runs `job(state, *args, tick=...)` for each job
 it is handed by a `ray.util.ActorPool`. A worker process that dies (kill -9, a lost node)
@@ -18,11 +22,14 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import socket
+import sys
+import tempfile
 import time
 import uuid
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
+from typing import NamedTuple
 
 POLL_SECONDS = 0.2  # the driver's progress polling period
 CONNECT_SECONDS = 5.0  # to reach a head at HOST:PORT
@@ -48,29 +55,103 @@ def ray_session(address: str = ""):
     if ray.is_initialized():
         yield ray
         return
-    _check_reachable(address)
+    if _check_reachable(address):
+        _check_token(address)
     try:
-        ray.init(address=address or None)
-    except (ConnectionError, ValueError) as e:
+        if address:  # joining: Ray's connection warnings only if it fails (then not at all)
+            with _stderr_captured() as captured:
+                ray.init(address=address)
+            sys.stderr.write("".join(captured))
+        else:
+            ray.init()
+    except (ConnectionError, ValueError, RuntimeError, ray.exceptions.RayError) as e:
+        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
         raise ValueError(f"cannot join the Ray cluster at {address or 'this machine'}: "
-                         f"{e}") from e
+                         f"{first}") from e
     try:
         yield ray
     finally:
         ray.shutdown()
 
 
-def _check_reachable(address: str) -> None:
+def _check_reachable(address: str) -> bool:
     """A HOST:PORT no Ray head answers at is bad input now (ray.init would retry for
-    minutes); other forms ("auto", "ray://...") are left to Ray."""
+    minutes); other forms ("auto", "ray://...") are left to Ray: False."""
     host, _, port = address.rpartition(":")
     if not host or not port.isdigit() or "/" in address:
-        return
+        return False
     try:
         socket.create_connection((host, int(port)), timeout=CONNECT_SECONDS).close()
     except OSError as e:
         raise ValueError(f"no Ray head answers at {address} ({e}); start one with "
                          f"`ray start --head` there") from e
+    return True
+
+
+TOKEN_HELP = ("with the head's token here: copy its ~/.ray/auth_token to this machine or "
+              "set RAY_AUTH_TOKEN (docs/cluster.md)")
+
+
+def auth_token_source() -> str | None:
+    """Where Ray would read this machine's token from, in its order: the RAY_AUTH_TOKEN
+    variable, the file RAY_AUTH_TOKEN_PATH names, ~/.ray/auth_token; None: no token."""
+    if os.environ.get("RAY_AUTH_TOKEN", "").strip():
+        return "RAY_AUTH_TOKEN"
+    named = os.environ.get("RAY_AUTH_TOKEN_PATH")
+    path = os.path.expanduser(named or os.path.join("~", ".ray", "auth_token"))
+    try:
+        with open(path) as f:
+            return path if f.read().strip() else None
+    except OSError:
+        return None
+
+
+def _check_token(address: str) -> None:
+    """Asks the head at `address` for its cluster id once, as ray.init would, with stderr
+    silenced: a head with token authentication that refuses this process is one ValueError
+    saying what to set. A token mode without a token is refused before (Ray would abort
+    the process). Anything else is left to ray.init."""
+    token_mode = os.environ.get("RAY_AUTH_MODE", "").strip().lower() == "token"
+    source = auth_token_source()
+    if token_mode and source is None:
+        raise ValueError(f"RAY_AUTH_MODE=token but no Ray token on this machine: run "
+                         f"again {TOKEN_HELP}")
+    try:
+        from ray._raylet import GcsClient
+        from ray.exceptions import AuthenticationError
+    except ImportError:  # another Ray: ray.init says what is wrong
+        return
+    try:
+        with _stderr_captured():
+            GcsClient(address=address)
+    except AuthenticationError as e:
+        if not token_mode:
+            raise ValueError(f"the Ray cluster at {address} uses token authentication: "
+                             f"export RAY_AUTH_MODE=token and run again {TOKEN_HELP}") from e
+        raise ValueError(f"the Ray cluster at {address} refused the token from {source}: "
+                         f"run again {TOKEN_HELP}") from e
+    except Exception:  # noqa: BLE001 - not the token: ray.init tells
+        return
+
+
+@contextmanager
+def _stderr_captured():
+    """Everything written to file descriptor 2 (Ray's C++ core logs there, its Python
+    loggers through sys.stderr) goes to a temporary file; yields a list that holds its
+    text on exit."""
+    text: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield text
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            text.append(tmp.read().decode(errors="replace"))
 
 
 def cluster_cpus(ray) -> int:
@@ -88,6 +169,8 @@ class StationWorker:
         # By name: an actor handle among the arguments would keep them in the object store,
         # from where a restart may not get them back (ray-project/ray#53727).
         self.progress = ray.get_actor(progress)
+        self.node = ray.get_runtime_context().get_node_id()
+        self.jobs = 0
         self.state = setup(*setup_args)
 
     def ready(self) -> bool:
@@ -97,7 +180,13 @@ class StationWorker:
         def tick(n: int) -> None:
             self.progress.report.remote(key, n)  # fire and forget
 
-        return key, job(self.state, *args, tick=tick)
+        out = key, job(self.state, *args, tick=tick)
+        self.jobs += 1
+        return out
+
+    def ran(self) -> tuple[str, int]:
+        """(its node's id, the jobs it finished since it (re)started)."""
+        return self.node, self.jobs
 
 
 class Progress:
@@ -114,13 +203,20 @@ class Progress:
         return out
 
 
+class RayRun(NamedTuple):
+    """What `run_jobs` tells: the perf_counter time at which every worker had its state
+    built (its start-up done), and the jobs finished on each node (by node id; a worker
+    restarted mid-run counts its jobs since the restart)."""
+    ready_at: float
+    jobs_by_node: dict[str, int]
+
+
 def run_jobs(ray, setup: Callable, setup_args: tuple, job: Callable,
              jobs: Iterable[tuple], workers: int, on_done: Callable,
-             on_progress: Callable | None = None) -> float:
+             on_progress: Callable | None = None) -> RayRun:
     """Runs `job(state, *args, tick=tick)` for each `(key, *args)` of `jobs` on `workers`
     StationWorker actors; calls `on_done(key, result)` on the driver as each finishes (in
-    any order) and `on_progress(key, n)` with the jobs' ticks. Returns the perf_counter time
-    at which every worker had its state built (its start-up done)."""
+    any order) and `on_progress(key, n)` with the jobs' ticks."""
     from ray.util import ActorPool
 
     remote = ray.remote(num_cpus=1, max_restarts=-1, max_task_retries=-1)(StationWorker)
@@ -144,10 +240,13 @@ def run_jobs(ray, setup: Callable, setup_args: tuple, job: Callable,
                     on_progress(key, n)
             if ready_at is None and not ray.wait(ready, num_returns=len(ready), timeout=0)[1]:
                 ready_at = time.perf_counter()
+        jobs_by_node: dict[str, int] = {}
+        for node, n in ray.get([actor.ran.remote() for actor in actors]):
+            jobs_by_node[node] = jobs_by_node.get(node, 0) + n
     finally:
         for actor in [*actors, progress]:
             ray.kill(actor)
-    return ready_at if ready_at is not None else time.perf_counter()
+    return RayRun(ready_at if ready_at is not None else time.perf_counter(), jobs_by_node)
 
 
 # --- local worker processes -------------------------------------------------------------

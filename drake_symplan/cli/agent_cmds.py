@@ -174,6 +174,8 @@ def cmd_eval_planning(args: argparse.Namespace) -> dict:
         workers=args.workers,
         warn=lambda text: print(f"symplan eval planning: warning: {text}", file=sys.stderr))
     out = {"settings": result["settings"], "runs": result["runs"]}
+    if "solves_by_node" in result:
+        out["solves_by_node"] = result["solves_by_node"]
     if args.plot:
         plot_planning(result["runs"], args.plot)
         out["plot"] = str(args.plot)

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs
+from drake_symplan.cluster import RayRun, cluster_cpus, ray_session, run_jobs
 from drake_symplan.data import storage
 from drake_symplan.data.exploration import EpisodeConfig, random_choice, run_episode
 from drake_symplan.data.packing import pack
@@ -225,11 +225,12 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
             todo = [c for c in todo if c < upto]
         bar = stack.enter_context(contextlib.closing(
             _progress_bar(config.transitions, already, progress)))
+        jobs_by_node = None
         if not todo:
             started = time.perf_counter()
         elif ray is not None:
-            started = _run_ray(ray, out_dir, config, todo, min(workers, len(todo)), bar,
-                               explorer)
+            started, jobs_by_node = _run_ray(ray, out_dir, config, todo,
+                                             min(workers, len(todo)), bar, explorer)
         elif workers == 1:
             backend = collection_backend(config.backend, config.time_step)
             started = time.perf_counter()
@@ -247,6 +248,8 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
                            "workers": workers, "engine": "local" if ray is None else "ray",
                            "startup_seconds": round(started - t0, 2),
                            "rate_per_s": round(new / wall, 3) if wall > 0 else None}
+    if jobs_by_node is not None:  # Ray: the chunks each node's workers collected
+        summary["this_run"]["chunks_by_node"] = jobs_by_node
     if storage.existing_shards(out_dir).keys() >= set(range(config.num_chunks)):
         manifest["status"] = "complete"
     manifest.update(counts={
@@ -304,7 +307,7 @@ def _extends(stored: dict | None, identity: dict) -> bool:
 
 
 def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: int,
-              bar, explorer) -> float:
+              bar, explorer) -> RayRun:
     """The chunks on local worker processes; returns when they had all started."""
     ctx = mp.get_context("spawn")  # Drake and forked children do not mix
     progress = ctx.Queue()
@@ -336,10 +339,11 @@ def _run_pool(out_dir: Path, config: CollectConfig, todo: list[int], workers: in
 
 
 def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers: int,
-             bar, explorer) -> float:
+             bar, explorer) -> RayRun:
     """The chunks on Ray worker actors (cluster.run_jobs); the driver writes each shard as
     it comes. The bar counts, per chunk, the most transitions any attempt reached, so a
-    retried chunk is not counted twice. Returns when the workers had all started."""
+    retried chunk is not counted twice. Returns when the workers had all started and the
+    chunks each node collected."""
     seen = dict.fromkeys(todo, 0)
     written: set[int] = set()
 

@@ -88,7 +88,8 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
                       ray_address: str | None = None, workers: int = 1, warn=None) -> dict:
     """Solves every problem under `problems_dir` with each run's bundle (`runs`: bundle
     directories) under `config`, in each monitoring mode of `monitor`; returns
-    {"settings", "runs": {label: {mode: summary}}, "records": [...]}. With `ray_address`
+    {"settings", "runs": {label: {mode: summary}}, "records": [...]}, and with Ray
+    "solves_by_node": {node id: solves this call ran there}. With `ray_address`
     ("" for Ray on this machine) the solves are spread over Ray worker actors, one agent
     (robot) each, one per CPU of the cluster (drake_symplan/cluster.py); with `workers` > 1
     on that many local processes, an agent each. `load(run)` gives a run's Abstraction
@@ -122,12 +123,14 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
         if progress:
             progress(record)
 
+    solves_by_node = None
     if ray_address is not None:
         with ray_session(ray_address) as ray:
             if todo:
-                run_jobs(ray, _worker_state, (robot, abstractions), _solve_in_worker,
-                         _jobs(todo), min(cluster_cpus(ray), len(todo)),
-                         lambda i, record: finish(record))
+                solves_by_node = run_jobs(
+                    ray, _worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
+                    min(cluster_cpus(ray), len(todo)),
+                    lambda i, record: finish(record)).jobs_by_node
     elif workers > 1 and todo:
         run_jobs_local(_worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
                        min(workers, len(todo)), lambda i, record: finish(record))
@@ -139,9 +142,12 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
         (label, mode, p) for label in abstractions for mode in monitor for p in problems)}
     records = sorted((r for r in records if (r["run"], r["monitor"], r["problem"]) in order),
                      key=lambda r: order[(r["run"], r["monitor"], r["problem"])])
-    return {"settings": {"problems_dir": str(problems_dir), "problems": len(problems),
-                         "backend": robot, **config.to_dict()},
-            "runs": summarise(records), "records": records}
+    out = {"settings": {"problems_dir": str(problems_dir), "problems": len(problems),
+                        "backend": robot, **config.to_dict()},
+           "runs": summarise(records), "records": records}
+    if solves_by_node is not None:  # Ray: the solves each node's workers ran this time
+        out["solves_by_node"] = solves_by_node
+    return out
 
 
 def _worker_state(robot: str, abstractions: dict) -> tuple:
