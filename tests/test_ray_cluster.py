@@ -12,6 +12,7 @@ the machine."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import secrets
@@ -120,6 +121,13 @@ def _wait_started(p: subprocess.Popen, log: Path) -> None:
 def cluster():
     """(address, env): a head and one more node on 127.0.0.1, 1 CPU each, token
     authentication with a token of their own; `env` is what a driver needs."""
+    with two_nodes() as started:
+        yield started
+
+
+@contextlib.contextmanager
+def two_nodes(cpus: int = 1):
+    """The cluster of `cluster`, `cpus` CPUs per node, stopped on leaving."""
     temp = tempfile.mkdtemp(prefix="symplan-ray-", dir="/tmp")  # short: Ray's socket paths
     env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
            "RAY_USAGE_STATS_ENABLED": "0"}
@@ -127,7 +135,7 @@ def cluster():
     env.pop("RAY_AUTH_TOKEN_PATH", None)
     port = free_port()
     address = f"127.0.0.1:{port}"
-    common = ["--num-cpus=1", "--num-gpus=0", "--node-ip-address=127.0.0.1",
+    common = [f"--num-cpus={cpus}", "--num-gpus=0", "--node-ip-address=127.0.0.1",
               "--object-store-memory=100000000", "--disable-usage-stats"]
     starts: list[subprocess.Popen] = []
     try:

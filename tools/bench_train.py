@@ -1,9 +1,11 @@
 """Benchmark of the learning layer: Adam step time per model and symbol read-out rate.
 
-    python tools/bench_train.py --json [--out FILE]
+    python tools/bench_train.py --json [--out FILE] [--device auto|cpu|cuda]
 
 An Adam step (forward, summed-over-objects MSE, backward, clip at 10, fused Adam) at
-batch 128 with 4 objects on `--threads` CPU threads (default 2), for each model:
+batch 128 with 4 objects on `--device` (default cpu; `symplan train --device`), with
+`--threads` CPU threads (default 2), for each model; on a GPU each step is timed to its
+end (torch.cuda.synchronize), and `steps_per_s` is 1000 / step_ms:
 `--steps` timed steps after a warm-up, repeated `--repeats` times; the reported
 figure is the median over repeats of the per-repeat median. Read-out: deterministic
 unary and relational symbols before and after `--readout-transitions` transitions of
@@ -28,6 +30,7 @@ import torch
 
 from drake_symplan.actions import ACTION_DIM, EFFECT_DIM
 from drake_symplan.datasets import TransitionArrays
+from drake_symplan.learning.device import DEVICES, describe, resolve_device
 from drake_symplan.learning.models import build_model
 from drake_symplan.learning.readout import readout_dataset
 from drake_symplan.learning.trainer import make_optimizer, train_step
@@ -54,26 +57,31 @@ def random_arrays(t: int, n: int, state_dim: int, seed: int) -> TransitionArrays
 
 
 def bench_step(name: str, state_dim: int, batch: int, n: int, steps: int, repeats: int,
-               warmup: int) -> dict:
+               warmup: int, device: torch.device | str = "cpu") -> dict:
+    device = torch.device(device)
     torch.manual_seed(0)
     kwargs = {"max_objects": n} if name == "deepsym" else {}
-    model = build_model(name, state_dim=state_dim, **kwargs).train()
+    model = build_model(name, state_dim=state_dim, **kwargs).train().to(device)
     optimizer = make_optimizer(model, lr=1e-4)
     arrays = random_arrays(batch, n, state_dim, seed=0)
-    data = tuple(torch.as_tensor(x) for x in
+    data = tuple(torch.as_tensor(x).to(device) for x in
                  (arrays.state, arrays.action, arrays.effect, arrays.mask))
+    sync = (lambda: torch.cuda.synchronize(device)) if device.type == "cuda" else (lambda: None)
     for _ in range(warmup):
         train_step(model, optimizer, data, 10.0)
     medians = []
     for _ in range(repeats):
         times = []
         for _ in range(steps):
+            sync()
             start = time.perf_counter()
             train_step(model, optimizer, data, 10.0)
+            sync()
             times.append(time.perf_counter() - start)
         medians.append(1000.0 * statistics.median(times))
     return {
         "step_ms": statistics.median(medians),
+        "steps_per_s": round(1000.0 / statistics.median(medians), 1),
         "repeat_medians_ms": [round(m, 3) for m in medians],
         "parameters": int(sum(p.numel() for p in model.parameters())),
     }
@@ -113,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--out", default=None, help="also write the JSON to this file")
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--device", choices=DEVICES, default="cpu",
+                        help="where the Adam steps run (auto: a GPU when torch sees one)")
     parser.add_argument("--state-dim", type=int, default=9,
                         help="object feature size d_o (perception.features.FEATURE_DIM = 9)")
     parser.add_argument("--batch-size", type=int, default=128)
@@ -123,18 +133,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--readout-transitions", type=int, default=50_000)
     args = parser.parse_args(argv)
 
+    try:
+        device = resolve_device(args.device)
+    except ValueError as e:
+        print(f"bench_train: error: {e}", file=sys.stderr)
+        return 2
     torch.set_num_threads(args.threads)
     models = {}
     for name in ("relational", "attentive", "deepsym"):
         models[name] = bench_step(name, args.state_dim, args.batch_size, args.objects,
-                                  args.steps, args.repeats, args.warmup)
+                                  args.steps, args.repeats, args.warmup, device)
         if not args.json:
             print(f"{name}: {models[name]['step_ms']:.2f} ms per Adam step", file=sys.stderr)
     readout = bench_readout(args.state_dim, args.objects, args.readout_transitions, 3)
     result = {
-        "settings": {k: getattr(args, k) for k in
-                     ("threads", "state_dim", "batch_size", "objects", "steps", "repeats",
-                      "warmup")},
+        "settings": {**{k: getattr(args, k) for k in
+                        ("threads", "state_dim", "batch_size", "objects", "steps", "repeats",
+                         "warmup")}, **describe(device)},
         "adam_step": models,
         "readout": readout,
         "acceptance": {
@@ -149,7 +164,6 @@ def main(argv: list[str] | None = None) -> int:
     }
     text = json.dumps(result, indent=2)
     if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)  # --out may name a new folder
         Path(args.out).write_text(text + "\n")
     if args.json:

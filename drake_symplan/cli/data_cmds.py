@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 
 from drake_symplan.cli.main import positive_float, positive_int
-from drake_symplan.cli.options import add_json_argument, add_robot_argument, check_output_dir
+from drake_symplan.cli.options import (
+    add_device_argument,
+    add_json_argument,
+    add_robot_argument,
+    check_device,
+    check_output_dir,
+)
 
 
 def register(subparsers) -> None:
@@ -53,6 +59,7 @@ def register(subparsers) -> None:
                          help="active: effect models in the ensemble (>= 2)")
     explore.add_argument("--round-epochs", type=positive_int, default=30,
                          help="active: training epochs per round (warm start)")
+    add_device_argument(explore, "active: where each round's ensemble trains")
     collect.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_json_argument(collect)
     collect.set_defaults(func=cmd_collect)
@@ -82,6 +89,8 @@ def cmd_collect(args: argparse.Namespace) -> dict:
     from drake_symplan.data.stats import format_stats
 
     check_output_dir(args.out)
+    if args.explorer == "active":
+        check_device(args.device)
     lo, hi = parse_objects(args.objects)
     active = {}
     if args.explorer == "active":
@@ -101,7 +110,8 @@ def cmd_collect(args: argparse.Namespace) -> dict:
 
         summary = collect_active(args.out, config, workers=args.workers,
                                  progress=not args.no_progress, ray_address=args.ray,
-                                 say=lambda text: print(text, file=sys.stderr))
+                                 say=lambda text: print(text, file=sys.stderr),
+                                 device=args.device)
     else:
         summary = collect(args.out, config, workers=args.workers,
                           progress=not args.no_progress, ray_address=args.ray)

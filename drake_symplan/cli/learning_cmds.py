@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, positive_int
-from drake_symplan.cli.options import MODELS, add_json_argument
+from drake_symplan.cli.options import MODELS, add_device_argument, add_json_argument
 
 
 def register(subparsers) -> None:
@@ -36,6 +36,7 @@ def register(subparsers) -> None:
     p.add_argument("--patience", type=int,
                    help="stop after this many epochs without a better validation loss")
     p.add_argument("--threads", type=positive_int, help="torch.set_num_threads")
+    add_device_argument(p, "where it trains", default=None)  # None: --config's, else auto
     p.add_argument("--temperature", type=float,
                    help="Gumbel-sigmoid temperature (see learning/gumbel.py)")
     p.add_argument("--soft", dest="hard", action="store_const", const=False,
@@ -85,7 +86,7 @@ def eval_subparsers(subparsers):
 
 # The flags of `symplan train` that set the TrainConfig field of the same name.
 TRAIN_FLAGS = ("model", "data", "out", "epochs", "batch_size", "lr", "seed", "patience",
-               "threads", "temperature", "hard", "progress")
+               "threads", "temperature", "hard", "progress", "device")
 
 
 def train_config(args: argparse.Namespace):

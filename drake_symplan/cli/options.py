@@ -40,6 +40,25 @@ ROBOTS = RegistryChoices("drake_symplan.robot.backends", "BACKENDS")
 LEARNERS = RegistryChoices("drake_symplan.symbolic.bundle", "LEARNERS")
 
 
+# learning/device.py's DEVICES, spelled here so that building the parser imports no torch.
+DEVICES = ("auto", "cpu", "cuda")
+
+
+def add_device_argument(p, what: str, default: str | None = "auto") -> None:
+    """--device: `what` is where the models train (learning/device.py)."""
+    p.add_argument("--device", choices=DEVICES, default=default,
+                   help=f"{what}: auto (a CUDA GPU when torch sees one, else the CPU), cpu "
+                   f"or cuda (default auto)")
+
+
+def check_device(name: str) -> None:
+    """--device cuda on a machine without a GPU is bad input now, before any work."""
+    if name != "cpu":
+        from drake_symplan.learning.device import resolve_device
+
+        resolve_device(name)
+
+
 def add_json_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true",
                    help="print the result as JSON on stdout (messages go to stderr)")

@@ -13,8 +13,10 @@ from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
 from drake_symplan.cli.options import (
+    add_device_argument,
     add_json_argument,
     add_solve_arguments,
+    check_device,
     check_output_dir,
     solve_config,
 )
@@ -61,6 +63,7 @@ def add_run_arguments(p, name: str, ray_help: str, report_help: str, extra=None)
                    help="training runs at a time, and local collection workers (default 2)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help=f"{ray_help} (no address: this machine)")
+    add_device_argument(p, "where the models train (train stages, active rounds)")
     if extra is not None:
         extra()
     p.add_argument("--report", action="store_true", help=f"run nothing: {report_help}")
@@ -72,7 +75,8 @@ def run_reproduce(args):
 
     out = args.out or Path("out") / f"reproduce_{args.scale}"
     check_output_dir(out)
-    rep = Reproduction(args.scale, out, jobs=args.jobs, ray=args.ray,
+    check_device(args.device)
+    rep = Reproduction(args.scale, out, jobs=args.jobs, ray=args.ray, device=args.device,
                        say=lambda text: print(text, file=sys.stderr, flush=True),
                        solve=solve_config(args))
     if args.report:
@@ -95,7 +99,8 @@ def run_curve(args):
 
     out = args.out or Path("out") / f"curve_{args.scale}"
     check_output_dir(out)
-    curve = LearningCurve(args.scale, out, jobs=args.jobs, ray=args.ray,
+    check_device(args.device)
+    curve = LearningCurve(args.scale, out, jobs=args.jobs, ray=args.ray, device=args.device,
                           say=lambda text: print(text, file=sys.stderr, flush=True))
     if args.report and not list((out / "runs").glob("*/bundle_effect/eval.json")):
         raise CommandError(f"nothing to report in {out}: no point has been evaluated yet")

@@ -50,8 +50,10 @@ def check_rounds(config: CollectConfig, active: ActiveConfig) -> None:
 
 def collect_active(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
                    progress: bool = True, ray_address: str | None = None,
-                   say=lambda text: None) -> dict:
-    """Collects (or resumes, or extends) an active collection; the summary of the data."""
+                   say=lambda text: None, device: str = "auto") -> dict:
+    """Collects (or resumes, or extends) an active collection; the summary of the data.
+    `device`: where each round's ensemble trains (learning/device.py; not part of the
+    data's settings: a resume may train elsewhere)."""
     if config.explorer != "active":
         raise ValueError(f"collect_active collects with the active explorer, not "
                          f"{config.explorer!r}")
@@ -60,7 +62,8 @@ def collect_active(out_dir: str | Path, config: CollectConfig, workers: int | No
     r, new, t0 = 0, 0, time.perf_counter()
     while True:
         end = min(active.round_end(r), config.transitions)
-        explorer = None if r == 0 else load_explorer(out_dir, r, config, active, say)
+        explorer = None if r == 0 else load_explorer(out_dir, r, config, active, say,
+                                                     device)
         say(f"round {r}: transitions {0 if r == 0 else active.round_end(r - 1)}-{end}")
         summary = collect(out_dir, config, workers, progress, ray_address,
                           explorer=lambda c, e=explorer: e, upto=end // config.chunk_size)
@@ -81,17 +84,17 @@ def collect_active(out_dir: str | Path, config: CollectConfig, workers: int | No
 
 
 def load_explorer(out_dir: Path, r: int, config: CollectConfig, active: ActiveConfig,
-                  say=lambda text: None) -> ActiveExplorer:
+                  say=lambda text: None, device: str = "auto") -> ActiveExplorer:
     """Round r's explorer, learned first if it is not there yet."""
     where = round_dir(out_dir, r)
     if not (where / "explorer.json").is_file():
-        learn_round(out_dir, r, config, active, say)
+        learn_round(out_dir, r, config, active, say, device)
     record = read_json(where / "explorer.json")
     return ActiveExplorer(ModelBundle.load(where / "bundle", allow_empty=True), active, record["predicates"])
 
 
 def learn_round(out_dir: Path, r: int, config: CollectConfig, active: ActiveConfig,
-                say=lambda text: None) -> dict:
+                say=lambda text: None, device: str = "auto") -> dict:
     """Learns round r's explorer from the transitions of rounds 0..r-1 (module docstring)."""
     t0 = time.perf_counter()
     where = round_dir(out_dir, r)
@@ -106,7 +109,7 @@ def learn_round(out_dir: Path, r: int, config: CollectConfig, active: ActiveConf
         say(f"round {r}: training member {m} on {n} transitions")
         metrics.append(train(TrainConfig(
             **SYMBOL_MODEL, data=str(data), out=str(run), seed=m, epochs=active.epochs_for(n),
-            patience=active.patience, threads=1, progress=False,
+            patience=active.patience, threads=1, progress=False, device=device,
             init=str(before) if r > 1 else None)))
     model, _ = load_run(runs[0])
     symbols, _ = readout_scenes(model, data)

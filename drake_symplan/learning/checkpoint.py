@@ -49,23 +49,24 @@ def write_json(path: str | Path, obj: dict) -> Path:
     return write_atomic(path, json.dumps(obj, indent=2))
 
 
-def read_checkpoint(path: str | Path) -> dict:
+def read_checkpoint(path: str | Path, device: torch.device | str = "cpu") -> dict:
+    """A checkpoint's payload, its tensors on `device` whichever device saved them."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"checkpoint {path} does not exist")
     try:
-        return torch.load(path, map_location="cpu", weights_only=True)
+        return torch.load(path, map_location=device, weights_only=True)
     except Exception as e:  # a truncated or foreign file: say which one
         raise ValueError(f"cannot read checkpoint {path}: {e}") from e
 
 
-def model_from_checkpoint(ckpt: dict) -> EffectModel:
+def model_from_checkpoint(ckpt: dict, device: torch.device | str = "cpu") -> EffectModel:
     config = dict(ckpt["model_config"])
     if ckpt["model"] == "relational":
         config.setdefault("own_message", False)  # checkpoints from before the option
     model = build_model(ckpt["model"], **config)
     model.load_state_dict(ckpt["model_state"])
-    return model
+    return model.to(device)
 
 
 def models_from_file(path: str | Path) -> list[EffectModel]:

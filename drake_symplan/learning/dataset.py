@@ -42,8 +42,14 @@ class TensorSet:
     def __len__(self) -> int:
         return self.mask.shape[0]
 
+    def to(self, device: torch.device | str) -> TensorSet:
+        """The set on `device` (itself when it is there already)."""
+        return TensorSet(*(t.to(device) for t in (self.state, self.action, self.effect,
+                                                  self.mask)))
+
     def batch(self, index: torch.Tensor) -> tuple[torch.Tensor, ...]:
         """(state, action, effect, mask) of the transitions at `index`."""
+        index = index.to(self.state.device)  # the order is drawn on the CPU
         return (self.state.index_select(0, index), self.action.index_select(0, index),
                 self.effect.index_select(0, index), self.mask.index_select(0, index))
 

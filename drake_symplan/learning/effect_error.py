@@ -18,6 +18,7 @@ import torch
 
 from drake_symplan.actions import IS_SOURCE, IS_TARGET
 from drake_symplan.learning.dataset import TensorSet
+from drake_symplan.learning.device import model_device
 
 CM_PER_M = 100.0
 ROLES = ("source", "target", "other")
@@ -31,15 +32,18 @@ def effect_loss(pred: torch.Tensor, effect: torch.Tensor, mask: torch.Tensor) ->
 
 @torch.no_grad()
 def predict(model: torch.nn.Module, data: TensorSet, batch_size: int = 4096) -> torch.Tensor:
-    """Eval-mode (deterministic) effect predictions [T, N, EFFECT_DIM] for `data`."""
+    """Eval-mode (deterministic) effect predictions [T, N, EFFECT_DIM] for `data`, on the
+    CPU; the model runs on its own device (the batches are moved there)."""
+    device = model_device(model)
     was_training = model.training
     model.eval()
     try:
-        out = [model(s, a, m) for s, a, _, m in data.batches(batch_size)]
+        out = [model(s.to(device), a.to(device), m.to(device)).cpu()
+               for s, a, _, m in data.batches(batch_size)]
     finally:
         model.train(was_training)
     if not out:
-        return data.effect.new_zeros(data.effect.shape)
+        return data.effect.new_zeros(data.effect.shape).cpu()
     return torch.cat(out)
 
 
@@ -53,6 +57,7 @@ def object_errors_cm(pred: torch.Tensor, effect: torch.Tensor, mask: torch.Tenso
 def evaluate_loss(model: torch.nn.Module, data: TensorSet, batch_size: int = 4096) -> float:
     """Eval-mode `effect_loss` over the whole set (mean over transitions)."""
     pred = predict(model, data, batch_size)
+    data = data.to("cpu")
     return float(effect_loss(pred, data.effect, data.mask.to(pred.dtype)))
 
 
@@ -110,6 +115,7 @@ def effect_metrics(
     With `outcome` (index into `outcome_names` per transition of `data`) also by outcome.
     """
     pred = predict(model, data, batch_size)
+    data = data.to("cpu")
     errors = object_errors_cm(pred, data.effect, data.mask)
     summary = summarize_errors(errors)
     summary["by_role"] = group_errors(errors, object_roles(data.action), ROLES)

@@ -26,6 +26,7 @@ from tqdm import tqdm
 
 from drake_symplan.learning import checkpoint as ckpt_io
 from drake_symplan.learning.dataset import TensorSet, normalization_stats, split_by_episode
+from drake_symplan.learning.device import DEFAULT_DEVICE, DEVICES, describe, resolve_device
 from drake_symplan.learning.effect_error import effect_loss, effect_metrics, evaluate_loss
 from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE
 from drake_symplan.learning.models import MODELS, build_model
@@ -33,7 +34,7 @@ from drake_symplan.shards import fingerprint, load_transitions
 
 LOG_FIELDS = ("epoch", "train_loss", "val_loss", "val_error_cm", "best_val_loss", "seconds")
 # Settings that may differ when a run is resumed.
-RESUMABLE_CHANGES = ("epochs", "patience", "threads", "progress")
+RESUMABLE_CHANGES = ("epochs", "patience", "threads", "progress", "device")
 
 
 @dataclass
@@ -56,6 +57,7 @@ class TrainConfig:
     model_kwargs: dict = field(default_factory=dict)
     progress: bool = True
     init: str | None = None  # a checkpoint whose weights training starts from (warm start)
+    device: str = DEFAULT_DEVICE  # auto (a GPU when torch sees one), cpu or cuda; device.py
 
     def __post_init__(self):
         if self.model not in MODELS:
@@ -66,6 +68,9 @@ class TrainConfig:
         if self.lr <= 0:
             raise ValueError(f"lr must be positive, got {self.lr}")
         check_model_kwargs(self.model, self.model_kwargs)
+        if self.device not in DEVICES:
+            raise ValueError(f"unknown device {self.device!r}; expected one of "
+                             f"{', '.join(DEVICES)}")
 
 
 # Constructor arguments that TrainConfig sets itself (from the data or its own fields).
@@ -139,8 +144,9 @@ class _Run:
     data_fp: str
     model: torch.nn.Module
     optimizer: torch.optim.Optimizer
-    shuffle: torch.Generator  # orders the training mini-batches
+    shuffle: torch.Generator  # orders the training mini-batches (on the CPU)
     progress: dict
+    device: torch.device = torch.device("cpu")
 
     def restore_last(self) -> None:
         """Continue from last.pt: its model, optimizer, progress and random streams."""
@@ -150,6 +156,8 @@ class _Run:
         self.optimizer.load_state_dict(saved["optimizer_state"])
         self.progress = saved["progress"]
         torch.set_rng_state(saved["rng"]["torch"])
+        if self.device.type == "cuda" and "cuda" in saved["rng"]:  # saved on this GPU
+            torch.cuda.set_rng_state(saved["rng"]["cuda"], self.device)
         self.shuffle.set_state(saved["rng"]["shuffle"])
         _trim_log(self.out / ckpt_io.LOG, self.progress["epoch"])
 
@@ -160,7 +168,9 @@ class _Run:
             "model_state": self.model.state_dict(), "optimizer_state": self.optimizer.state_dict(),
             "epoch": self.progress["epoch"], "train_config": dataclasses.asdict(self.cfg),
             "data_fingerprint": self.data_fp, "metrics": metrics, "progress": dict(self.progress),
-            "rng": {"torch": torch.get_rng_state(), "shuffle": self.shuffle.get_state()},
+            "rng": {"torch": torch.get_rng_state(), "shuffle": self.shuffle.get_state(),
+                    **({"cuda": torch.cuda.get_rng_state(self.device)}
+                       if self.device.type == "cuda" else {})},
         }
 
 
@@ -192,7 +202,7 @@ def _start_log(out: Path) -> None:
 def _train_epoch(run: _Run, train_set: TensorSet) -> float:
     """One pass over the shuffled training set; returns its mean mini-batch loss."""
     run.model.train()
-    total, n_batches = torch.zeros(()), 0
+    total, n_batches = torch.zeros((), device=run.device), 0
     for batch in train_set.batches(run.cfg.batch_size, run.shuffle):
         total += train_step(run.model, run.optimizer, batch, run.cfg.grad_clip)
         n_batches += 1
@@ -249,7 +259,8 @@ def _fit(run: _Run, sets: dict) -> bool:
 
 def _final_metrics(run: _Run, sets: dict, stopped_early: bool) -> dict:
     """Evaluates best.pt on every split into metrics.json; returns what it wrote."""
-    best_model = ckpt_io.model_from_checkpoint(ckpt_io.read_checkpoint(run.out / ckpt_io.BEST))
+    best_model = ckpt_io.model_from_checkpoint(ckpt_io.read_checkpoint(run.out / ckpt_io.BEST),
+                                               run.device)
     progress = run.progress
     result = {
         "run": str(run.out), "model": run.cfg.model, "epochs": progress["epoch"],
@@ -265,7 +276,10 @@ def _final_metrics(run: _Run, sets: dict, stopped_early: bool) -> dict:
 
 
 def train(cfg: TrainConfig, resume: bool = False) -> dict:
-    """Train `cfg.model` on `cfg.data` into run directory `cfg.out`; returns the metrics."""
+    """Train `cfg.model` on `cfg.data` into run directory `cfg.out`; returns the metrics.
+    On `cfg.device` (resolved: device.py): the model and the training set move there once;
+    the mini-batch order and the validation and test metrics stay on the CPU."""
+    device = resolve_device(cfg.device)
     if cfg.threads is not None:
         torch.set_num_threads(cfg.threads)
     out = Path(cfg.out)
@@ -278,9 +292,12 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
     if cfg.init is not None:  # the weights of an earlier run; normalised for this data
         model.load_state_dict(ckpt_io.read_checkpoint(cfg.init)["model_state"])
     model.set_normalization(**normalization_stats(arrays.subset(splits["train"])))
+    model.to(device)
+    sets["train"] = sets["train"].to(device)
     run = _Run(cfg, out, data_fp, model, make_optimizer(model, cfg.lr),
                shuffle=torch.Generator().manual_seed(cfg.seed),
-               progress={"epoch": 0, "best_val_loss": math.inf, "best_epoch": 0, "bad_epochs": 0})
+               progress={"epoch": 0, "best_val_loss": math.inf, "best_epoch": 0, "bad_epochs": 0},
+               device=device)
     if resume:
         run.restore_last()
     else:
@@ -289,7 +306,7 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
         "train_config": dataclasses.asdict(cfg), "model": cfg.model,
         "model_config": model.config(), "data": str(data_path), "data_fingerprint": data_fp,
         "split_sizes": {k: int(len(v)) for k, v in splits.items()},
-        "versions": ckpt_io.versions(),
+        "versions": ckpt_io.versions(), **describe(device),
     })
     stopped_early = _fit(run, sets)
     return _final_metrics(run, sets, stopped_early)

@@ -66,11 +66,12 @@ class LearningCurve(StageRunner):
     """The stages of one scale in `out`; `run()` runs what is not done yet."""
 
     def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
-                 say=print):
+                 say=print, device: str = "auto"):
         if scale not in CURVE_SCALES:
             raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(CURVE_SCALES)}")
         super().__init__(out, jobs, say)
         self.name, self.scale, self.ray = scale, CURVE_SCALES[scale], ray
+        self.device = device  # where the train stages and the active rounds train
         self.heldout_data, self.results = self.out / "data/heldout", self.out / "results"
 
     def data(self, explorer: str) -> Path:
@@ -95,7 +96,7 @@ class LearningCurve(StageRunner):
         seed = s.heldout_seed if explorer is None else s.train_seed
         workers = ["--ray", *([self.ray] if self.ray else [])] if self.ray is not None \
             else ["--workers", self.jobs]
-        options = list(s.active) if explorer == "active" else []
+        options = [*s.active, "--device", self.device] if explorer == "active" else []
         argv = ["collect", "--backend", "hand", "--transitions", size, "--out", data,
                 "--seed", seed, "--objects", s.objects, "--chunk-size", s.chunk_size,
                 *(["--explorer", "active", *options] if explorer == "active" else []),
@@ -110,7 +111,8 @@ class LearningCurve(StageRunner):
         return (
             Stage(f"train {run.name}", ["train", *MODEL, "--data", view, "--out", run,
                                         "--seed", seed, "--epochs", s.epochs, "--patience",
-                                        s.patience, "--threads", 1, "--no-progress"],
+                                        s.patience, "--threads", 1, "--device",
+                                        self.device, "--no-progress"],
                   run / "metrics.json", partial=run / "last.pt", resume=("--resume",)),
             Stage(f"bundle {run.name}", ["bundle", "--run", run, "--data", view, "--out",
                                          bundle, "--min-count", s.min_count],

@@ -82,12 +82,12 @@ class Reproduction(StageRunner):
     """The stages of one scale in `out`; `run()` runs what is not done yet."""
 
     def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
-                 say=print, solve: SolveConfig = DEFAULT_SOLVE):
+                 say=print, solve: SolveConfig = DEFAULT_SOLVE, device: str = "auto"):
         if scale not in SCALES:
             raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
         super().__init__(out, jobs, say)
         self.name, self.scale = scale, SCALES[scale]
-        self.ray, self.solve = ray, solve
+        self.ray, self.solve, self.device = ray, solve, device  # device: the train stages'
         self.train_data, self.heldout_data = self.out / "data/train", self.out / "data/heldout"
         self.results = self.out / "results"
 
@@ -119,7 +119,7 @@ class Reproduction(StageRunner):
                 run = self.run_dir(model, seed)
                 argv = ["train", *options, "--data", self.train_data, "--out", run,
                         "--seed", seed, "--epochs", s.epochs, "--patience", s.patience,
-                        "--threads", 1, "--no-progress"]
+                        "--threads", 1, "--device", self.device, "--no-progress"]
                 stages.append(Stage(f"train {run.name}", argv, run / "metrics.json",
                                     partial=run / "last.pt", resume=("--resume",)))
         return stages
@@ -253,7 +253,8 @@ class Reproduction(StageRunner):
             "stages": self.log}]
         record = {
             "command": f"symplan reproduce --scale {self.name} --out {self.out}"
-                       + (f" --ray {self.ray}" if self.ray is not None else ""),
+                       + (f" --ray {self.ray}" if self.ray is not None else "")
+                       + (f" --device {self.device}" if self.device != "auto" else ""),
             "scale": dc.asdict(self.scale),
             "data": {name: {"dir": str(d), "fingerprint": fingerprint(d)}
                      for name, d in (("train", self.train_data), ("heldout", self.heldout_data))},
