@@ -22,6 +22,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import socket
+import subprocess
 import sys
 import tempfile
 import time
@@ -116,6 +117,10 @@ def _check_token(address: str) -> None:
     if token_mode and source is None:
         raise ValueError(f"RAY_AUTH_MODE=token but no Ray token on this machine: run "
                          f"again {TOKEN_HELP}")
+    if token_mode and _answers_without_token(address):  # its workers could not call back
+        raise ValueError(f"the Ray cluster at {address} has token authentication off but "
+                         f"RAY_AUTH_MODE=token here: start its nodes with RAY_AUTH_MODE=token "
+                         f"too, or set RAY_AUTH_MODE=disabled here (docs/cluster.md)")
     try:
         from ray._raylet import GcsClient
         from ray.exceptions import AuthenticationError
@@ -132,6 +137,19 @@ def _check_token(address: str) -> None:
                          f"run again {TOKEN_HELP}") from e
     except Exception:  # noqa: BLE001 - not the token: ray.init tells
         return
+
+
+def _answers_without_token(address: str) -> bool:
+    """Whether the head at `address` lets a process without token authentication in (a
+    child process: the mode is fixed per process)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_AUTH_")}
+    code = "import sys; from ray._raylet import GcsClient; GcsClient(address=sys.argv[1])"
+    try:
+        return subprocess.run([sys.executable, "-c", code, address],
+                              env={**env, "RAY_AUTH_MODE": "disabled"}, capture_output=True,
+                              timeout=60).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
 
 
 @contextmanager

@@ -126,11 +126,14 @@ def cluster():
 
 
 @contextlib.contextmanager
-def two_nodes(cpus: int = 1):
-    """The cluster of `cluster`, `cpus` CPUs per node, stopped on leaving."""
+def two_nodes(cpus: int = 1, nodes: int = 2, auth: bool = True):
+    """The cluster of `cluster`, `cpus` CPUs per node, stopped on leaving; `nodes` 1: the
+    head alone; `auth` False: token authentication off (RAY_AUTH_MODE=disabled)."""
     temp = tempfile.mkdtemp(prefix="symplan-ray-", dir="/tmp")  # short: Ray's socket paths
     env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
            "RAY_USAGE_STATS_ENABLED": "0"}
+    if not auth:
+        env.update(RAY_AUTH_MODE="disabled", RAY_AUTH_TOKEN="")
     env.pop("RAY_ADDRESS", None)
     env.pop("RAY_AUTH_TOKEN_PATH", None)
     port = free_port()
@@ -144,10 +147,11 @@ def two_nodes(cpus: int = 1):
                               f"--temp-dir={temp}/head", *common, *node_ports()],
                              env, log))
         _wait_started(starts[-1], log)
-        log = Path(temp) / "node.log"
-        starts.append(_start([f"--address={address}", f"--temp-dir={temp}/node", *common,
-                              *node_ports()], env, log))
-        _wait_started(starts[-1], log)
+        if nodes > 1:
+            log = Path(temp) / "node.log"
+            starts.append(_start([f"--address={address}", f"--temp-dir={temp}/node",
+                                  *common, *node_ports()], env, log))
+            _wait_started(starts[-1], log)
         yield address, env
     finally:
         _stop(starts, temp)
@@ -235,6 +239,19 @@ def test_a_driver_without_the_token_is_one_line(cluster, tmp_path, auth, message
     err = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(err) == 1, done.stderr
     assert message in err[0] and "docs/cluster.md" in err[0]
+    assert not out.exists()
+
+
+def test_a_token_driver_at_a_head_without_tokens_is_one_line(tmp_path):
+    """Its workers could not call back to a driver that wants a token (Ray 2.60: the actors
+    die unstarted), so the driver says so before joining."""
+    with two_nodes(nodes=1, auth=False) as (address, env):
+        out = tmp_path / "data"
+        done = symplan([*collect_args(out, 4), "--ray", address],
+                       {**env, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": "0" * 64})
+    err = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(err) == 1, done.stderr
+    assert "has token authentication off but RAY_AUTH_MODE=token here" in err[0]
     assert not out.exists()
 
 
