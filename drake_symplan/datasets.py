@@ -13,6 +13,10 @@ import numpy as np
 from drake_symplan.actions import ACTION_DIM, EFFECT_DIM
 from drake_symplan.atomic import write_atomic
 
+# The outcome class a data set records per transition (data/exploration.py: classify), by
+# index; what `symplan data stats` and the effect error by outcome report.
+OUTCOMES = ("no_effect", "placed", "tipped", "carried_along", "fell_off", "other")
+
 
 @dataclass
 class TransitionArrays:

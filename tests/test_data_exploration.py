@@ -12,13 +12,13 @@ from drake_symplan.actions import ACTION_DIM, EFFECT_DIM, Action, relevant_objec
 from drake_symplan.data import storage
 from drake_symplan.data.collect import CollectConfig, pack
 from drake_symplan.data.exploration import (
-    OUTCOMES,
     Transition,
     classify,
     effects,
     random_action,
 )
 from drake_symplan.data.stats import dataset_stats
+from drake_symplan.datasets import OUTCOMES
 
 
 @dc.dataclass

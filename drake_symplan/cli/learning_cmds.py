@@ -126,7 +126,7 @@ def parse_model_options(items: list[str]) -> dict:
 
 
 def cmd_eval_effects(args: argparse.Namespace) -> dict:
-    from drake_symplan.data.exploration import OUTCOMES
+    from drake_symplan.datasets import OUTCOMES
     from drake_symplan.evaluation.effects import evaluate_runs, format_summary, plot_errors
 
     result = evaluate_runs(args.runs, args.data, OUTCOMES)

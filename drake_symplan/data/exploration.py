@@ -61,7 +61,6 @@ from drake_symplan.robot.backends import PerceptionFailure
 from drake_symplan.skills.pick_place import action_geometry
 from drake_symplan.world.scenes import sample_scene
 
-OUTCOMES = ("no_effect", "placed", "tipped", "carried_along", "fell_off", "other")
 NO_EFFECT_TOL = 0.01  # m: nothing moved more than this
 TIP_TOL = np.radians(15.0)  # tilt gained by an object that tipped over
 # Ends of an episode; the DROP_REASONS ones are failures.

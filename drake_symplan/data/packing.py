@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.data.exploration import OUTCOMES
-from drake_symplan.datasets import TransitionArrays
+from drake_symplan.datasets import OUTCOMES, TransitionArrays
 
 EXPLORE_MODES = ("random", "disagreement", "goal", "uncovered")  # explorers/active.py
 

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.data import storage
-from drake_symplan.data.exploration import DROP_REASONS, OUTCOMES
+from drake_symplan.data.exploration import DROP_REASONS
+from drake_symplan.datasets import OUTCOMES
 from drake_symplan.json_files import parse_json
 
 PERCEPTION_FAILURES = ("perception_count_mismatch", "perception_lost_object")
