@@ -7,7 +7,7 @@ per second of worker time, times the workers), and where the worker time goes: s
 transition in physics, perception and the rest, and the rate the workers would reach if
 they only simulated (`physics_only_rate_per_s`: the ceiling for any speed-up outside the
 physics). `--parity-pairs N` also runs N identical (scene, action) pairs on both back-ends
-(data/parity.py).
+(data/parity.py), agreement also apart for the pairs that carry something.
 
 `--ray` compares the engines instead: per back-end, `--runs` rounds, each one collection
 with the local worker processes and one with Ray worker actors on this machine (same
@@ -149,7 +149,9 @@ def print_summary(result: dict, ray: bool) -> None:
                   f"{b['median_steady_rate_per_s']}/s steady ({b['workers']} workers)")
     if "parity" in result:
         p = result["parity"]
-        print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']}, "
+        print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']} "
+              f"(carrying something: {p['carrying']['class_agreement']} on "
+              f"{p['carrying']['pairs']}, the rest: {p['not_carrying']['class_agreement']}), "
               f"effect diff median {p['effect_diff_median_m']} m")
 
 
