@@ -3,7 +3,8 @@
     python tools/bench_carry.py --json [--yaws 0,90,rand] [--scenes NAME,..] [--out bench_carry.json]
 
 Five scenes, each a base box with riders beside a target long block: a cube on a long
-block at -9, 0 and +9 cm along its length, a two-cube tower, two cubes on a long block.
+block at -9, 0 and +9 cm along its length, a two-cube tower, two cubes on a long block
+(`--scenes` may also name the harder `hanging` and `tall_p9`, evaluation/carry.HARD).
 Every scene is also run yawed as a whole about the midpoint between base and target
 (`--yaws`: degrees, `rand` a seeded random yaw in [-30, 30]). Each scene runs the nine
 actions pick(base, grasp) place(target, release) on the `hand` and on the `arm`, planned
@@ -21,7 +22,7 @@ import platform
 
 import numpy as np
 
-from drake_symplan.evaluation.carry import SUITE, Runner, bench_scene
+from drake_symplan.evaluation.carry import SCENES, SUITE, Runner, bench_scene
 
 
 def _yaws(text: str, seed: int) -> list[float]:
@@ -47,7 +48,8 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--yaws", default="0,90,rand",
                         help="comma-separated scene yaws in degrees; 'rand': a seeded random one")
-    parser.add_argument("--scenes", default=",".join(SUITE))
+    parser.add_argument("--scenes", default=",".join(SUITE),
+                        help=f"comma-separated scenes of {sorted(SCENES)}")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--out", default="bench_carry.json")

@@ -30,7 +30,7 @@ KEPT_DZ = 0.01  # m: a rider's centre within this of resting height on the base
 KEPT_TILT = math.radians(10.0)  # rad: and tilted no more than this against the base
 
 # scene name -> [(name, type, offset along the base's long axis in m, level)]; level 0 is
-# the base's (on the table), 1 on the base, 2 on level 1.
+# the base's (on the table), 1 on the base, 2 on level 1 (on the box below it).
 SUITE: dict[str, list[tuple[str, str, float, int]]] = {
     "rider_m9": [("base", "long", 0.0, 0), ("r0", "cube", -0.09, 1)],
     "rider_0": [("base", "long", 0.0, 0), ("r0", "cube", 0.0, 1)],
@@ -38,6 +38,13 @@ SUITE: dict[str, list[tuple[str, str, float, int]]] = {
     "tower": [("base", "cube", 0.0, 0), ("r0", "cube", 0.0, 1)],
     "two_cubes": [("base", "long", 0.0, 0), ("r0", "cube", -0.07, 1), ("r1", "cube", 0.07, 1)],
 }
+# Beyond the suite (`--scenes` may name them): what a careful arm cannot or can hardly keep.
+HARD: dict[str, list[tuple[str, str, float, int]]] = {
+    "hanging": [("base", "long", 0.0, 0), ("r0", "cube", 0.131, 1)],  # centre off the end
+    "tall_p9": [("base", "long", 0.0, 0), ("r0", "cube", 0.09, 1), ("r1", "cube", 0.09, 2),
+                ("r2", "cube", 0.09, 3)],  # a three-cube tower at the far end
+}
+SCENES = {**SUITE, **HARD}
 
 
 def suite_scene(name: str, yaw_deg: float = 0.0) -> Scene:
@@ -46,7 +53,7 @@ def suite_scene(name: str, yaw_deg: float = 0.0) -> Scene:
     c, s = math.cos(yaw), math.sin(yaw)
     rot = np.array([[c, -s], [s, c]])
     objects = []
-    for obj, kind, along, level in [*SUITE[name], ("target", "long", 0.0, 0)]:
+    for obj, kind, along, level in [*SCENES[name], ("target", "long", 0.0, 0)]:
         xy = (TARGET_XY if obj == "target" else BASE_XY) + np.array([0.0, along])
         xy = PIVOT + rot @ (xy - PIVOT)
         z = 0.025 + 0.05 * level
@@ -54,8 +61,12 @@ def suite_scene(name: str, yaw_deg: float = 0.0) -> Scene:
     return validate_scene(Scene(objects))
 
 
-def riders(name: str) -> list[str]:
-    return [obj for obj, _, _, level in SUITE[name] if level > 0]
+def supports(name: str) -> dict[str, str]:
+    """Rider -> the box it rests on in scene `name` (the one a level below, same offset, or
+    the base)."""
+    boxes = SCENES[name]
+    return {obj: next((o for o, _, a, lv in boxes if lv == level - 1 and a == along), "base")
+            for obj, _, along, level in boxes if level > 0}
 
 
 def rests_on(poses: dict, top: str, below: str, types: dict[str, str]) -> bool:
@@ -71,10 +82,7 @@ def rests_on(poses: dict, top: str, below: str, types: dict[str, str]) -> bool:
 
 def kept(poses: dict, name: str, types: dict[str, str]) -> bool:
     """Does every rider of suite scene `name` still rest on what it rested on?"""
-    below = {obj: "base" for obj in riders(name)}
-    if name == "tower":
-        below = {"r0": "base"}
-    return all(rests_on(poses, r, b, types) for r, b in below.items())
+    return all(rests_on(poses, r, b, types) for r, b in supports(name).items())
 
 
 def _beliefs(scene: Scene) -> dict[str, ObjectState]:
