@@ -37,6 +37,7 @@ FOOTPRINT_TOL = 0.01  # m outside the footprint that still counts as over it
 MASS = {"cube": 0.1, "long": 0.4}  # kg, models/objects
 RELEASE_GAP = 0.004  # m between the released source's bottom and what lies under it
 CAREFUL_FINGER = -0.02  # finger command while carrying a load: 37.5 N on a 5 cm box
+CAREFUL_OPEN_SECONDS = 0.05  # s: the fingers let go of a load at once (a tipping load)
 CAREFUL_TCP_ACCELERATION = 2.0  # m/s^2 at the TCP while lifting, carrying, lowering a load
 
 

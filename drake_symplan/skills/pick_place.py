@@ -21,6 +21,7 @@ from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.carry import (
     CAREFUL_FINGER,
+    CAREFUL_OPEN_SECONDS,
     CAREFUL_TCP_ACCELERATION,
     careful_points,
     riders,
@@ -157,6 +158,7 @@ class PickPlaceMotions:
             g = dc.replace(g, grasp=points[0], release=points[1])
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
+        opening = CAREFUL_OPEN_SECONDS if careful else FINGER_SECONDS
         up = np.array([0.0, 0.0, APPROACH_HEIGHT])
         pre = self._solve("pre-grasp", g.grasp + up, g.yaw_grasp, q_start)
         mid = self._solve("grasp", g.grasp + up * 0.5, g.yaw_grasp, pre)
@@ -184,7 +186,7 @@ class PickPlaceMotions:
             Phase(closed(*carry), tcp_acceleration=loaded),
             Phase(closed(carry[-1], at_release), tcp_acceleration=loaded),
             Phase(closed(at_release), dwell=RELEASE_HOLD, finger=grip),
-            Phase(closed(at_release), dwell=FINGER_SECONDS, finger=FINGER_OPEN),
+            Phase(closed(at_release), dwell=opening, finger=FINGER_OPEN),
             Phase(opened(at_release, retreat, HOME_Q)),
         ]
         trajectory, ends = self.timer.trajectory(lifting + placing)
