@@ -33,7 +33,8 @@ def test_careful_grasp_is_clear_of_the_riders_and_lands_the_base_where_the_actio
     objects = beliefs(suite_scene("two_cubes"))
     action = Action("base", "left", "target", "center")
     g = action_geometry(action, objects)
-    grasp, release = careful_points(action, objects, g.grasp, g.release, 0.0)
+    grasp, release, careful = careful_points(action, objects, g.grasp, g.release, 0.0)
+    assert careful
     base = objects["base"].position
     assert grasp[:2] == pytest.approx(base[:2], abs=1e-6)  # between the cubes, balanced
     # the base's centre is released where the nominal grasp would have put it
@@ -44,7 +45,7 @@ def test_a_grasp_beside_a_loaded_block_stays_above_the_riders():
     objects = beliefs(suite_scene("rider_0", 90.0))
     action = Action("base", "left", "target", "center")  # offsets along world y: a miss
     g = action_geometry(action, objects)
-    grasp, _ = careful_points(action, objects, g.grasp, g.release, 0.0)
+    grasp, _, _ = careful_points(action, objects, g.grasp, g.release, 0.0)
     assert grasp[2] > 0.10 + 0.015  # the pads above the cube's top
 
 
@@ -68,3 +69,15 @@ def test_a_rider_hanging_more_than_half_off_the_end_falls_on_both_back_ends(runn
         out = runner.run(backend, scene, "hanging", Action("base", "center", "target", "center"))
         assert out["status"] == "ok" and out["moved"], backend
         assert not out["kept"], backend
+
+
+def test_a_tower_on_a_cube_is_pinched_as_before_but_not_dropped_beside_the_target():
+    objects = beliefs(suite_scene("tower", 90.0))
+    on_target = Action("base", "center", "target", "center")
+    g = action_geometry(on_target, objects)
+    grasp, release, careful = careful_points(on_target, objects, g.grasp, g.release, 0.0)
+    assert not careful and grasp == pytest.approx(g.grasp) and release == pytest.approx(g.release)
+    beside = Action("base", "center", "target", "right")  # across the turned target: the table
+    g = action_geometry(beside, objects)
+    _, release, _ = careful_points(beside, objects, g.grasp, g.release, 0.0)
+    assert release[2] == pytest.approx(0.025 + 0.004)

@@ -113,11 +113,12 @@ def _support_top(objects: dict[str, ObjectState], skip: set[str], centre: np.nda
 
 
 def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
-                   release: np.ndarray, yaw_turn: float) -> tuple[np.ndarray, np.ndarray] | None:
+                   release: np.ndarray, yaw_turn: float) -> tuple[np.ndarray, np.ndarray, bool]:
     """The careful carry's TCP (grasp, release) points for the nominal ones of `action`
-    (`yaw_turn`: how far the gripper turns from grasp to release); None where no point of
-    the source is clear of its riders (a tower on a cube): the fingers then pinch both,
-    as in an ordinary pick, which holds the stack."""
+    (`yaw_turn`: how far the gripper turns from grasp to release), and whether to carry
+    carefully (grip, accelerations, release): not where no point of the source is clear
+    of its riders (a tower on a cube), which the fingers pinch together as in an ordinary
+    pick (that holds the stack; only a release beside the target is lowered)."""
     src = objects[action.source]
     load = [objects[n] for n in riders(action.source, objects)]
     local = _local(src, grasp)
@@ -126,18 +127,17 @@ def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.nd
         top = max(o.position[2] + HALF_EXTENTS[o.type][2] for o in load)
         lifted = grasp.copy()
         lifted[2] = max(grasp[2], top + PALM_MARGIN + PAD_BELOW_TCP)
-        return lifted, release
+        return lifted, release, True
     masses = np.array([MASS[o.type] for o in [src, *load]])
     ys = np.array([_local(src, o.position)[1] for o in [src, *load]])
     y = _clear_point(src, load, float(masses @ ys / masses.sum()))
-    if y is None:
-        return None
     # the pads centred across the source at y; the release point moves with the grasp
-    shift = src.position[:2] + _turn(np.array([0.0, y]), src.yaw) - grasp[:2]
-    turned = _turn(shift, yaw_turn)
+    shift = np.zeros(2)
+    if y is not None:
+        shift = src.position[:2] + _turn(np.array([0.0, y]), src.yaw) - grasp[:2]
     landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
     under = _support_top(objects, {action.source, *(o.name for o in load)}, landing,
                          src.yaw + yaw_turn, HALF_EXTENTS[src.type])
-    placed = release + np.array([*turned, 0.0])
+    placed = release + np.array([*_turn(shift, yaw_turn), 0.0])
     placed[2] = min(release[2], under + half[2] + RELEASE_GAP)
-    return grasp + np.array([*shift, 0.0]), placed
+    return grasp + np.array([*shift, 0.0]), placed, y is not None

@@ -149,13 +149,11 @@ class PickPlaceMotions:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
         still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
         g = action_geometry(action, objects)
-        points = None
+        careful = False
         if riders(action.source, objects):  # a load: the careful carry (skills/carry.py)
-            points = careful_points(action, objects, g.grasp, g.release,
-                                    g.yaw_release - g.yaw_grasp)
-        careful = points is not None
-        if careful:
-            g = dc.replace(g, grasp=points[0], release=points[1])
+            grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
+                                                     g.yaw_release - g.yaw_grasp)
+            g = dc.replace(g, grasp=grasp, release=release)
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
         opening = CAREFUL_OPEN_SECONDS if careful else FINGER_SECONDS
