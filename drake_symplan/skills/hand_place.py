@@ -41,10 +41,6 @@ HAND_SETTLE_MAX = 1.2  # s
 RELEASE_MIN_CLEARANCE = 0.001  # m: a release pose closer than this to anything is not free
 STACKED_DZ = 0.01  # m: a touching box whose centre is this much higher rides on the held one
 RIDER_DZ = 0.01  # m: a box the lift raised this much rides on the load
-# A rider still turning faster than this, or moving this much faster than the load, at the
-# end of the lift (tipping off it, sliding) is not frozen onto the load: the carry is then
-# simulated in full physics, as the arm's, and the rider falls if it falls.
-RIDER_SETTLED = (0.05, 0.5)  # (m/s, rad/s)
 
 
 @dc.dataclass
@@ -173,17 +169,10 @@ def hand_pick_place(
     return motion, lifted
 
 
-def _riders(station: Station, z_before: dict[str, float]) -> list[str] | None:
-    """The objects besides the held one that the lift raised by more than RIDER_DZ; None
-    when one of them is not settled on the load (RIDER_SETTLED)."""
-    riders = [n for n, X in station.object_poses().items()
-              if n != station.held and X.translation()[2] - z_before[n] >= RIDER_DZ]
-    speeds = station.object_speeds()
-    load = speeds[station.held][0]
-    if any(speeds[n][0] - load > RIDER_SETTLED[0] or speeds[n][1] > RIDER_SETTLED[1]
-           for n in riders):
-        return None
-    return riders
+def _riders(station: Station, z_before: dict[str, float]) -> list[str]:
+    """The objects besides the held one that the lift raised by more than RIDER_DZ."""
+    return [n for n, X in station.object_poses().items()
+            if n != station.held and X.translation()[2] - z_before[n] >= RIDER_DZ]
 
 
 def _move_load(station: Station, motion: HandMotion, riders: list, t_from: float,

@@ -329,14 +329,6 @@ class Station:
         return {n: self.plant.EvalBodyPoseInWorld(self.plant_context, b)
                 for n, b in self.assigned.items()}
 
-    def object_speeds(self) -> dict[str, tuple[float, float]]:
-        """(linear m/s, angular rad/s) of each scene object (the hand's simulation uses it)."""
-        out = {}
-        for n, b in self.assigned.items():
-            V = self.plant.EvalBodySpatialVelocityInWorld(self.plant_context, b)
-            out[n] = (float(np.linalg.norm(V.translational())), float(np.linalg.norm(V.rotational())))
-        return out
-
     def object_states(self) -> dict[str, ObjectState]:
         out = {}
         for n, X in self.object_poses().items():
