@@ -24,7 +24,7 @@ from drake_symplan.perception.perceive import associate
 from drake_symplan.robot.backends import make_backend
 from drake_symplan.skills.carry import riders
 from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.world.scenes import sample_scene
+from drake_symplan.world.scenes import sample_scene, sample_structured_scene
 
 
 def _map_names(src_scene, dst_scene) -> dict[str, str]:
@@ -75,12 +75,16 @@ def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
 
 
 def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
-                   scenes_actions: list | None = None, progress: bool = False) -> dict:
-    """Runs `pairs` random pairs (or the given (scene, action) list); the parity report."""
+                   scenes_actions: list | None = None, progress: bool = False,
+                   structured: bool = False) -> dict:
+    """Runs `pairs` random pairs (or the given (scene, action) list); the parity report.
+    `structured`: the scenes are stacks, bridges and touching pairs (sample_structured_scene),
+    where sources carry something, rather than boxes apart (sample_scene)."""
     hand, arm = make_backend("hand"), make_backend("arm")
     rng = np.random.default_rng(seed)
     if scenes_actions is None:
-        scenes_actions = [(sample_scene(rng, int(rng.integers(objects[0], objects[1] + 1))), None)
+        sample = sample_structured_scene if structured else sample_scene
+        scenes_actions = [(sample(rng, int(rng.integers(objects[0], objects[1] + 1))), None)
                           for _ in range(pairs)]
     iterator = scenes_actions
     if progress:
