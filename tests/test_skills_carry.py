@@ -54,7 +54,6 @@ def runner():
     return Runner()
 
 
-@pytest.mark.slow
 def test_two_cubes_on_a_block_ride_along_on_the_arm(runner):
     scene = suite_scene("two_cubes")
     for grasp in ("left", "right"):
@@ -62,7 +61,6 @@ def test_two_cubes_on_a_block_ride_along_on_the_arm(runner):
         assert out["status"] == "ok" and out["moved"] and out["kept"], grasp
 
 
-@pytest.mark.slow
 def test_a_rider_hanging_more_than_half_off_the_end_falls_on_both_back_ends(runner):
     scene = suite_scene("hanging")  # the cube's centre 6 mm beyond the block's end
     for backend in ("hand", "arm"):
