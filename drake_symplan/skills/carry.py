@@ -1,19 +1,22 @@
 """The careful carry: how the arm picks a box that, by the caller's beliefs, has others on it.
 
-The gripper's palm sits PALM_ABOVE_TCP above the TCP and spans the finger gap, so a box
-resting over the grasp point is pressed by the palm and pinched by the upper part of the
-pads, and the source below slips out of the fingers (the arm lost 25 of 45 riders on the
-carry suite, tools/bench_carry.py). When the beliefs say something rests on the source:
+The gripper's palm sits 4.5 cm above the TCP (models/ur10/ur10.urdf) and spans the
+finger gap, so a box resting over the grasp point is pressed by the palm and pinched by
+the upper part of the pads, and the source below slips out of the fingers (the arm kept 26 of 45 riders on the
+carry suite, tools/bench_carry.py, the hand 42). When the beliefs say something rests on
+the source:
 
 - the fingers close at the point of the source's top that is clear of the riders (the
   palm's footprint with a margin) nearest the load's centre of mass, and the release
-  point moves with it, so the source lands where the action puts it (`careful_geometry`);
+  point moves with it, so the source lands where the action puts it (`careful_points`;
+  a source with no clear point, a tower on a cube, is pinched with its rider as before);
 - a grasp that misses the source (it catches nothing) comes down only as low as keeps
   the fingers above the riders;
 - a load released where nothing the beliefs hold lies under the source (beside the
   target) is lowered to just above what does lie there (the table), not dropped;
-- the fingers squeeze harder (CAREFUL_FINGER) and the carry accelerates more gently
-  (CAREFUL_TCP_ACCELERATION, skills/timing.py).
+- the fingers squeeze harder (CAREFUL_FINGER), the carry accelerates more gently
+  (CAREFUL_TCP_ACCELERATION, skills/timing.py) and the fingers let go at once
+  (CAREFUL_OPEN_SECONDS).
 
 Only the caller's beliefs are read here (object states), never the simulator.
 """
@@ -27,7 +30,6 @@ from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.world.hand import GRASP_SLACK
 
-PALM_ABOVE_TCP = 0.045  # m: the palm's underside above the TCP (models/ur10/ur10.urdf)
 PAD_BELOW_TCP = 0.015  # m: the finger pads reach this far below the TCP
 PALM_HALF_WIDTH = 0.02  # m: the palm's half extent across the finger axis
 PALM_MARGIN = 0.008  # m between the palm's footprint and a rider's
