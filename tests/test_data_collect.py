@@ -178,6 +178,9 @@ def test_hand_and_arm_agree_on_a_fixed_set():
     report = measure_parity(len(pairs), scenes_actions=pairs)
     assert report["pairs"] == len(pairs), report["skipped"]
     assert report["class_agreement"] == 1.0, report["confusion"]
+    # the block with a cube on it is the one source that carries something (careful carry)
+    assert report["carrying"] == {"pairs": 1, "class_agreement": 1.0}
+    assert report["not_carrying"] == {"pairs": 3, "class_agreement": 1.0}
     assert report["effect_diff_median_m"] <= 0.01
     assert {r["hand"] for r in report["rows"]} == {"placed", "tipped", "no_effect",
                                                    "carried_along"}

@@ -7,7 +7,8 @@ per second of worker time, times the workers), and where the worker time goes: s
 transition in physics, perception and the rest, and the rate the workers would reach if
 they only simulated (`physics_only_rate_per_s`: the ceiling for any speed-up outside the
 physics). `--parity-pairs N` also runs N identical (scene, action) pairs on both back-ends
-(data/parity.py).
+(data/parity.py), agreement also apart for the pairs that carry something
+(`--parity-structured`: on stacks, bridges and touching pairs, where sources carry).
 
 `--ray` compares the engines instead: per back-end, `--runs` rounds, each one collection
 with the local worker processes and one with Ray worker actors on this machine (same
@@ -99,6 +100,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--arm-transitions", type=int, default=40)
     parser.add_argument("--backends", default="hand,arm")
     parser.add_argument("--parity-pairs", type=int, default=0)
+    parser.add_argument("--parity-structured", action="store_true",
+                        help="parity on structured scenes of 3-5 objects (stacks, bridges), "
+                             "where sources carry something")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--ray", action="store_true",
                         help="compare Ray actors with the local workers on this machine")
@@ -130,7 +134,9 @@ def run_benchmarks(args: argparse.Namespace) -> dict:
         from drake_symplan.data.parity import measure_parity
 
         t0 = time.perf_counter()
-        parity = measure_parity(args.parity_pairs, seed=args.seed, progress=not args.json)
+        parity = measure_parity(args.parity_pairs, seed=args.seed, progress=not args.json,
+                                **({"structured": True, "objects": (3, 5)}
+                                   if args.parity_structured else {}))
         parity.pop("rows")
         parity["seconds"] = round(time.perf_counter() - t0, 1)
         result["parity"] = parity
@@ -149,7 +155,9 @@ def print_summary(result: dict, ray: bool) -> None:
                   f"{b['median_steady_rate_per_s']}/s steady ({b['workers']} workers)")
     if "parity" in result:
         p = result["parity"]
-        print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']}, "
+        print(f"parity: {p['pairs']} pairs, class agreement {p['class_agreement']} "
+              f"(carrying something: {p['carrying']['class_agreement']} on "
+              f"{p['carrying']['pairs']}, the rest: {p['not_carrying']['class_agreement']}), "
               f"effect diff median {p['effect_diff_median_m']} m")
 
 

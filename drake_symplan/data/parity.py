@@ -5,7 +5,8 @@ the hand's perceived names and mapped to the arm's by nearest perceived position
 execute it; we compare the outcome classes (exploration.classify) and the effect vectors
 of the relevant objects (exploration.effects; per object the norm of the 6-d difference).
 Pairs the arm cannot reach, or whose scene either perception miscounts, are skipped and
-counted. Scenes come from `scenes.sample_scene` or, when given, a fixed list. A measurement
+counted. Agreement is also reported apart for the pairs whose source carries something
+(the hand's perceived scene has a box resting on it: skills/carry.riders) and the rest. Scenes come from `scenes.sample_scene` or, when given, a fixed list. A measurement
 for tools/bench_collect.py (`--parity-pairs`) and test_data_collect; the pipeline does not use it.
 """
 
@@ -21,8 +22,9 @@ from drake_symplan.data.exploration import classify, effects, random_action
 from drake_symplan.perception.matching import match_by_position
 from drake_symplan.perception.perceive import associate
 from drake_symplan.robot.backends import make_backend
+from drake_symplan.skills.carry import riders
 from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.world.scenes import sample_scene
+from drake_symplan.world.scenes import sample_scene, sample_structured_scene
 
 
 def _map_names(src_scene, dst_scene) -> dict[str, str]:
@@ -62,6 +64,7 @@ def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
             effects(before, r.lift, r.after, lift_map, after_map, names, carry), names)
     out["status"] = "ok"
     out["action"] = str(action)
+    out["carries"] = bool(riders(action.source, hb.object_states()))
     out["hand"], out["arm"] = results["hand"][0], results["arm"][0]
     # Compare effects object by object (hand names mapped to the arm's).
     e_hand = dict(zip(results["hand"][2], results["hand"][1], strict=True))
@@ -72,12 +75,16 @@ def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
 
 
 def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
-                   scenes_actions: list | None = None, progress: bool = False) -> dict:
-    """Runs `pairs` random pairs (or the given (scene, action) list); the parity report."""
+                   scenes_actions: list | None = None, progress: bool = False,
+                   structured: bool = False) -> dict:
+    """Runs `pairs` random pairs (or the given (scene, action) list); the parity report.
+    `structured`: the scenes are stacks, bridges and touching pairs (sample_structured_scene),
+    where sources carry something, rather than boxes apart (sample_scene)."""
     hand, arm = make_backend("hand"), make_backend("arm")
     rng = np.random.default_rng(seed)
     if scenes_actions is None:
-        scenes_actions = [(sample_scene(rng, int(rng.integers(objects[0], objects[1] + 1))), None)
+        sample = sample_structured_scene if structured else sample_scene
+        scenes_actions = [(sample(rng, int(rng.integers(objects[0], objects[1] + 1))), None)
                           for _ in range(pairs)]
     iterator = scenes_actions
     if progress:
@@ -91,13 +98,21 @@ def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
         rows.append(r)
         confusion[f"{r['hand']}|{r['arm']}"] += 1
     diffs = np.array([d for r in rows for d in r["effect_diff"]])
-    agree = sum(r["hand"] == r["arm"] for r in rows)
+    carrying = [r for r in rows if r["carries"]]
     return {
         "pairs": len(rows),
         "skipped": dict(skipped),
-        "class_agreement": round(agree / len(rows), 4) if rows else None,
+        "class_agreement": _agreement(rows),
+        "carrying": {"pairs": len(carrying), "class_agreement": _agreement(carrying)},
+        "not_carrying": {"pairs": len(rows) - len(carrying),
+                         "class_agreement": _agreement([r for r in rows if not r["carries"]])},
         "effect_diff_median_m": round(float(np.median(diffs)), 5) if len(diffs) else None,
         "effect_diff_p90_m": round(float(np.percentile(diffs, 90)), 5) if len(diffs) else None,
         "confusion": dict(sorted(confusion.items())),
         "rows": rows,
     }
+
+
+def _agreement(rows: list[dict]) -> float | None:
+    """The share of `rows` whose hand and arm outcome classes agree (None: no rows)."""
+    return round(sum(r["hand"] == r["arm"] for r in rows) / len(rows), 4) if rows else None

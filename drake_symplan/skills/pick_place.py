@@ -19,6 +19,13 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_symplan.actions import Action, grasp_point, release_point
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.datasets import ObjectState
+from drake_symplan.skills.carry import (
+    CAREFUL_FINGER,
+    CAREFUL_OPEN_SECONDS,
+    CAREFUL_TCP_ACCELERATION,
+    careful_points,
+    riders,
+)
 from drake_symplan.skills.ik import ArmIK
 from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
 from drake_symplan.world.settling import settle_until_rest
@@ -142,6 +149,14 @@ class PickPlaceMotions:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
         still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
         g = action_geometry(action, objects)
+        careful = False
+        if riders(action.source, objects):  # a load: the careful carry (skills/carry.py)
+            grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
+                                                     g.yaw_release - g.yaw_grasp)
+            g = dc.replace(g, grasp=grasp, release=release)
+        loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
+        grip = CAREFUL_FINGER if careful else FINGER_CLOSED
+        opening = CAREFUL_OPEN_SECONDS if careful else FINGER_SECONDS
         up = np.array([0.0, 0.0, APPROACH_HEIGHT])
         pre = self._solve("pre-grasp", g.grasp + up, g.yaw_grasp, q_start)
         mid = self._solve("grasp", g.grasp + up * 0.5, g.yaw_grasp, pre)
@@ -156,20 +171,20 @@ class PickPlaceMotions:
                                      g.yaw_grasp + (g.yaw_release - g.yaw_grasp) * f, carry[-1]))
         at_release = self._solve("release", g.release, g.yaw_release, carry[-1])
         retreat = self._solve("retreat", g.release + up, g.yaw_release, at_release)
-        opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(FINGER_CLOSED)
+        opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(grip)
         lifting = [
             Phase(opened(q_start, pre)),
             Phase(opened(pre, mid, at_grasp), tcp_acceleration=TCP_ACCELERATION),
-            Phase(opened(at_grasp), dwell=FINGER_SECONDS, finger=FINGER_CLOSED),
-            Phase(closed(at_grasp, carry[0]), tcp_acceleration=TCP_ACCELERATION),
+            Phase(opened(at_grasp), dwell=FINGER_SECONDS, finger=grip),
+            Phase(closed(at_grasp, carry[0]), tcp_acceleration=loaded),
         ]
         if lift_hold:
-            lifting.append(Phase(closed(carry[0]), dwell=LIFT_HOLD, finger=FINGER_CLOSED))
+            lifting.append(Phase(closed(carry[0]), dwell=LIFT_HOLD, finger=grip))
         placing = [
-            Phase(closed(*carry), tcp_acceleration=TCP_ACCELERATION),
-            Phase(closed(carry[-1], at_release), tcp_acceleration=TCP_ACCELERATION),
-            Phase(closed(at_release), dwell=RELEASE_HOLD, finger=FINGER_CLOSED),
-            Phase(closed(at_release), dwell=FINGER_SECONDS, finger=FINGER_OPEN),
+            Phase(closed(*carry), tcp_acceleration=loaded),
+            Phase(closed(carry[-1], at_release), tcp_acceleration=loaded),
+            Phase(closed(at_release), dwell=RELEASE_HOLD, finger=grip),
+            Phase(closed(at_release), dwell=opening, finger=FINGER_OPEN),
             Phase(opened(at_release, retreat, HOME_Q)),
         ]
         trajectory, ends = self.timer.trajectory(lifting + placing)

@@ -1,0 +1,144 @@
+"""The carry suite: boxes riding on a carried box, and whether they stay on it.
+
+Five scenes, each a base box with riders beside a target long block: a cube on a long
+block at -9, 0 and +9 cm along its length, a two-cube tower, two cubes on a long block,
+each also yawed as a whole. `kept` judges from the simulator's poses whether every rider
+still rests on the base (ground truth: for benchmarks and tests, never a learning input);
+`Runner` runs one action on the `hand` or the `arm` from a fresh scene. tools/bench_carry.py
+runs the suite.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from drake_symplan.actions import OFFSETS, Action
+from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.datasets import ObjectState
+from drake_symplan.skills.hand_place import hand_pick_place
+from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
+from drake_symplan.world.scenes import ObjectSpec, Scene, validate_scene
+from drake_symplan.world.station import Station, StationConfig
+
+BASE_XY = np.array([0.70, -0.15])  # the base's centre (unrotated)
+TARGET_XY = np.array([0.70, 0.18])  # the target long block's centre
+PIVOT = (BASE_XY + TARGET_XY) / 2  # the rotated variants turn about this point
+KEPT_DZ = 0.01  # m: a rider's centre within this of resting height on the base
+KEPT_TILT = math.radians(10.0)  # rad: and tilted no more than this against the base
+
+# scene name -> [(name, type, offset along the base's long axis in m, level)]; level 0 is
+# the base's (on the table), 1 on the base, 2 on level 1 (on the box below it).
+SUITE: dict[str, list[tuple[str, str, float, int]]] = {
+    "rider_m9": [("base", "long", 0.0, 0), ("r0", "cube", -0.09, 1)],
+    "rider_0": [("base", "long", 0.0, 0), ("r0", "cube", 0.0, 1)],
+    "rider_p9": [("base", "long", 0.0, 0), ("r0", "cube", 0.09, 1)],
+    "tower": [("base", "cube", 0.0, 0), ("r0", "cube", 0.0, 1)],
+    "two_cubes": [("base", "long", 0.0, 0), ("r0", "cube", -0.07, 1), ("r1", "cube", 0.07, 1)],
+}
+# Beyond the suite (`--scenes` may name them): what a careful arm cannot or can hardly keep.
+HARD: dict[str, list[tuple[str, str, float, int]]] = {
+    "hanging": [("base", "long", 0.0, 0), ("r0", "cube", 0.131, 1)],  # centre off the end
+    "tall_p9": [("base", "long", 0.0, 0), ("r0", "cube", 0.09, 1), ("r1", "cube", 0.09, 2),
+                ("r2", "cube", 0.09, 3)],  # a three-cube tower at the far end
+}
+SCENES = {**SUITE, **HARD}
+
+
+def suite_scene(name: str, yaw_deg: float = 0.0) -> Scene:
+    """Suite scene `name` with the target block, the whole scene yawed by `yaw_deg` about PIVOT."""
+    yaw = math.radians(yaw_deg)
+    c, s = math.cos(yaw), math.sin(yaw)
+    rot = np.array([[c, -s], [s, c]])
+    objects = []
+    for obj, kind, along, level in [*SCENES[name], ("target", "long", 0.0, 0)]:
+        xy = (TARGET_XY if obj == "target" else BASE_XY) + np.array([0.0, along])
+        xy = PIVOT + rot @ (xy - PIVOT)
+        z = 0.025 + 0.05 * level
+        objects.append(ObjectSpec(obj, kind, [float(xy[0]), float(xy[1]), z], yaw))
+    return validate_scene(Scene(objects))
+
+
+def supports(name: str) -> dict[str, str]:
+    """Rider -> the box it rests on in scene `name` (the one a level below, same offset, or
+    the base)."""
+    boxes = SCENES[name]
+    return {obj: next((o for o, _, a, lv in boxes if lv == level - 1 and a == along), "base")
+            for obj, _, along, level in boxes if level > 0}
+
+
+def rests_on(poses: dict, top: str, below: str, types: dict[str, str]) -> bool:
+    """Does `top` rest upright on `below` (simulator poses): at the height of its top face,
+    its centre over the footprint and not tilted against it?"""
+    X_b, X_t = poses[below], poses[top]
+    local = X_b.inverse().multiply(X_t.translation())
+    hb, ht = np.array(HALF_EXTENTS[types[below]]), np.array(HALF_EXTENTS[types[top]])
+    z_axis = (X_b.rotation().inverse() @ X_t.rotation()).matrix()[:, 2]
+    return bool(abs(local[2] - hb[2] - ht[2]) <= KEPT_DZ and np.all(np.abs(local[:2]) <= hb[:2])
+                and abs(z_axis[2]) >= math.cos(KEPT_TILT))
+
+
+def kept(poses: dict, name: str, types: dict[str, str]) -> bool:
+    """Does every rider of suite scene `name` still rest on what it rested on?"""
+    return all(rests_on(poses, r, b, types) for r, b in supports(name).items())
+
+
+def _beliefs(scene: Scene) -> dict[str, ObjectState]:
+    return {o.name: ObjectState(o.name, o.type, np.array(o.position), o.yaw)
+            for o in scene.objects}
+
+
+class Runner:
+    """One station per back-end; runs an action from a fresh scene, returns its verdict."""
+
+    def __init__(self):
+        self.arm, self.hand = Station(), Station(StationConfig(robot="hand"))
+        self.planner = PickPlaceMotions()
+
+    def run(self, backend: str, scene: Scene, name: str, action: Action) -> dict:
+        station = self.arm if backend == "arm" else self.hand
+        station.reset(scene)
+        station.settle(0.1)
+        start = {n: X.translation()[2] for n, X in station.object_poses().items()}
+        t = time.process_time()
+        if backend == "arm":
+            status = pick_place(station, self.planner, action, _beliefs(scene)).status
+        else:
+            status = "ok"
+            try:
+                hand_pick_place(station, action, _beliefs(scene))
+            except RuntimeError:
+                status = "sim_failure"
+        cpu = time.process_time() - t
+        poses = station.object_poses()
+        base = poses["base"].translation()
+        moved = bool(np.linalg.norm(base[:2] - scene.object("base").position[:2]) > 0.05
+                     or abs(base[2] - start["base"]) > 0.02)
+        return {"status": status, "kept": kept(poses, name, station.types), "moved": moved,
+                "cpu_s": round(cpu, 3)}
+
+
+def bench_scene(runner: Runner, name: str, yaw_deg: float) -> dict:
+    scene = suite_scene(name, yaw_deg)
+    rows = []
+    for grasp in OFFSETS:
+        for release in OFFSETS:
+            action = Action("base", grasp, "target", release)
+            row = {"action": f"{grasp}/{release}"}
+            for backend in ("hand", "arm"):
+                row[backend] = runner.run(backend, scene, name, action)
+            rows.append(row)
+    n = len(rows)
+    agree = sum(r["hand"]["kept"] == r["arm"]["kept"] for r in rows)
+    return {
+        "scene": name, "yaw_deg": round(yaw_deg, 2), "actions": n,
+        "moved": {b: sum(r[b]["moved"] for r in rows) for b in ("hand", "arm")},
+        "kept": {b: sum(r[b]["kept"] for r in rows) for b in ("hand", "arm")},
+        "agreement": round(agree / n, 4),
+        "arm_cpu_s": round(sum(r["arm"]["cpu_s"] for r in rows) / n, 3),
+        "rows": rows,
+    }
+
+

@@ -1,0 +1,145 @@
+"""The careful carry: how the arm picks a box that, by the caller's beliefs, has others on it.
+
+The gripper's palm sits 4.5 cm above the TCP (models/ur10/ur10.urdf) and spans the
+finger gap, so a box resting over the grasp point is pressed by the palm and pinched by
+the upper part of the pads, and the source below slips out of the fingers (the arm kept 26 of 45 riders on the
+carry suite, tools/bench_carry.py, the hand 42). When the beliefs say something rests on
+the source:
+
+- the fingers close at the point of the source's top that is clear of the riders (the
+  palm's footprint with a margin) nearest the load's centre of mass, and the release
+  point moves with it, so the source lands where the action puts it (`careful_points`;
+  a source with no clear point, a tower on a cube, is pinched with its rider as before);
+- a grasp that misses the source (it catches nothing) comes down only as low as keeps
+  the fingers above the riders;
+- a load released where nothing the beliefs hold lies under the source (beside the
+  target) is lowered to just above what does lie there (the table), not dropped;
+- the fingers squeeze harder (CAREFUL_FINGER), the carry accelerates more gently
+  (CAREFUL_TCP_ACCELERATION, skills/timing.py) and the fingers let go at once
+  (CAREFUL_OPEN_SECONDS).
+
+Only the caller's beliefs are read here (object states), never the simulator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_symplan.actions import Action
+from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.datasets import ObjectState
+from drake_symplan.world.hand import GRASP_SLACK
+
+PAD_BELOW_TCP = 0.015  # m: the finger pads reach this far below the TCP
+PALM_HALF_WIDTH = 0.02  # m: the palm's half extent across the finger axis
+PALM_MARGIN = 0.008  # m between the palm's footprint and a rider's
+PAD_INSET = 0.015  # m: the pads' centre stays this far inside the source's end
+REST_TOL = 0.015  # m: a box whose bottom is this near the source's top rests on it
+FOOTPRINT_TOL = 0.01  # m outside the footprint that still counts as over it
+MASS = {"cube": 0.1, "long": 0.4}  # kg, models/objects
+RELEASE_GAP = 0.004  # m between the released source's bottom and what lies under it
+CAREFUL_FINGER = -0.02  # finger command while carrying a load: 37.5 N on a 5 cm box
+CAREFUL_OPEN_SECONDS = 0.05  # s: the fingers let go of a load at once (a tipping load)
+CAREFUL_TCP_ACCELERATION = 2.0  # m/s^2 at the TCP while lifting, carrying, lowering a load
+
+
+def _turn(v: np.ndarray, yaw: float) -> np.ndarray:
+    """The xy vector `v` turned by `yaw` about world z."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def _local(src: ObjectState, p: np.ndarray) -> np.ndarray:
+    """World point `p` (xy) in the source's frame (xy)."""
+    return _turn(np.asarray(p[:2], float) - src.position[:2], -src.yaw)
+
+
+def _rests_on(top: ObjectState, below: ObjectState) -> bool:
+    hb, ht = HALF_EXTENTS[below.type], HALF_EXTENTS[top.type]
+    if abs((top.position[2] - ht[2]) - (below.position[2] + hb[2])) > REST_TOL:
+        return False
+    local = _local(below, top.position)
+    return bool(np.all(np.abs(local) <= np.array(hb[:2]) + FOOTPRINT_TOL))
+
+
+def riders(source: str, objects: dict[str, ObjectState]) -> list[str]:
+    """The believed objects resting on `source`, and on those, and so on (upright boxes)."""
+    found, frontier = [], [source]
+    while frontier:
+        below = objects[frontier.pop()]
+        for name, o in objects.items():
+            if name != source and name not in found and _rests_on(o, below):
+                found.append(name)
+                frontier.append(name)
+    return found
+
+
+def _half_along_y(o: ObjectState, yaw: float) -> float:
+    """Half extent of `o`'s footprint along the axis at `yaw` turned by 90 degrees (local y)."""
+    hx, hy, _ = HALF_EXTENTS[o.type]
+    d = o.yaw - yaw
+    return float(abs(np.cos(d)) * hy + abs(np.sin(d)) * hx)
+
+
+def _clear_point(src: ObjectState, load: list[ObjectState], want: float) -> float | None:
+    """The point along the source's long axis (local y), with the pads on it and the palm
+    clear of every box in `load`, nearest `want`; None if there is none."""
+    limit = HALF_EXTENTS[src.type][1] - PAD_INSET
+    candidates = np.linspace(-limit, limit, int(round(2 * limit / 0.0025)) + 1)
+    clear = np.ones(len(candidates), bool)
+    for o in load:
+        y = _local(src, o.position)[1]
+        clear &= np.abs(candidates - y) >= _half_along_y(o, src.yaw) + PALM_HALF_WIDTH + PALM_MARGIN
+    if not clear.any():
+        return None
+    ok = candidates[clear]
+    return float(ok[np.argmin(np.abs(ok - want) + 1e-9 * ok)])
+
+
+def _support_top(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarray,
+                 yaw: float, half: tuple) -> float:
+    """The highest believed top under a footprint (centre xy, yaw, half extents), or the
+    table's (0) where none of the objects not in `skip` lies under it."""
+    u = np.linspace(-1.0, 1.0, 5)
+    grid = np.array([(a * half[0], b * half[1]) for a in u for b in u])
+    points = [centre[:2] + _turn(g, yaw) for g in grid]
+    top = 0.0
+    for name, o in objects.items():
+        if name in skip:
+            continue
+        h = HALF_EXTENTS[o.type]
+        inside = [np.all(np.abs(_local(o, p)) <= np.array(h[:2])) for p in points]
+        if any(inside):
+            top = max(top, float(o.position[2] + h[2]))
+    return top
+
+
+def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
+                   release: np.ndarray, yaw_turn: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The careful carry's TCP (grasp, release) points for the nominal ones of `action`
+    (`yaw_turn`: how far the gripper turns from grasp to release), and whether to carry
+    carefully (grip, accelerations, release): not where no point of the source is clear
+    of its riders (a tower on a cube), which the fingers pinch together as in an ordinary
+    pick (that holds the stack; only a release beside the target is lowered)."""
+    src = objects[action.source]
+    load = [objects[n] for n in riders(action.source, objects)]
+    local = _local(src, grasp)
+    half = np.array(HALF_EXTENTS[src.type])
+    if np.any(np.abs(local) > half[:2] + GRASP_SLACK[:2]):  # the grasp catches nothing
+        top = max(o.position[2] + HALF_EXTENTS[o.type][2] for o in load)
+        lifted = grasp.copy()
+        lifted[2] = max(grasp[2], top + PALM_MARGIN + PAD_BELOW_TCP)
+        return lifted, release, True
+    masses = np.array([MASS[o.type] for o in [src, *load]])
+    ys = np.array([_local(src, o.position)[1] for o in [src, *load]])
+    y = _clear_point(src, load, float(masses @ ys / masses.sum()))
+    # the pads centred across the source at y; the release point moves with the grasp
+    shift = np.zeros(2)
+    if y is not None:
+        shift = src.position[:2] + _turn(np.array([0.0, y]), src.yaw) - grasp[:2]
+    landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
+    under = _support_top(objects, {action.source, *(o.name for o in load)}, landing,
+                         src.yaw + yaw_turn, HALF_EXTENTS[src.type])
+    placed = release + np.array([*_turn(shift, yaw_turn), 0.0])
+    placed[2] = min(release[2], under + half[2] + RELEASE_GAP)
+    return grasp + np.array([*shift, 0.0]), placed, y is not None

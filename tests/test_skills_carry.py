@@ -1,0 +1,81 @@
+"""The careful carry (skills/carry.py): what the beliefs say rides on the source, where the
+fingers close then, and the known physical answers on the carry suite (evaluation/carry.py)."""
+
+import numpy as np
+import pytest
+
+from drake_symplan.actions import Action
+from drake_symplan.datasets import ObjectState
+from drake_symplan.evaluation.carry import Runner, suite_scene
+from drake_symplan.skills.carry import careful_points, riders
+from drake_symplan.skills.pick_place import action_geometry
+from drake_symplan.world.scenes import ObjectSpec, Scene
+
+
+def beliefs(scene):
+    return {o.name: ObjectState(o.name, o.type, np.array(o.position), o.yaw)
+            for o in scene.objects}
+
+
+def test_riders_are_what_rests_on_the_source_and_on_them():
+    objects = beliefs(Scene([
+        ObjectSpec("base", "long", [0.7, 0.0, 0.025]),
+        ObjectSpec("a", "cube", [0.7, -0.07, 0.075]),
+        ObjectSpec("b", "cube", [0.7, -0.07, 0.125]),
+        ObjectSpec("beside", "cube", [0.7, 0.2, 0.025]),
+    ]))
+    assert sorted(riders("base", objects)) == ["a", "b"]
+    assert riders("beside", objects) == []
+    assert riders("a", objects) == ["b"]
+
+
+def test_careful_grasp_is_clear_of_the_riders_and_lands_the_base_where_the_action_says():
+    objects = beliefs(suite_scene("two_cubes"))
+    action = Action("base", "left", "target", "center")
+    g = action_geometry(action, objects)
+    grasp, release, careful = careful_points(action, objects, g.grasp, g.release, 0.0)
+    assert careful
+    base = objects["base"].position
+    assert grasp[:2] == pytest.approx(base[:2], abs=1e-6)  # between the cubes, balanced
+    # the base's centre is released where the nominal grasp would have put it
+    assert (release - grasp)[:2] == pytest.approx((g.release - g.grasp)[:2], abs=1e-6)
+
+
+def test_a_grasp_beside_a_loaded_block_stays_above_the_riders():
+    objects = beliefs(suite_scene("rider_0", 90.0))
+    action = Action("base", "left", "target", "center")  # offsets along world y: a miss
+    g = action_geometry(action, objects)
+    grasp, _, _ = careful_points(action, objects, g.grasp, g.release, 0.0)
+    assert grasp[2] > 0.10 + 0.015  # the pads above the cube's top
+
+
+@pytest.fixture(scope="module")
+def runner():
+    return Runner()
+
+
+def test_two_cubes_on_a_block_ride_along_on_the_arm(runner):
+    scene = suite_scene("two_cubes")
+    for grasp in ("left", "right"):
+        out = runner.run("arm", scene, "two_cubes", Action("base", grasp, "target", "center"))
+        assert out["status"] == "ok" and out["moved"] and out["kept"], grasp
+
+
+def test_a_rider_hanging_more_than_half_off_the_end_falls_on_both_back_ends(runner):
+    scene = suite_scene("hanging")  # the cube's centre 6 mm beyond the block's end
+    for backend in ("hand", "arm"):
+        out = runner.run(backend, scene, "hanging", Action("base", "center", "target", "center"))
+        assert out["status"] == "ok" and out["moved"], backend
+        assert not out["kept"], backend
+
+
+def test_a_tower_on_a_cube_is_pinched_as_before_but_not_dropped_beside_the_target():
+    objects = beliefs(suite_scene("tower", 90.0))
+    on_target = Action("base", "center", "target", "center")
+    g = action_geometry(on_target, objects)
+    grasp, release, careful = careful_points(on_target, objects, g.grasp, g.release, 0.0)
+    assert not careful and grasp == pytest.approx(g.grasp) and release == pytest.approx(g.release)
+    beside = Action("base", "center", "target", "right")  # across the turned target: the table
+    g = action_geometry(beside, objects)
+    _, release, _ = careful_points(beside, objects, g.grasp, g.release, 0.0)
+    assert release[2] == pytest.approx(0.025 + 0.004)
