@@ -101,11 +101,7 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     # Bad runs fail up front, then bad scene files (naming the file).
     load = load or (lambda run: Abstraction(ModelBundle.load(run)))
     abstractions = {run_label(run): load(run) for run in runs}
-    for problem in problems:
-        for name in ("start.yaml", "goal.yaml"):
-            load_scene(Path(problem["dir"]) / name)
-        if PLANNING_MODES[config.planning].needs_recorded_actions:
-            recorded_actions(problem)
+    _check_problems(problems, config)
     done, records = _resume(records_path, warn)
     if records_path is not None:
         Path(records_path).parent.mkdir(parents=True, exist_ok=True)
@@ -123,21 +119,8 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
         if progress:
             progress(record)
 
-    solves_by_node = None
-    if ray_address is not None:
-        with ray_session(ray_address) as ray:
-            if todo:
-                solves_by_node = run_jobs(
-                    ray, _worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
-                    min(cluster_cpus(ray), len(todo)),
-                    lambda i, record: finish(record)).jobs_by_node
-    elif workers > 1 and todo:
-        run_jobs_local(_worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
-                       min(workers, len(todo)), lambda i, record: finish(record))
-    elif todo:
-        agent = agent or Agent(robot)
-        for label, mode_config, problem in todo:
-            finish(solve_job(agent, label, abstractions[label], problem, mode_config))
+    engine = (ray_address, workers, agent)
+    solves_by_node = _solve_all(todo, robot, abstractions, engine, finish)
     order = {(label, bool(mode), str(Path(p["dir"]))): i for i, (label, mode, p) in enumerate(
         (label, mode, p) for label in abstractions for mode in monitor for p in problems)}
     records = sorted((r for r in records if (r["run"], r["monitor"], r["problem"]) in order),
@@ -148,6 +131,39 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     if solves_by_node is not None:  # Ray: the solves each node's workers ran this time
         out["solves_by_node"] = solves_by_node
     return out
+
+
+def _check_problems(problems: list[dict], config: SolveConfig) -> None:
+    """Bad scene files (naming the file), and problems without the recorded actions a
+    mode replays, fail before anything is solved."""
+    for problem in problems:
+        for name in ("start.yaml", "goal.yaml"):
+            load_scene(Path(problem["dir"]) / name)
+        if PLANNING_MODES[config.planning].needs_recorded_actions:
+            recorded_actions(problem)
+
+
+def _solve_all(todo: list, robot: str, abstractions: dict, engine: tuple,
+               finish) -> dict | None:
+    """Solves `todo`, each record to `finish`, where `engine` (ray_address, workers,
+    agent) says: on Ray (then {node id: solves}), local worker processes, or here."""
+    ray_address, workers, agent = engine
+    if ray_address is not None:
+        with ray_session(ray_address) as ray:
+            if todo:
+                return run_jobs(
+                    ray, _worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
+                    min(cluster_cpus(ray), len(todo)),
+                    lambda i, record: finish(record)).jobs_by_node
+        return None
+    if workers > 1 and todo:
+        run_jobs_local(_worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
+                       min(workers, len(todo)), lambda i, record: finish(record))
+    elif todo:
+        agent = agent or Agent(robot)
+        for label, mode_config, problem in todo:
+            finish(solve_job(agent, label, abstractions[label], problem, mode_config))
+    return None
 
 
 def _worker_state(robot: str, abstractions: dict) -> tuple:
