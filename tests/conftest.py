@@ -116,3 +116,18 @@ def recorded_paths(page: str, prefix: str | None = None) -> set[str]:
     data = b"".join(base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]+)", page))
     return {m.decode() for m in re.findall(re.escape(prefix.encode()) + rb"/[A-Za-z0-9_/]+",
                                            data)}
+
+
+def collect_args(seed: int, chunk: int, out, n: int) -> list[str]:
+    """`symplan collect` arguments for n hand transitions of 2-3 objects into `out`."""
+    return ["collect", "--backend", "hand", "--transitions", str(n), "--out", str(out),
+            "--seed", str(seed), "--objects", "2-3", "--chunk-size", str(chunk),
+            "--no-progress", "--json"]
+
+
+def shard_arrays(path) -> dict:
+    """A shard's arrays, less `info` (it holds timings)."""
+    import numpy as np
+
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files if k != "info"}

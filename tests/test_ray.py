@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import collect_args, shard_arrays
 
 ray = pytest.importorskip("ray")
 
@@ -28,15 +29,6 @@ def config(n: int) -> CollectConfig:
                          max_objects=3, chunk_size=CHUNK)
 
 
-def collect_args(out, n: int) -> list[str]:
-    return ["collect", "--backend", "hand", "--transitions", str(n), "--out", str(out),
-            "--seed", str(SEED), "--objects", "2-3", "--chunk-size", str(CHUNK),
-            "--no-progress", "--json"]
-
-
-def shard_arrays(path) -> dict[str, np.ndarray]:
-    with np.load(path) as z:
-        return {k: z[k] for k in z.files if k != "info"}  # info holds timings
 
 
 def assert_same_shards(a: dict, b: dict) -> None:
@@ -48,11 +40,11 @@ def assert_same_shards(a: dict, b: dict) -> None:
 
 def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, monkeypatch):
     out = tmp_path / "data"
-    assert main([*collect_args(out, 4), "--ray", "127.0.0.1:1"]) == 2  # nothing listens
+    assert main([*collect_args(SEED, CHUNK, out, 4), "--ray", "127.0.0.1:1"]) == 2  # nothing listens
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no Ray head answers at 127.0.0.1:1" in err[0]
     monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
-    assert main([*collect_args(out, 4), "--ray"]) == 2
+    assert main([*collect_args(SEED, CHUNK, out, 4), "--ray"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'pip install -e ".[ray]"' in err[0]
     assert not out.exists()
@@ -76,7 +68,7 @@ def reference(tmp_path_factory):
 
 def test_the_same_command_on_ray_gives_the_same_data(local_ray, reference, tmp_path, capsys):
     out = tmp_path / "data"
-    assert main([*collect_args(out, 16), "--ray", "--workers", "2"]) == 0
+    assert main([*collect_args(SEED, CHUNK, out, 16), "--ray", "--workers", "2"]) == 0
     capsys.readouterr()
     ours, theirs = existing_shards(out), existing_shards(reference)
     assert sorted(ours) == sorted(theirs) == [0, 1, 2, 3]

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import collect_args, shard_arrays
 
 pytest.importorskip("ray")
 
@@ -163,15 +164,6 @@ def symplan(args: list[str], env: dict) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=300)
 
 
-def collect_args(out, n: int) -> list[str]:
-    return ["collect", "--backend", "hand", "--transitions", str(n), "--out", str(out),
-            "--seed", str(SEED), "--objects", "2-3", "--chunk-size", str(CHUNK),
-            "--no-progress", "--json"]
-
-
-def shard_arrays(path) -> dict[str, np.ndarray]:
-    with np.load(path) as z:
-        return {k: z[k] for k in z.files if k != "info"}  # info holds timings
 
 
 def test_collect_on_two_nodes_gives_the_local_data(cluster, tmp_path):
@@ -181,7 +173,7 @@ def test_collect_on_two_nodes_gives_the_local_data(cluster, tmp_path):
                                      max_objects=3, chunk_size=CHUNK),
             workers=1, progress=False)
     out = tmp_path / "ray"
-    done = symplan([*collect_args(out, N), "--ray", address], env)
+    done = symplan([*collect_args(SEED, CHUNK, out, N), "--ray", address], env)
     assert done.returncode == 0, done.stderr[-3000:]
     this_run = json.loads(done.stdout)["this_run"]
     assert this_run["engine"] == "ray" and this_run["workers"] == 2
@@ -235,7 +227,7 @@ def test_a_driver_without_the_token_is_one_line(cluster, tmp_path, auth, message
     for k, v in auth.items():
         env.pop(k) if v is None else env.update({k: v})
     out = tmp_path / "data"
-    done = symplan([*collect_args(out, 4), "--ray", address], env)
+    done = symplan([*collect_args(SEED, CHUNK, out, 4), "--ray", address], env)
     err = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(err) == 1, done.stderr
     assert message in err[0] and "docs/cluster.md" in err[0]
@@ -247,7 +239,7 @@ def test_a_token_driver_at_a_head_without_tokens_is_one_line(tmp_path):
     die unstarted), so the driver says so before joining."""
     with two_nodes(nodes=1, auth=False) as (address, env):
         out = tmp_path / "data"
-        done = symplan([*collect_args(out, 4), "--ray", address],
+        done = symplan([*collect_args(SEED, CHUNK, out, 4), "--ray", address],
                        {**env, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": "0" * 64})
     err = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(err) == 1, done.stderr
