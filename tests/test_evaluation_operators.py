@@ -7,7 +7,7 @@ import numpy as np
 
 from drake_symplan.datasets import SceneSymbols
 from drake_symplan.evaluation import operators as operator_eval
-from drake_symplan.evaluation.operators import EvalConfig, make_problems, solve_problems
+from drake_symplan.evaluation.operators import EvalConfig, heldout_problems, solve_problems
 from drake_symplan.planning.planners import PlanResult
 from drake_symplan.symbolic.effect_operators import EFFECT
 from drake_symplan.symbolic.structs import LiftedOperator
@@ -38,7 +38,7 @@ TOUCH = [[False, True], [True, False]]
 def test_problems_from_chains_skip_trivial_goals_and_use_contact_relations():
     # Step 0 changes nothing; step 1 brings o0 onto o1 (contact); step 2 flips o1's bit.
     sc = scenes([[1, 1], [1, 1], [1, 1], [1, 0]], [APART, APART, TOUCH, TOUCH])
-    problems = make_problems(sc, EFFECT, EvalConfig(ks=(1, 2, 3)))
+    problems = heldout_problems(sc, EFFECT, EvalConfig(ks=(1, 2, 3)))
     by_k = {}
     for p in problems:
         by_k.setdefault(p.k, []).append(p)
@@ -51,7 +51,7 @@ def test_problems_from_chains_skip_trivial_goals_and_use_contact_relations():
 
 def test_problems_never_span_two_chains():
     sc = scenes([[1, 1], [1, 1], [1, 0]], [APART, TOUCH, TOUCH], chain=[0, 1])
-    problems = make_problems(sc, EFFECT, EvalConfig(ks=(1, 2)))
+    problems = heldout_problems(sc, EFFECT, EvalConfig(ks=(1, 2)))
     assert [p.k for p in problems] == [1, 1]
 
 
@@ -67,7 +67,7 @@ def test_each_planner_call_gets_cpu_seconds_with_a_wall_clock_cap(monkeypatch):
     monkeypatch.setattr(operator_eval, "plan_task", plan_task)
     sc = scenes([[1, 1], [1, 1], [1, 0]], [APART, TOUCH, TOUCH])
     config = EvalConfig(ks=(1,), timeout=2.0, workers=1)
-    results = solve_problems([], 1, 1, make_problems(sc, EFFECT, config), config)
+    results = solve_problems([], 1, 1, heldout_problems(sc, EFFECT, config), config)
     assert [r["status"] for r in results] == ["timeout", "timeout"]
     assert calls == [("fd", 6.0, 2.0), ("fd", 6.0, 2.0)]
 
@@ -86,6 +86,6 @@ def test_a_problem_is_planned_without_operators_needing_more_objects_than_it_has
     three = LiftedOperator(1, "center", "center", 3, (("p0", 2),), (("r0", 0, 2),), (), 5)
     sc = scenes([[1, 1], [1, 1], [1, 0]], [APART, TOUCH, TOUCH])
     config = EvalConfig(ks=(1,), workers=1)
-    solve_problems([two, three], 1, 1, make_problems(sc, EFFECT, config), config)
+    solve_problems([two, three], 1, 1, heldout_problems(sc, EFFECT, config), config)
     assert len(domains) == 2
     assert all(two.name in d and three.name not in d for d in domains)

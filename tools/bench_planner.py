@@ -24,7 +24,7 @@ from functools import partial
 from pathlib import Path
 
 from drake_symplan.abstraction.abstraction import plan_task, problem_text
-from drake_symplan.evaluation.operators import EvalConfig, make_problems, readout_scenes
+from drake_symplan.evaluation.operators import EvalConfig, heldout_problems, readout_scenes
 from drake_symplan.planning.planners import WALL_FACTOR, plan_pddl
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.structs import parse_step
@@ -36,7 +36,7 @@ def cost(result, by_name) -> int:
 
 def bench(bundle: ModelBundle, data: Path, count: int, timeout: float) -> dict:
     _, scenes = readout_scenes(bundle.model, data, bundle.margin)
-    problems = make_problems(scenes, bundle.semantics,
+    problems = heldout_problems(scenes, bundle.semantics,
                              EvalConfig(max_problems=count, ks=(1, 2, 3, 4, 5)))
     rows = []
     for p in problems:

@@ -76,7 +76,7 @@ def scene_atoms(scenes: SceneSymbols, row: int, after: bool, semantics: Semantic
     return sorted(Atom(a[0], *(names[s] for s in a[1:])) for a in atoms)
 
 
-def make_problems(scenes: SceneSymbols, semantics: Semantics, config: EvalConfig
+def heldout_problems(scenes: SceneSymbols, semantics: Semantics, config: EvalConfig
                   ) -> list[Problem]:
     """Non-trivial k-step problems from the chains of the held-out scenes (module doc)."""
     rng = np.random.default_rng(config.seed)
@@ -236,7 +236,7 @@ def evaluate_operators(operators: list[LiftedOperator], n_unary: int, n_relation
     """The whole report: planning tables, coverage/precision (merged into each by_k cell,
     where they do not depend on k; selective with `familiar`) and stability."""
     t0 = time.perf_counter()
-    problems = make_problems(scenes, semantics, config)
+    problems = heldout_problems(scenes, semantics, config)
     results = solve_problems(operators, n_unary, n_relations, problems, config)
     report = summarise(results)
     scores = prediction_scores(operators, heldout, semantics, familiar)
