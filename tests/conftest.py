@@ -131,3 +131,18 @@ def shard_arrays(path) -> dict:
 
     with np.load(path) as z:
         return {k: z[k] for k in z.files if k != "info"}
+
+
+def write_rule_data(out: Path, n: int, shards: int = 1) -> Path:
+    """`out` as a data set of n transitions of the synthetic same-group rule (seed 0,
+    episodes of 5), in `shards` equal shards."""
+    import numpy as np
+    from synthetic_rule import same_group_rule
+
+    from drake_symplan.shards import write_manifest, write_shard
+
+    arrays, _ = same_group_rule(n, seed=0, episode_length=5)
+    write_manifest(out)
+    for i, rows in enumerate(np.array_split(np.arange(n), shards)):
+        write_shard(out, i, arrays.subset(rows))
+    return out

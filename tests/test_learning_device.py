@@ -13,6 +13,7 @@ import json
 import numpy as np
 import pytest
 import torch
+from conftest import write_rule_data
 from synthetic_rule import same_group_rule
 
 from drake_symplan.cli import options
@@ -21,7 +22,6 @@ from drake_symplan.learning import device as dev
 from drake_symplan.learning.checkpoint import load_run, read_checkpoint
 from drake_symplan.learning.dataset import TensorSet
 from drake_symplan.learning.trainer import TrainConfig, _check_resumable, train
-from drake_symplan.shards import write_manifest, write_shard
 
 SMALL = {"epochs": 2, "batch_size": 64, "lr": 1e-3, "threads": 1, "progress": False}
 gpu = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
@@ -29,11 +29,7 @@ gpu = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU
 
 @pytest.fixture(scope="module")
 def data_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("data")
-    arrays, _ = same_group_rule(200, seed=0, episode_length=5)
-    write_manifest(out)
-    write_shard(out, 0, arrays.subset(np.arange(200)))
-    return out
+    return write_rule_data(tmp_path_factory.mktemp("data"), 200)
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 import torch
-from conftest import parse_learning_args
+from conftest import parse_learning_args, write_rule_data
 from synthetic_rule import same_group_rule
 
 from drake_symplan.cli import learning_cmds
@@ -27,12 +27,7 @@ SMALL = {"epochs": 2, "batch_size": 64, "lr": 1e-3, "threads": 1, "progress": Fa
 
 @pytest.fixture(scope="module")
 def data_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("data")
-    arrays, _ = same_group_rule(300, seed=0, episode_length=5)
-    write_manifest(out)
-    write_shard(out, 0, arrays.subset(np.arange(150)))
-    write_shard(out, 1, arrays.subset(np.arange(150, 300)))
-    return out
+    return write_rule_data(tmp_path_factory.mktemp("data"), 300, shards=2)
 
 
 def test_split_is_by_episode_seeded_and_complete():

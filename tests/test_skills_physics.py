@@ -67,13 +67,16 @@ def test_unreachable_target_is_infeasible(station, planner):
     assert out.objects["o1"].end == out.objects["o1"].start
 
 
+TWO_CUBES = ("objects:\n"
+             "  - {name: o0, type: cube, position: [0.70, 0.00, 0.025], yaw: 0.0}\n"
+             "  - {name: o1, type: cube, position: [0.60, 0.20, 0.025], yaw: 0.0}\n")
+
+
 def test_recording_is_written(tmp_path):
     from drake_symplan.cli.main import main
 
     scene = tmp_path / "s.yaml"
-    scene.write_text("objects:\n"
-                     "  - {name: o0, type: cube, position: [0.70, 0.00, 0.025], yaw: 0.0}\n"
-                     "  - {name: o1, type: cube, position: [0.60, 0.20, 0.025], yaw: 0.0}\n")
+    scene.write_text(TWO_CUBES)
     html = tmp_path / "rec.html"
     assert main(["act", "--scene", str(scene), "--pick", "o1:center", "--place", "o0:center",
                  "--record", str(html), "--json"]) == 0
@@ -87,9 +90,7 @@ def test_act_writes_the_scene_after_the_action(tmp_path, capsys):
     from drake_symplan.world.scenes import load_scene
 
     scene = tmp_path / "s.yaml"
-    scene.write_text("objects:\n"
-                     "  - {name: o0, type: cube, position: [0.70, 0.00, 0.025], yaw: 0.0}\n"
-                     "  - {name: o1, type: cube, position: [0.60, 0.20, 0.025], yaw: 0.0}\n")
+    scene.write_text(TWO_CUBES)
     after = tmp_path / "after.yaml"
     assert main(["act", "--scene", str(scene), "--pick", "o1:center", "--place", "o0:center",
                  "--out", str(after)]) == 0

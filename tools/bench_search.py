@@ -26,7 +26,7 @@ from pathlib import Path
 
 def search_rate(refiner_for, start, goal, budget_s: float) -> dict:
     """One search: predictions, CPU seconds, whether it reached the goal."""
-    from drake_symplan.abstraction.bilevel import Budget
+    from drake_symplan.planning.budget import Budget
     from drake_symplan.planning.planners import WALL_FACTOR
 
     refiner = refiner_for()

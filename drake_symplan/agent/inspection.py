@@ -27,8 +27,7 @@ from pydrake.geometry import Box, Cylinder, Rgba, Sphere
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, reliability
-from drake_symplan.abstraction.bilevel import goal_errors
-from drake_symplan.abstraction.continuous import Boxes
+from drake_symplan.abstraction.continuous import Boxes, goal_errors
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.solve import Agent
