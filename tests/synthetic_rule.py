@@ -58,3 +58,38 @@ def same_group_rule(
     episode = np.arange(n_transitions, dtype=np.int64) // episode_length
     arrays = TransitionArrays(state, action, effect, mask, episode, next_state)
     return arrays, relation
+
+
+def sticky_rule(n_transitions: int, seed: int, max_objects: int = 3,
+                episode_length: int = 10) -> TransitionArrays:
+    """A world where one bit the effect alone need not hold decides the next symbols.
+
+    Object i has the features [height (0 on the table, LIFT raised); sticky (0 or 1); a
+    distractor in [-1, 1]]. The action moves its source: a sticky source ends raised, any
+    other ends on the table (effect[source, 5] = the change of height). With one unary
+    bit, "raised" (the effect's magnitude) and "sticky" (its sign) both halve the effect
+    error, but only "sticky" makes the next bits a function of the bits and the action:
+    the next height of a raised or lowered object depends on its stickiness.
+    """
+    rng = np.random.default_rng(seed)
+    t_n = (n_transitions, max_objects)
+    state = np.zeros((*t_n, 3), np.float32)
+    action = np.zeros((*t_n, 8), np.float32)
+    effect = np.zeros((*t_n, 6), np.float32)
+    mask = np.zeros(t_n, bool)
+    names = [f"o{i}" for i in range(max_objects)]
+    for t in range(n_transitions):
+        n = int(rng.integers(2, max_objects + 1))
+        state[t, :n, 0] = LIFT * rng.integers(0, 2, size=n)
+        state[t, :n, 1] = rng.integers(0, 2, size=n)
+        state[t, :n, 2] = rng.uniform(-1.0, 1.0, size=n)
+        mask[t, :n] = True
+        source, target = rng.choice(n, size=2, replace=False)
+        act = Action(names[source], str(rng.choice(OFFSETS)), names[target],
+                     str(rng.choice(OFFSETS)))
+        action[t, :n] = encode_action(act, names[:n])
+        effect[t, source, 5] = LIFT * state[t, source, 1] - state[t, source, 0]
+    next_state = state.copy()
+    next_state[..., 0] += effect[..., 5]
+    episode = np.arange(n_transitions, dtype=np.int64) // episode_length
+    return TransitionArrays(state, action, effect, mask, episode, next_state)

@@ -44,6 +44,10 @@ def register(subparsers) -> None:
     p.add_argument("--model-option", action="append", default=[], metavar="KEY=VALUE",
                    help="a constructor argument of the model, e.g. n_unary=4 or key_dim=32 "
                    "(repeatable; see learning/models.py); added to --config's model_kwargs")
+    p.add_argument("--init", type=Path, metavar="RUN",
+                   help="start from the weights of this run's best checkpoint (a run "
+                   "directory or a .pt file), e.g. an effect-only run fine-tuned with "
+                   "--model-option transition_weight=0.003 (learning/transition.py)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out")
     p.add_argument("--no-progress", dest="progress", action="store_const", const=False,
                    help="no progress bar")
@@ -100,6 +104,11 @@ def train_config(args: argparse.Namespace):
     if args.model_option:
         values["model_kwargs"] = {**values.get("model_kwargs", {}),
                                   **parse_model_options(args.model_option)}
+    if args.init is not None:
+        init = args.init / "best.pt" if args.init.is_dir() else args.init
+        if not init.is_file():
+            raise CommandError(f"--init {args.init}: no checkpoint there (missing checkpoint)")
+        values["init"] = str(init)
     missing = [f"--{k}" for k in ("model", "data", "out") if k not in values]
     if missing:
         raise CommandError(f"give {', '.join(missing)}, as flags or in the --config file")

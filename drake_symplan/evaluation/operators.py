@@ -11,6 +11,9 @@ operators' reliabilities.
 Beside planning: coverage (held-out transitions whose symbols change and that some
 operator of the action applies to) and precision (of those, the share where one of the
 applicable operators predicts every atom observed after), and a symbol-stability report.
+With the model's training data also determinism: how often a held-out transition's
+symbolic effect is the one most often seen in training after the same action in the same
+symbols (`determinism`), the bound no operator set over these symbols can beat.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from drake_symplan.symbolic.effect_operators import (
     lift_transitions,
     predicts,
     situation,
+    situation_effect,
 )
 from drake_symplan.symbolic.pddl import domain_pddl
 from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task, parse_step
@@ -170,6 +174,37 @@ def familiarity(data: SymbolDataset, semantics: Semantics = EFFECT) -> Counter:
     return Counter(situation(tr) for tr in lift_transitions(data, semantics))
 
 
+def determinism(train: SymbolDataset, heldout: SymbolDataset,
+                semantics: Semantics = EFFECT) -> dict:
+    """Of the held-out transitions whose symbols change, the share whose symbolic effect is
+    the most frequent one in the training data for their situation (action and atoms
+    before, whatever the objects are named; an unseen situation counts as a miss);
+    `determinism_seen` the same over seen situations, `seen` their share, and
+    `branching_situations` the share of the training situations (seen twice or more) with
+    more than one effect."""
+    counts: dict[tuple, Counter] = defaultdict(Counter)
+    for tr in lift_transitions(train, semantics):
+        where, effect = situation_effect(tr)
+        counts[where][effect] += 1
+    likely = {where: c.most_common(1)[0][0] for where, c in counts.items()}
+    hits = seen = changed = 0
+    for tr in lift_transitions(heldout, semantics):
+        add, delete = changes(tr.before, tr.after, tr.unknown_before, tr.unknown_after)
+        if not add and not delete:
+            continue
+        changed += 1
+        where, effect = situation_effect(tr)
+        if where in likely:
+            seen += 1
+            hits += likely[where] == effect
+    repeated = [c for c in counts.values() if sum(c.values()) >= 2]
+    return {"changed": changed, "determinism": hits / changed if changed else 0.0,
+            "determinism_seen": hits / seen if seen else 0.0,
+            "seen": seen / changed if changed else 0.0,
+            "branching_situations": (sum(len(c) > 1 for c in repeated) / len(repeated)
+                                     if repeated else 0.0)}
+
+
 def stability(data: SymbolDataset, outcome: np.ndarray | None,
               semantics: Semantics = EFFECT) -> dict:
     """Share of uncertain bits; within groups of equal action and preconditions, how often
@@ -251,14 +286,16 @@ def evaluate_bundle(bundle, data_dir, config: EvalConfig, familiar_data=None) ->
     """`evaluate_operators` for a loaded ModelBundle on a held-out data set directory;
     `familiar_data`: its training data (selective scores)."""
     heldout, scenes = readout_scenes(bundle.model, data_dir, bundle.margin)
-    familiar = None
+    familiar = train = None
     if familiar_data is not None:
-        familiar = familiarity(readout_scenes(bundle.model, familiar_data, bundle.margin)[0],
-                               bundle.semantics)
+        train = readout_scenes(bundle.model, familiar_data, bundle.margin)[0]
+        familiar = familiarity(train, bundle.semantics)
     report = evaluate_operators(bundle.operators, bundle.info["n_unary"],
                                 bundle.info["n_relations"], heldout, scenes,
                                 load_extra(data_dir, "outcome"), bundle.semantics, config,
                                 familiar)
+    if train is not None:
+        report.update(determinism(train, heldout, bundle.semantics))
     report.update(model=str(bundle.path), data=str(data_dir), data_fingerprint=fingerprint(
         data_dir), learner=bundle.info.get("learner"), config=asdict(config))
     if familiar_data is not None:

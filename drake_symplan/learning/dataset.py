@@ -21,12 +21,14 @@ DEFAULT_FRACTIONS = (0.8, 0.1, 0.1)
 
 @dataclass
 class TensorSet:
-    """state [T, N, d_o], action [T, N, A], effect [T, N, E] float32; mask [T, N] bool."""
+    """state [T, N, d_o], action [T, N, A], effect [T, N, E] float32; mask [T, N] bool;
+    next_state [T, N, d_o] where the data has it (the symbolic transition objective)."""
 
     state: torch.Tensor
     action: torch.Tensor
     effect: torch.Tensor
     mask: torch.Tensor
+    next_state: torch.Tensor | None = None
 
     @classmethod
     def from_arrays(cls, arrays: TransitionArrays, index: np.ndarray | None = None) -> TensorSet:
@@ -37,6 +39,8 @@ class TensorSet:
             torch.as_tensor(np.ascontiguousarray(arrays.action, dtype=np.float32)),
             torch.as_tensor(np.ascontiguousarray(arrays.effect, dtype=np.float32)),
             torch.as_tensor(np.ascontiguousarray(arrays.mask, dtype=bool)),
+            None if arrays.next_state is None else
+            torch.as_tensor(np.ascontiguousarray(arrays.next_state, dtype=np.float32)),
         )
 
     def __len__(self) -> int:
@@ -44,21 +48,26 @@ class TensorSet:
 
     def to(self, device: torch.device | str) -> TensorSet:
         """The set on `device` (itself when it is there already)."""
-        return TensorSet(*(t.to(device) for t in (self.state, self.action, self.effect,
-                                                  self.mask)))
+        return TensorSet(*(None if t is None else t.to(device) for t in (
+            self.state, self.action, self.effect, self.mask, self.next_state)))
 
-    def batch(self, index: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """(state, action, effect, mask) of the transitions at `index`."""
+    def batch(self, index: torch.Tensor, with_next: bool = False) -> tuple[torch.Tensor, ...]:
+        """(state, action, effect, mask) of the transitions at `index`; `with_next`: and
+        their next_state (None where the set has none)."""
         index = index.to(self.state.device)  # the order is drawn on the CPU
-        return (self.state.index_select(0, index), self.action.index_select(0, index),
-                self.effect.index_select(0, index), self.mask.index_select(0, index))
+        out = (self.state.index_select(0, index), self.action.index_select(0, index),
+               self.effect.index_select(0, index), self.mask.index_select(0, index))
+        if not with_next:
+            return out
+        return (*out, None if self.next_state is None else self.next_state.index_select(0, index))
 
-    def batches(self, batch_size: int, generator: torch.Generator | None = None):
+    def batches(self, batch_size: int, generator: torch.Generator | None = None,
+                with_next: bool = False):
         """Mini-batches covering the set once; shuffled when a generator is given."""
         n = len(self)
         order = torch.randperm(n, generator=generator) if generator is not None else torch.arange(n)
         for start in range(0, n, batch_size):
-            yield self.batch(order[start:start + batch_size])
+            yield self.batch(order[start:start + batch_size], with_next)
 
 
 def split_by_episode(

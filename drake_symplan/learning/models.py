@@ -26,6 +26,9 @@ bottleneck (the transformer reads the standardised features themselves). Its tes
 error is the data set's floor for the three symbolic models, what they could reach if
 symbols cost nothing; it has no symbols to read out.
 
+`transition_weight` > 0 (Relational and Attentive) adds learning/transition.py's head and
+loss: the bits must also predict the next scene's bits from the bits and the action.
+
 Features are standardised and effects de-standardised with training-set statistics
 held in buffers (`set_normalization`), so checkpoints are self-contained. Per-object
 layers run on the real objects only (`layers.Packed`); padded slots are never computed.
@@ -37,6 +40,7 @@ import torch
 from torch import nn
 
 from drake_symplan.actions import ACTION_DIM, EFFECT_DIM, IS_SOURCE, IS_TARGET
+from drake_symplan.learning.effect_error import effect_loss
 from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE, GumbelSigmoid
 from drake_symplan.learning.layers import (
     MLP,
@@ -44,6 +48,11 @@ from drake_symplan.learning.layers import (
     Packed,
     packed_transformer,
     scale_to_norm,
+)
+from drake_symplan.learning.transition import (
+    TransitionHead,
+    target_bits,
+    transition_loss,
 )
 
 
@@ -114,6 +123,28 @@ class EffectModel(nn.Module):
         """Unary bits (sampled in training) of standardised features [..., d_o]."""
         return self.gs(self.unary_head(self.encoder(features)))
 
+    transition_weight = 0.0
+
+    def training_loss(self, state: torch.Tensor, action: torch.Tensor, effect: torch.Tensor,
+                      mask: torch.Tensor, next_state: torch.Tensor | None = None
+                      ) -> torch.Tensor:
+        """The effect loss, plus `transition_weight` times the symbolic transition loss
+        where the model has the head and the batch the next state."""
+        if self.transition_weight <= 0 or next_state is None:
+            return effect_loss(self(state, action, mask), effect, mask.to(state.dtype))
+        effects, h, relations = self._parts(state, action, mask)
+        target_rel = (target_bits(self.relation_logits(next_state, mask))
+                      if self.n_relations else None)
+        target_unary = (target_bits(self.unary_logits(next_state))
+                        if self.n_unary else None)
+        return (effect_loss(effects, effect, mask.to(state.dtype))
+                + self.transition_weight * transition_loss(
+                    self.transition(h, relations), target_unary, target_rel, mask))
+
+    def _parts(self, state, action, mask) -> tuple:
+        """(effects, per-object messages [B, N, H], relation bits or None)."""
+        raise NotImplementedError(f"{type(self).__name__} has no symbolic transition head")
+
 
 def object_transformer(d_model: int, n_heads: int, n_blocks: int, hidden: int) -> nn.Module:
     """Transformer encoder layers over a set of objects (no dropout, batch first)."""
@@ -142,10 +173,12 @@ class RelationalDeepSym(EffectModel):
         hard: bool = DEFAULT_HARD,
         own_message: bool = True,
         invariant: bool = False,
+        transition_weight: float = 0.0,
     ):
         super().__init__(state_dim, n_unary, hidden, layers, temperature, hard)
         self._config.update(n_relations=n_relations, key_dim=key_dim, z_dim=z_dim,
-                            own_message=own_message, invariant=invariant)
+                            own_message=own_message, invariant=invariant,
+                            transition_weight=transition_weight)
         self.n_relations = n_relations
         self.key_dim = key_dim
         self.own_message = own_message
@@ -160,6 +193,10 @@ class RelationalDeepSym(EffectModel):
             self.attention = MLP(state_dim, [hidden] * layers, 2 * n_relations * key_dim)
         self.message = MLP(n_unary + ACTION_DIM, [hidden] * layers, z_dim)
         self.decoder = MLP((n_relations + own_message) * z_dim, [hidden] * layers, EFFECT_DIM)
+        self.transition_weight = transition_weight
+        if transition_weight > 0:
+            self.transition = TransitionHead((n_relations + own_message) * z_dim, n_unary,
+                                             n_relations, hidden)
 
     def _features(self, state: torch.Tensor) -> torch.Tensor:
         f = super()._features(state)
@@ -196,6 +233,9 @@ class RelationalDeepSym(EffectModel):
         return self._relation_bits(self.relation_logits(state, mask), mask)
 
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
+        return self._parts(state, action, mask)[0]
+
+    def _parts(self, state, action, mask) -> tuple:
         b, n, _ = state.shape
         packed = Packed(mask)
         x = packed.pack(self._features(state))
@@ -211,7 +251,7 @@ class RelationalDeepSym(EffectModel):
         h = packed.pack(h)  # [M, K * D], heads concatenated
         if self.own_message:
             h = torch.cat([z, h], dim=-1)
-        return self._effects(packed.unpack(self.decoder(h)), mask)
+        return self._effects(packed.unpack(self.decoder(h)), mask), packed.unpack(h), alpha
 
 
 class DeepSym(EffectModel):
@@ -282,19 +322,27 @@ class AttentiveDeepSym(EffectModel):
         layers: int = 2,
         temperature: float = DEFAULT_TEMPERATURE,
         hard: bool = DEFAULT_HARD,
+        transition_weight: float = 0.0,
     ):
         super().__init__(state_dim, n_unary, hidden, layers, temperature, hard)
-        self._config.update(n_heads=n_heads, n_blocks=n_blocks, d_model=d_model)
+        self._config.update(n_heads=n_heads, n_blocks=n_blocks, d_model=d_model,
+                            transition_weight=transition_weight)
         self.embed = nn.Linear(n_unary + ACTION_DIM, d_model)
         self.transformer = object_transformer(d_model, n_heads, n_blocks, hidden)
         self.decoder = MLP(d_model, [hidden] * layers, EFFECT_DIM)
+        self.transition_weight = transition_weight
+        if transition_weight > 0:
+            self.transition = TransitionHead(d_model, n_unary, 0, hidden)
 
     def forward(self, state: torch.Tensor, action: torch.Tensor, mask: torch.Tensor):
+        return self._parts(state, action, mask)[0]
+
+    def _parts(self, state, action, mask) -> tuple:
         packed = Packed(mask)
         bits = self._unary_bits(packed.pack(self._features(state)))
         x = self.embed(torch.cat([bits, packed.pack(action)], dim=-1))
         x = packed_transformer(self.transformer, x, packed)
-        return self._effects(packed.unpack(self.decoder(x)), mask)
+        return self._effects(packed.unpack(self.decoder(x)), mask), packed.unpack(x), None
 
 
 class ContinuousReference(EffectModel):

@@ -26,8 +26,14 @@ from tqdm import tqdm
 
 from drake_symplan.learning import checkpoint as ckpt_io
 from drake_symplan.learning.dataset import TensorSet, normalization_stats, split_by_episode
-from drake_symplan.learning.device import DEFAULT_DEVICE, DEVICES, describe, resolve_device
-from drake_symplan.learning.effect_error import effect_loss, effect_metrics, evaluate_loss
+from drake_symplan.learning.device import (
+    DEFAULT_DEVICE,
+    DEVICES,
+    describe,
+    model_device,
+    resolve_device,
+)
+from drake_symplan.learning.effect_error import effect_metrics, evaluate_loss
 from drake_symplan.learning.gumbel import DEFAULT_HARD, DEFAULT_TEMPERATURE
 from drake_symplan.learning.models import MODELS, build_model
 from drake_symplan.shards import fingerprint, load_transitions
@@ -103,10 +109,11 @@ def make_optimizer(model: torch.nn.Module, lr: float) -> torch.optim.Adam:
 
 
 def train_step(model, optimizer, batch, grad_clip: float) -> torch.Tensor:
-    """One Adam step on `batch` = (state, action, effect, mask); returns the loss."""
-    state, action, effect, mask = batch
+    """One Adam step on `batch` = (state, action, effect, mask[, next_state]); returns the
+    loss (the model's `training_loss`: the effect loss, and the symbolic transition loss
+    where the model has one)."""
     optimizer.zero_grad(set_to_none=True)
-    loss = effect_loss(model(state, action, mask), effect, mask.to(state.dtype))
+    loss = model.training_loss(*batch)
     loss.backward()
     torch.nn.utils.clip_grad_norm_(model.parameters(), grad_clip, foreach=True)
     optimizer.step()
@@ -174,6 +181,31 @@ class _Run:
         }
 
 
+def _load_init(model: torch.nn.Module, path: str) -> None:
+    """The weights of checkpoint `path`; a symbolic transition head the earlier run lacked
+    starts fresh (an effect-only run fine-tuned with the transition objective)."""
+    missing, unexpected = model.load_state_dict(ckpt_io.read_checkpoint(path)["model_state"],
+                                                strict=False)
+    missing = [k for k in missing if not k.startswith("transition.")]
+    if missing or unexpected:
+        raise ValueError(f"--init {path}: its model differs from this one (missing "
+                         f"{missing[:3]}, unexpected {unexpected[:3]})")
+
+
+def _validation_loss(model, data: TensorSet, effect_loss_value: float) -> float:
+    """What early stopping watches: the effect loss, or with a symbolic transition head
+    the objective trained (effect + weighted transition loss, eval-mode bits)."""
+    if getattr(model, "transition_weight", 0.0) <= 0:
+        return effect_loss_value
+    device = model_device(model)
+    model.eval()
+    total = 0.0
+    with torch.no_grad():
+        for batch in data.batches(4096, with_next=True):
+            total += float(model.training_loss(*(t.to(device) for t in batch))) * len(batch[0])
+    return total / len(data)
+
+
 def _check_run_dir(out: Path, resume: bool) -> None:
     last_path = out / ckpt_io.LAST
     if last_path.exists() and not resume:
@@ -203,7 +235,11 @@ def _train_epoch(run: _Run, train_set: TensorSet) -> float:
     """One pass over the shuffled training set; returns its mean mini-batch loss."""
     run.model.train()
     total, n_batches = torch.zeros((), device=run.device), 0
-    for batch in train_set.batches(run.cfg.batch_size, run.shuffle):
+    with_next = getattr(run.model, "transition_weight", 0.0) > 0
+    if with_next and train_set.next_state is None:
+        raise ValueError(f"{run.cfg.data}: the symbolic transition objective needs next_state "
+                         "in the data set")
+    for batch in train_set.batches(run.cfg.batch_size, run.shuffle, with_next):
         total += train_step(run.model, run.optimizer, batch, run.cfg.grad_clip)
         n_batches += 1
     return float(total) / max(1, n_batches)
@@ -241,6 +277,7 @@ def _fit(run: _Run, sets: dict) -> bool:
             raise ValueError(f"training diverged in epoch {run.progress['epoch'] + 1} "
                              f"(loss {train_loss}); {last_path} holds the previous epoch")
         val = effect_metrics(run.model, sets["val"])
+        val["loss"] = _validation_loss(run.model, sets["val"], val["loss"])
         improved = _count_epoch(run.progress, val["loss"])
         metrics = {"train_loss": train_loss, "val_loss": val["loss"],
                    "val_error_cm": val["error_cm"]}
@@ -290,7 +327,7 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
     torch.manual_seed(cfg.seed)
     model = make_model(cfg, arrays.state.shape[2], int(arrays.mask.sum(axis=1).max()))
     if cfg.init is not None:  # the weights of an earlier run; normalised for this data
-        model.load_state_dict(ckpt_io.read_checkpoint(cfg.init)["model_state"])
+        _load_init(model, cfg.init)
     model.set_normalization(**normalization_stats(arrays.subset(splits["train"])))
     model.to(device)
     sets["train"] = sets["train"].to(device)
