@@ -111,8 +111,8 @@ class OracleAbstraction(Abstraction):
     it), r0(a, b) = a rests on b, read from the features' positions."""
 
     def __init__(self, force_mismatches: int = 0, hide_atoms: int = 0,
-                 fail_replans: bool = False):
-        super().__init__(OracleBundle())
+                 fail_replans: bool = False, bundle=None):
+        super().__init__(bundle or OracleBundle())
         self.force_mismatches = force_mismatches  # mismatches() reports one this many times
         self.hide_atoms = hide_atoms  # atoms() of what is seen is empty this many times
         self.fail_replans = fail_replans  # plans after the first fail (a planner error)
@@ -170,9 +170,9 @@ START = Scene([cube("a", 0.6, -0.2), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25)])
 GOAL = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25)])
 
 
-def solve(abstraction, monitor=True, max_replans=2, start=START, goal=GOAL
+def solve(abstraction, monitor=True, max_replans=2, start=START, goal=GOAL, backend=None
           ) -> tuple[SolveResult, FakeBackend]:
-    backend = FakeBackend()
+    backend = backend or FakeBackend()
     config = SolveConfig("fd", 20.0, monitor, max_replans, refine=False, planning="symbolic")
     result = Agent(backend).solve(start, goal, abstraction, config)
     return result, backend

@@ -1,0 +1,74 @@
+"""An action whose symbolic outcome branches: its operators (one per outcome, each with the
+probability it followed in the data) make the planner aim through the likely outcome
+(cost 1 + 10 -ln p, symbolic/structs.py), and the monitor replans when the other outcome
+happens. The fake world of test_agent_loop: a centred place lands the box on the target
+90 % of the time in the data, an off-centre one 30 %; here the first centred place misses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from test_agent_loop import FakeBackend, OracleAbstraction, OracleBundle, cube, solve
+
+from drake_symplan.robot.backends import Execution
+from drake_symplan.symbolic.structs import LiftedOperator, PlanningOperators
+from drake_symplan.world.scenes import Scene
+
+FREE = (("free", 0), ("free", 1))
+
+
+def _operators() -> list[LiftedOperator]:
+    """Per action, the outcome 'on the target' and the outcome 'beside it' (nothing
+    changes), with the counts of a data set: centre 90 of 100 on, left 30 of 100."""
+    ops = []
+    for offset, on in (("center", 90), ("left", 30)):
+        for add, delete, n in (((("on", 0, 1),), (("free", 1),), on), ((), (), 100 - on)):
+            ops.append(LiftedOperator(len(ops), offset, offset, 2, FREE, add, delete, 100,
+                                      applicable=100, succeeded=n, outcomes=2,
+                                      effect_count=n))
+    return [op for op in ops if op.add]  # an outcome that changes nothing plans nothing
+
+
+def _domain(operators, costs: bool) -> str:
+    actions = []
+    for op in operators:
+        cost = f" (increase (total-cost) {op.cost})" if costs else ""
+        actions.append(f" (:action {op.name} :parameters (?a ?b - obj)\n"
+                       f"  :precondition (and (free ?a) (free ?b))\n"
+                       f"  :effect (and (on ?a ?b) (not (free ?b)){cost}))")
+    head = ("(define (domain symplan) (:requirements :strips :typing"
+            + (" :action-costs)" if costs else ")") + " (:types obj)\n"
+            " (:predicates (on ?x ?y - obj) (free ?x - obj) (different ?x ?y - obj))\n"
+            + (" (:functions (total-cost) - number)\n" if costs else ""))
+    return head + "\n".join(actions) + ")\n"
+
+
+class TwoOutcomeBundle(OracleBundle):
+    operators = _operators()
+    planning = PlanningOperators(operators)
+    planned, by_name = operators, {op.name: op for op in operators}
+    domain, domain_strips = _domain(operators, True), _domain(operators, False)
+
+
+class MissesOnce(FakeBackend):
+    """The first place lands the box beside the target, on the table; then as planned."""
+
+    def execute(self, action, before, lift=True):
+        if self.executed:
+            return super().execute(action, before, lift)
+        self.executed.append(action)
+        target = self.station.truth[action.target]
+        self.station.truth[action.source] = np.array([target[0] + 0.1, target[1], 0.025])
+        return Execution("ok", None, self.perceive(before))
+
+
+def test_the_plan_goes_through_the_likely_outcome_and_replans_on_the_other():
+    centre, left = TwoOutcomeBundle.operators
+    assert (centre.reliability, left.reliability) == (0.9, 0.3)
+    assert centre.cost < left.cost
+    goal = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25)])
+    result, backend = solve(OracleAbstraction(bundle=TwoOutcomeBundle()), goal=goal, backend=MissesOnce())
+    assert result.status == "success", result.to_json()
+    assert result.replans == 1  # the other outcome happened: a is beside b, not on it
+    assert [str(s) for s in result.executed] == [f"({centre.name} a b)"] * 2
+    assert [(a.grasp, a.release) for a in backend.executed] == [("center", "center")] * 2
