@@ -111,8 +111,9 @@ def _register_eval_operators(subparsers) -> None:
     e.add_argument("--seed", type=int, default=0,
                    help="seed of the choice of problems among the held-out chains")
     e.add_argument("--familiar-data", type=Path, metavar="DIR",
-                   help="the model's training data: also coverage and precision where what "
-                   "the action met (its objects' symbols) was seen there at least N times")
+                   help="the model's training data: determinism (held-out effects against its "
+                   "most frequent ones), and coverage and precision where what the action "
+                   "met (its objects' symbols) was seen there at least N times")
     e.add_argument("--out", type=Path, help="also write the report as JSON here")
     e.add_argument("--plot", type=Path, help="write a plot (PNG) here")
     add_json_argument(e)
@@ -283,6 +284,10 @@ def cmd_eval_operators(args) -> dict:
             print(f"  {where:>24}: coverage {row['coverage']:.1%}, precision "
                   f"{row['precision']:.1%} (most reliable alone {row['precision_top1']:.1%}, "
                   f"median {row['alternatives']:g} applicable)")
+        if "determinism" in report:
+            print(f"  determinism {report['determinism']:.1%} (the training data's most "
+                  f"frequent effect in the same situation; {report['seen']:.1%} of "
+                  f"situations seen in training, {report['determinism_seen']:.1%} of those)")
         for k, cell in report["by_k"].items():
             print(f"  k={k}: solved {cell['solved']:.0%} of {cell['problems']}")
     return report
