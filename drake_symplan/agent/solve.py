@@ -49,6 +49,7 @@ from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.reposition import REPOSITIONS_PER_OBJECT, reposition_step
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
+from drake_symplan.skills.carry import riders
 from drake_symplan.symbolic.structs import PlanStep, Step
 from drake_symplan.world.visualization import StartMeshcat
 
@@ -82,6 +83,9 @@ class SolveResult:
     # Which level found the first plan: "symbolic", "bilevel", "continuous", "nearest" (no
     # plan reaches the goal in prediction: the steps predicted nearest it) or "oracle".
     level: str = ""
+    # Steps after which a box perceived resting on the carried one no longer rests on it
+    # (skills/carry.riders on the perceived scenes before and after): riders dropped.
+    dropped_riders: int = 0
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -98,6 +102,8 @@ class SolveResult:
                "seconds": {k: round(v, 4) for k, v in self.seconds.items()}}
         if self.candidates:
             out["candidates"] = [c.to_json() for c in self.candidates]
+        if self.dropped_riders:
+            out["dropped_riders"] = self.dropped_riders
         if not self.success:
             out["failure_cause"] = self.failure_cause
             out["message"] = self.message
@@ -291,6 +297,7 @@ class _Run:
     def _execute(self, planned: _Planned) -> None:
         """Runs a step with the robot (its offsets chosen first), perceives the result."""
         step = self._offsets(planned.step)
+        load = riders(step.action.source, self.scene.object_states())
         with self.clock("execute"):
             execution = self.agent.robot.execute(step.action, self.scene, lift=False)
         self.result.executed.append(step)
@@ -303,6 +310,9 @@ class _Run:
             raise _Stop(seen.scene, "perception",
                         f"after {step} perception lost {', '.join(seen.lost)}")
         self.scene = seen.scene
+        if load and not set(load) <= set(riders(step.action.source,
+                                                self.scene.object_states())):
+            self.result.dropped_riders += 1
         if self.config.monitor:
             self._monitor(step, planned.predicted)
         else:  # open loop: the state is what the step predicts

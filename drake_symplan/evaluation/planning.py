@@ -77,6 +77,7 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
         "symbolic_goal_reached": result.symbolic_goal_reached, "plan_length": len(result.plan),
         "level": result.level,
         "executed": len(result.executed), "replans": result.replans,
+        "dropped_riders": result.dropped_riders,
         "seconds": {k: round(v, 4) for k, v in result.seconds.items()},
         "error_cm": {n: o["error_cm"] for n, o in result.objects.items()},
     }
@@ -304,6 +305,11 @@ def summarise(records: list[dict]) -> dict:
             "replans_mean": round(float(np.mean([r["replans"] for r in rs])), 3),
             "failure_causes": dict(Counter(r["failure_cause"] for r in rs
                                            if r["status"] != "success").most_common()),
+            # Failures after which a rider the arm carried was seen off its base (records
+            # made before the count have none).
+            "failures_with_dropped_riders": sum(r["status"] != "success"
+                                                and r.get("dropped_riders", 0) > 0
+                                                for r in rs),
             # An execution failure whose goal atoms are all seen: the symbols do not tell
             # the goal positions apart; one whose atoms are not: the plan missed them.
             "execution_failures": {
