@@ -288,6 +288,10 @@ def cmd_eval_operators(args) -> dict:
             print(f"  determinism {report['determinism']:.1%} (the training data's most "
                   f"frequent effect in the same situation; {report['seen']:.1%} of "
                   f"situations seen in training, {report['determinism_seen']:.1%} of those)")
+            for b in report["branching"][:3]:
+                print(f"    branches: {b['action']} on {', '.join(b['before'])}: "
+                      f"{b['heldout_misses']} held-out misses (e.g. row {b['example_row']}); "
+                      f"training effects seen {[o['count'] for o in b['outcomes']]} times")
         for k, cell in report["by_k"].items():
             print(f"  k={k}: solved {cell['solved']:.0%} of {cell['problems']}")
     return report

@@ -175,20 +175,22 @@ def familiarity(data: SymbolDataset, semantics: Semantics = EFFECT) -> Counter:
 
 
 def determinism(train: SymbolDataset, heldout: SymbolDataset,
-                semantics: Semantics = EFFECT) -> dict:
+                semantics: Semantics = EFFECT, examples: int = 5) -> dict:
     """Of the held-out transitions whose symbols change, the share whose symbolic effect is
     the most frequent one in the training data for their situation (action and atoms
     before, whatever the objects are named; an unseen situation counts as a miss);
-    `determinism_seen` the same over seen situations, `seen` their share, and
+    `determinism_seen` the same over seen situations, `seen` their share,
     `branching_situations` the share of the training situations (seen twice or more) with
-    more than one effect."""
+    more than one effect, and `branching`: the `examples` situations with the most
+    held-out misses, each with its training effects, counts and a held-out example."""
     counts: dict[tuple, Counter] = defaultdict(Counter)
     for tr in lift_transitions(train, semantics):
         where, effect = situation_effect(tr)
         counts[where][effect] += 1
     likely = {where: c.most_common(1)[0][0] for where, c in counts.items()}
     hits = seen = changed = 0
-    for tr in lift_transitions(heldout, semantics):
+    missed: dict[tuple, list[int]] = defaultdict(list)
+    for row, tr in enumerate(lift_transitions(heldout, semantics)):
         add, delete = changes(tr.before, tr.after, tr.unknown_before, tr.unknown_after)
         if not add and not delete:
             continue
@@ -197,12 +199,28 @@ def determinism(train: SymbolDataset, heldout: SymbolDataset,
         if where in likely:
             seen += 1
             hits += likely[where] == effect
+            if likely[where] != effect:
+                missed[where].append(row)
     repeated = [c for c in counts.values() if sum(c.values()) >= 2]
+    worst = sorted(missed, key=lambda w: -len(missed[w]))[:examples]
     return {"changed": changed, "determinism": hits / changed if changed else 0.0,
             "determinism_seen": hits / seen if seen else 0.0,
             "seen": seen / changed if changed else 0.0,
             "branching_situations": (sum(len(c) > 1 for c in repeated) / len(repeated)
-                                     if repeated else 0.0)}
+                                     if repeated else 0.0),
+            "branching": [_branching(w, counts[w], missed[w]) for w in worst]}
+
+
+def _branching(where: tuple, effects: Counter, rows: list[int]) -> dict:
+    """One situation whose held-out effects depart from its most frequent one."""
+    def atoms(xs):
+        return [" ".join((a[0], *(f"?o{s}" for s in a[1:]))) for a in xs]
+
+    grasp, release, n, pre = where
+    return {"action": f"pick {OFFSETS[grasp]} place {OFFSETS[release]}", "objects": n,
+            "before": atoms(pre), "heldout_misses": len(rows), "example_row": rows[0],
+            "outcomes": [{"add": atoms(add), "delete": atoms(delete), "count": c}
+                         for (add, delete), c in effects.most_common(4)]}
 
 
 def stability(data: SymbolDataset, outcome: np.ndarray | None,
