@@ -36,10 +36,22 @@ CASES = {
 }
 
 
+@pytest.fixture(scope="module")
+def realsense_station():
+    """A station whose cameras are RealSense-like (world/depth_sensor.py)."""
+    from drake_symplan.world.cameras import default_cameras
+    from drake_symplan.world.station import Station, StationConfig
+
+    return Station(StationConfig(cameras=default_cameras(), camera_noise="realsense"))
+
+
+@pytest.mark.parametrize("sensor", ["none", "realsense"])
 @pytest.mark.parametrize("case", list(CASES))
-def test_known_scene(camera_station, case):
+def test_known_scene(request, sensor, case):
+    station = request.getfixturevalue("camera_station" if sensor == "none"
+                                      else "realsense_station")
     objects, contacts = CASES[case]
-    perceived, report = perceive(camera_station, objects)
+    perceived, report = perceive(station, objects)
     assert report["count_ok"], [o.to_json() for o in perceived.objects]
     assert report["invented"] == 0 and report["missed"] == 0
     for name, kind, _ in objects:
@@ -48,7 +60,7 @@ def test_known_scene(camera_station, case):
         assert err["position_mm"] < 5.0, (name, err)
         assert err["yaw_deg"] < 3.0, (name, err)
     truth_contacts = {tuple(sorted(c)) for c in contacts}
-    assert camera_station.contact_graph() == truth_contacts  # the scene is what we think
+    assert station.contact_graph() == truth_contacts  # the scene is what we think
     assert report["contacts_ok"], sorted(perceived.contacts)
 
 

@@ -1,11 +1,13 @@
 """Benchmark: perception accuracy and speed against the simulator's ground truth.
 
     python tools/bench_perception.py --json [--scenes 200] [--transitions 100] [--out FILE]
+        [--camera-noise none|realsense|heavy]
 
 Scenes of 2-8 objects built from arrangement units (single boxes with yaw jitter, towers,
 cubes on one or both ends of a long block, bridges, touching pairs, blocks that tip), each
 settled by physics before it is perceived. Identity association is measured on pick/place
-transitions executed by the arm on perceived beliefs.
+transitions executed by the arm on perceived beliefs. `--camera-noise` picks the depth
+sensor's model (world/depth_sensor.py; its calibration error is drawn from --seed).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
 from drake_symplan.world.cameras import DepthNoise, default_cameras
+from drake_symplan.world.depth_sensor import CAMERA_NOISE
 from drake_symplan.world.scenes import sample_structured_scene
 from drake_symplan.world.station import Station, StationConfig
 
@@ -131,11 +134,13 @@ def main() -> None:
     parser.add_argument("--transitions", type=int, default=100)
     parser.add_argument("--noise", type=float, default=0.0)
     parser.add_argument("--dropout", type=float, default=0.0)
+    parser.add_argument("--camera-noise", choices=tuple(CAMERA_NOISE), default="none")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--out", default="bench_perception.json")
     args = parser.parse_args()
-    station = Station(StationConfig(cameras=default_cameras()))
+    station = Station(StationConfig(cameras=default_cameras(), camera_noise=args.camera_noise,
+                                    camera_seed=args.seed))
     perceiver = Perceiver()
     station.reset(sample_structured_scene(np.random.default_rng(0), 2))
     perceiver.perceive(station)  # renderer start-up is not per-state cost
@@ -143,6 +148,7 @@ def main() -> None:
         "benchmark": "perception",
         "cameras": [c.name for c in station.config.cameras],
         "noise": {"sigma": args.noise, "dropout": args.dropout},
+        "camera_noise": args.camera_noise,
         "cpu_threads_env": os.environ.get("LP_NUM_THREADS"),
     }
     if args.scenes:

@@ -38,6 +38,7 @@ PLANNERS = RegistryChoices("drake_symplan.planning.planners", "PLANNERS")
 MODELS = RegistryChoices("drake_symplan.learning.models", "MODELS")
 ROBOTS = RegistryChoices("drake_symplan.robot.backends", "BACKENDS")
 LEARNERS = RegistryChoices("drake_symplan.symbolic.bundle", "LEARNERS")
+CAMERA_NOISE = RegistryChoices("drake_symplan.world.depth_sensor", "CAMERA_NOISE")
 
 
 # learning/device.py's DEVICES, spelled here so that building the parser imports no torch.
@@ -77,6 +78,15 @@ def add_planner_arguments(p: argparse.ArgumentParser, per_plan: bool = False,
             else "planner seconds per call")
     p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.cpu_seconds,
                    help=f"{what} (default {DEFAULT_SOLVE.cpu_seconds:g})")
+
+
+def add_camera_noise_argument(p: argparse.ArgumentParser) -> None:
+    """--camera-noise: the station's depth-sensor model (world/depth_sensor.py)."""
+    p.add_argument("--camera-noise", choices=CAMERA_NOISE, default="none", metavar="NOISE",
+                   help="the depth cameras' sensor model, one of %(choices)s: none (the "
+                   "rendered depth exactly), realsense (a RealSense D400: depth noise growing "
+                   "with the square of the depth, holes, flying pixels, 1 mm steps, a fixed "
+                   "calibration error per camera), heavy (every term doubled) (default none)")
 
 
 def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from drake_symplan.cli.options import add_json_argument
+from drake_symplan.cli.options import add_camera_noise_argument, add_json_argument
 
 
 def register(subparsers) -> None:
@@ -13,7 +13,9 @@ def register(subparsers) -> None:
     p.add_argument("--noise", type=float, default=0.0, help="depth noise sigma (m)")
     p.add_argument("--dropout", type=float, default=0.0, help="fraction of pixels lost")
     p.add_argument("--settle", type=float, default=0.5, help="physics seconds before looking")
-    p.add_argument("--seed", type=int, default=0, help="seed of the depth noise")
+    add_camera_noise_argument(p)
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the depth noise and of the cameras' calibration error")
     add_json_argument(p)
     p.set_defaults(func=cmd_perceive)
 
@@ -32,7 +34,8 @@ def cmd_perceive(args: argparse.Namespace) -> dict:
     from drake_symplan.world.cameras import DepthNoise, default_cameras
     from drake_symplan.world.station import Station, StationConfig
 
-    station = Station(StationConfig(cameras=default_cameras()))
+    station = Station(StationConfig(cameras=default_cameras(), camera_noise=args.camera_noise,
+                                    camera_seed=args.seed))
     station.reset(scene)
     station.settle(args.settle)
     perceiver = Perceiver()
@@ -57,9 +60,15 @@ def cmd_perceive(args: argparse.Namespace) -> dict:
         "contacts_ok": report["contacts_ok"],
         "seconds": round(seconds, 4),
     }
+    if station.sensor.active:  # what each camera's sensor gave and the filter kept
+        result = {"camera_noise": args.camera_noise,
+                  "sensor": [r.to_json() for r in perceiver.readings], **result}
     if not args.json:
         for d in objects:
             print(f"{d['name']} {d['type']:5s} {d['position']} yaw={d['yaw_deg']} "
                   f"tilt={d['tilt_deg']} -> {d['matched']}")
+        for r in result["sensor"]:
+            print(f"camera {r['camera']}: {r['returns']} returns, {r['holes']} holes, "
+                  f"{r['kept']} points kept, table tilt {r['table_tilt_deg']} deg")
         print(f"contacts: {result['contacts']}  ({seconds * 1000:.1f} ms)")
     return result

@@ -18,6 +18,7 @@ from drake_symplan.features import object_features
 from drake_symplan.perception import segmentation as seg
 from drake_symplan.perception import tracking
 from drake_symplan.perception.box_fitting import fit_boxes
+from drake_symplan.perception.depth_filter import DepthFilter, filtered_clouds
 from drake_symplan.perception.fitted_box import FittedBox
 
 
@@ -71,16 +72,38 @@ class Perceiver:
 
     With a `prior` (the scene perceived before the action that led here) the objects the
     action left alone anchor the fit (perception/tracking.py); without one every object
-    is fitted from the points alone.
+    is fitted from the points alone. A station whose sensor has noise is read through
+    `depth_filter` (several frames, filtered, levelled on the table); `readings` says what
+    each camera gave the last time.
     """
+
+    def __init__(self, depth_filter: DepthFilter | None = None):
+        self.depth_filter = depth_filter or DepthFilter()
+        self.readings = []
 
     def perceive(self, station, noise=None, rng=None, prior: PerceivedScene | None = None
                  ) -> PerceivedScene:
-        clouds = station.point_clouds(noise=noise, rng=rng, z_min=seg.CROP_Z[0])
+        clouds = self.read_clouds(station, noise, rng)
         points = seg.crop(np.vstack(clouds))
         points = seg.remove_inside(points, [s for s in station.robot_collision_shapes()
                                             if _near_workspace(s[1])])
         return self.perceive_points(points, prior)
+
+    def read_clouds(self, station, noise=None, rng=None) -> list[np.ndarray]:
+        """Each camera's world-frame points above the table's crop; `noise` (a
+        cameras.DepthNoise) perturbs them further."""
+        z_min = seg.CROP_Z[0]
+        if not station.sensor.active:
+            self.readings = []
+            return station.point_clouds(noise=noise, rng=rng, z_min=z_min)
+        frames = station.depth_frames(self.depth_filter.frames, rng)
+        clouds, self.readings = filtered_clouds(station.cameras, frames, station.sensor,
+                                                self.depth_filter, z_min)
+        if noise is not None and noise.active:
+            rng = rng or station.sensor_rng
+            clouds = [_above(noise.apply(c, cam.X_WB.translation(), rng), z_min)
+                      for cam, c in zip(station.cameras, clouds, strict=True)]
+        return clouds
 
     def perceive_points(self, points: np.ndarray, prior: PerceivedScene | None = None
                         ) -> PerceivedScene:
@@ -100,6 +123,10 @@ class Perceiver:
         contacts = contact_graph({o.name: (o.position, o.R, np.array(b.half_extents))
                                   for o, b in zip(objects, boxes, strict=True)})
         return PerceivedScene(objects, contacts)
+
+
+def _above(points: np.ndarray, z: float) -> np.ndarray:
+    return points[points[:, 2] > z]
 
 
 def _near_workspace(X: np.ndarray) -> bool:

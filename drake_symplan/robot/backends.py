@@ -59,16 +59,19 @@ class Execution:
 
 class Backend:
     """A station with cameras, a perceiver and a way to execute the action; `meshcat`
-    shows the station live (and lets `recording` write it)."""
+    shows the station live (and lets `recording` write it); `camera_noise` and
+    `camera_seed`: the cameras' sensor model (StationConfig)."""
 
     name = ""
     robot = ""
     perception_seconds = 0.0  # wall time spent in perceive, for the benchmarks
 
     def __init__(self, noise: DepthNoise | None = None, rng: np.random.Generator | None = None,
-                 time_step: float | None = None, meshcat=None):
+                 time_step: float | None = None, meshcat=None, camera_noise: str = "none",
+                 camera_seed: int = 0):
         config = StationConfig(cameras=default_cameras(), robot=self.robot,
-                               discrete_contact_approximation=CONTACT_APPROXIMATION)
+                               discrete_contact_approximation=CONTACT_APPROXIMATION,
+                               camera_noise=camera_noise, camera_seed=camera_seed)
         if time_step is not None:
             config.time_step = time_step
         self.station = Station(config, meshcat=meshcat)

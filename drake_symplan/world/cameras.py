@@ -2,6 +2,8 @@
 
 `AddDepthCameras` adds one RgbdSensor per camera config; `read_point_clouds` renders their
 depth images and back-projects them into world-frame xyz arrays, with optional noise;
+`read_depth_frames` gives the depth sensor's frames (world/depth_sensor.py) and
+`back_project` their points, from where perception believes the camera is;
 `robot_shapes` says where the robot is in them.
 """
 
@@ -22,6 +24,8 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.sensors import CameraInfo, RgbdSensor
+
+from drake_symplan.world.depth_sensor import CameraNoise, sense
 
 RENDERER = "vtk_depth"
 
@@ -62,14 +66,27 @@ def look_at(position, target) -> RigidTransform:
 
 @dc.dataclass
 class DepthCamera:
+    """A camera where it is (X_WC, which renders) and where perception believes it is
+    (X_WB, with `rays`: the same unless `miscalibrate` set an extrinsic error)."""
+
     config: CameraConfig
     sensor: RgbdSensor
     X_WC: RigidTransform
-    rays: np.ndarray  # [H * W, 3] world-frame ray per pixel, scaled to unit depth
+    rays: np.ndarray  # [H * W, 3] world-frame ray per pixel (believed), scaled to unit depth
+    info: CameraInfo | None = None
+    X_WB: RigidTransform | None = None
 
     def __post_init__(self):
+        if self.X_WB is None:
+            self.X_WB = self.X_WC
         # The height test runs on every pixel of every frame: a contiguous float32 column.
         self.ray_z = np.ascontiguousarray(self.rays[:, 2], dtype=np.float32)
+
+    def miscalibrate(self, X_CB: RigidTransform) -> None:
+        """Perception believes the camera is at X_WC * X_CB (an extrinsic calibration error)."""
+        self.X_WB = self.X_WC @ X_CB
+        self.rays = pixel_rays(self.info, self.X_WB)
+        self.__post_init__()
 
 
 def pixel_rays(info: CameraInfo, X_WC: RigidTransform) -> np.ndarray:
@@ -99,7 +116,7 @@ def AddDepthCameras(builder, scene_graph, configs: list[CameraConfig]) -> list[D
         sensor = builder.AddSystem(RgbdSensor(world_id, X_WC, depth))
         sensor.set_name(f"camera_{cfg.name}")
         builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
-        cameras.append(DepthCamera(cfg, sensor, X_WC, pixel_rays(info, X_WC)))
+        cameras.append(DepthCamera(cfg, sensor, X_WC, pixel_rays(info, X_WC), info))
     return cameras
 
 
@@ -141,7 +158,7 @@ def read_point_clouds(
     for cam in cameras:
         ctx = cam.sensor.GetMyContextFromRoot(root_context)
         depth = cam.sensor.depth_image_32F_output_port().Eval(ctx).data.reshape(-1)
-        origin = cam.X_WC.translation()
+        origin = cam.X_WB.translation()
         keep = depth > 0  # 0: nearer than depth_min; inf: beyond depth_max
         noisy = noise is not None and noise.active
         if z_min is not None and not noisy:
@@ -156,6 +173,34 @@ def read_point_clouds(
                 xyz = xyz[xyz[:, 2] > z_min]
         clouds.append(xyz)
     return clouds
+
+
+def read_depth_frames(cameras: list[DepthCamera], root_context, noise: CameraNoise,
+                      rng: np.random.Generator, frames: int = 1,
+                      reflectance: np.ndarray | None = None) -> list[np.ndarray]:
+    """Each camera's `frames` sensor depth images [F, H, W] (NaN: no return) of the scene
+    now; `reflectance[label]`: the surface reflectance of each render label."""
+    out = []
+    for cam in cameras:
+        ctx = cam.sensor.GetMyContextFromRoot(root_context)
+        depth = cam.sensor.depth_image_32F_output_port().Eval(ctx).data[:, :, 0]
+        refl = None
+        if noise.dark_holes > 0 and reflectance is not None:
+            label = cam.sensor.label_image_output_port().Eval(ctx).data[:, :, 0]
+            refl = reflectance[np.clip(label, 0, len(reflectance) - 1)]
+        out.append(sense(depth, cam.info.focal_x(), (cam.info.center_x(), cam.info.center_y()),
+                         noise, rng, frames, refl))
+    return out
+
+
+def back_project(cam: DepthCamera, depth: np.ndarray, z_min: float | None = None
+                 ) -> np.ndarray:
+    """World-frame points [M, 3] of a depth image [H, W] (NaN, 0, inf: none) as perception
+    believes them (from X_WB), those at or below `z_min` dropped."""
+    depth = depth.reshape(-1)
+    idx = np.flatnonzero(np.isfinite(depth) & (depth > 0))
+    xyz = cam.X_WB.translation() + depth[idx, None].astype(float) * cam.rays[idx]
+    return xyz if z_min is None else xyz[xyz[:, 2] > z_min]
 
 
 def robot_shapes(plant, query, model_instance) -> list[tuple[str, np.ndarray, np.ndarray]]:

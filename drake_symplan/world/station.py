@@ -37,9 +37,12 @@ from drake_symplan.world.cameras import (
     AddDepthCameras,
     CameraConfig,
     DepthNoise,
+    back_project,
+    read_depth_frames,
     read_point_clouds,
     robot_shapes,
 )
+from drake_symplan.world.depth_sensor import calibration_error, camera_noise, reflectance_by_label
 from drake_symplan.world.hand import AddHand
 from drake_symplan.world.scenes import Scene, validate_scene
 
@@ -84,6 +87,10 @@ class StationConfig:
     # "ur10": the arm and gripper in full physics; "hand": the collision-free hand of
     # world/hand.py (no arm), the fast back-end for data collection.
     robot: str = "ur10"
+    # The depth sensor's errors (world/depth_sensor.CAMERA_NOISE) and the seed of its
+    # per-camera calibration error and of its frames' noise when no rng is given.
+    camera_noise: str = "none"
+    camera_seed: int = 0
 
 
 def models_dir() -> Path:
@@ -130,6 +137,8 @@ class Station:
                 MeshcatVisualizerParams(role=Role.kIllustration, prefix="station"))
         self.plant, self.scene_graph = plant, scene_graph
         self.cameras = AddDepthCameras(builder, scene_graph, cfg.cameras)
+        self.sensor = camera_noise(cfg.camera_noise)
+        self._add_sensor_errors()
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
         self.physics_seconds = 0.0  # wall time spent in advance_to, for the benchmarks
@@ -175,6 +184,21 @@ class Station:
                     PdControllerGains(p=cfg.finger_kp, d=cfg.finger_kd))
         else:
             self.hand = AddHand(plant, [b for bodies in self.pool.values() for b in bodies])
+
+    def _add_sensor_errors(self) -> None:
+        """The cameras' calibration errors (fixed for the station's life), the surfaces'
+        reflectance and the sensor's own noise source, all from `camera_seed`."""
+        seed = self.config.camera_seed
+        self.sensor_rng = np.random.default_rng([seed, 1])
+        self.reflectance = None
+        if not self.sensor.active:
+            return
+        if self.sensor.calib_translation > 0 or self.sensor.calib_rotation_deg > 0:
+            rng = np.random.default_rng([seed, 0])
+            for cam in self.cameras:
+                cam.miscalibrate(calibration_error(self.sensor, rng))
+        if self.sensor.dark_holes > 0:
+            self.reflectance = reflectance_by_label(self.scene_graph)
 
     def _add_command_source(self, builder, plant) -> None:
         """Adds the source of the robot's commanded trajectory (`hold` and `follow` set it)."""
@@ -355,10 +379,32 @@ class Station:
 
     def point_clouds(self, noise: DepthNoise | None = None, rng=None,
                      z_min: float | None = None) -> list[np.ndarray]:
-        """World-frame depth points [M, 3] from each camera at the current state."""
+        """World-frame depth points [M, 3] from each camera at the current state, as the
+        sensor gives them (one frame) and located where perception believes the cameras
+        are; `noise` perturbs them further."""
+        if not self.sensor.active:
+            self._check_cameras()
+            return read_point_clouds(self.cameras, self.context, noise, rng, z_min)
+        clouds = [back_project(cam, frames[0], z_min) for cam, frames in
+                  zip(self.cameras, self.depth_frames(1, rng), strict=True)]
+        if noise is not None and noise.active:
+            rng = rng or self.sensor_rng
+            clouds = [noise.apply(c, cam.X_WB.translation(), rng)
+                      for cam, c in zip(self.cameras, clouds, strict=True)]
+            clouds = clouds if z_min is None else [c[c[:, 2] > z_min] for c in clouds]
+        return clouds
+
+    def depth_frames(self, frames: int = 1, rng=None) -> list[np.ndarray]:
+        """Each camera's `frames` depth images [F, H, W] (NaN: no return) of the current
+        state, from the sensor (StationConfig.camera_noise); `rng`: the noise's source
+        (default the station's own)."""
+        self._check_cameras()
+        return read_depth_frames(self.cameras, self.context, self.sensor,
+                                 rng or self.sensor_rng, frames, self.reflectance)
+
+    def _check_cameras(self) -> None:
         if not self.cameras:
             raise ValueError("the station has no cameras (StationConfig.cameras is empty)")
-        return read_point_clouds(self.cameras, self.context, noise, rng, z_min)
 
     def clearance(self, names: list[str], cap: float = 0.01) -> float:
         """Distance (m) from the named objects to the nearest geometry not theirs, at most cap

@@ -1,0 +1,189 @@
+"""A depth-sensor model of the RealSense D400 kind (active stereo): what a camera makes of a
+rendered depth image. `CAMERA_NOISE` names the settings (`--camera-noise`); `sense` gives frames.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+
+# Where the effects start; the magnitudes are CameraNoise's terms.
+EDGE_JUMP = 0.015  # m: a depth step to a 4-neighbour larger than this makes an edge pixel
+STEEP_FROM = np.radians(65.0)  # incidence (normal to view ray) where returns start to fail
+DARK_BELOW = 0.35  # surface reflectance (diffuse luminance) where returns start to fail
+
+
+@dc.dataclass(frozen=True)
+class CameraNoise:
+    """The sensor's error terms; all zero: the rendered depth exactly.
+
+    Axial noise follows Intel's depth RMS error formula for the D400 cameras,
+    rms(z) = z^2 * subpixel / (focal_px * baseline), with the camera's own focal length;
+    with the D435's baseline and subpixel 0.08 it is 0.7 mm at 0.5 m and 6 mm at 1.5 m.
+    """
+
+    subpixel: float = 0.0  # px: RMS disparity error (the D400 white paper's "subpixel")
+    baseline: float = 0.050  # m: the stereo pair's baseline (D435: 50 mm); not a term
+    lateral_px: float = 0.0  # px: std of where in the image a pixel's depth is measured
+    edge_missing: float = 0.0  # probability that a pixel at a depth edge returns nothing
+    flying: float = 0.0  # ... returns a depth between the edge's two sides (a flying pixel)
+    steep_holes: float = 0.0  # hole probability at grazing incidence (ramps from STEEP_FROM)
+    dark_holes: float = 0.0  # hole probability on a black surface (ramps from DARK_BELOW)
+    depth_unit: float = 0.0  # m: quantisation step of the depth (D400: 1 mm); 0: none
+    calib_translation: float = 0.0  # m: each camera's extrinsic error (random direction)
+    calib_rotation_deg: float = 0.0  # deg: ... and its rotation (random axis)
+
+    TERMS = ("subpixel", "lateral_px", "edge_missing", "flying", "steep_holes", "dark_holes",
+             "depth_unit", "calib_translation", "calib_rotation_deg")
+
+    @property
+    def active(self) -> bool:
+        return any(getattr(self, t) > 0 for t in self.TERMS)
+
+    def scaled(self, k: float) -> CameraNoise:
+        """Every term times k (the baseline is the camera's geometry, not a term)."""
+        return dc.replace(self, **{t: getattr(self, t) * k for t in self.TERMS})
+
+    def axial_sigma(self, depth, focal_px: float):
+        """Standard deviation (m) of the depth error at `depth` (m)."""
+        return np.square(depth) * self.subpixel / (focal_px * self.baseline)
+
+
+REALSENSE = CameraNoise(subpixel=0.08, lateral_px=0.25, edge_missing=0.3, flying=0.15,
+                        steep_holes=0.5, dark_holes=0.5, depth_unit=0.001,
+                        calib_translation=0.002, calib_rotation_deg=0.2)
+CAMERA_NOISE: dict[str, CameraNoise] = {
+    "none": CameraNoise(),
+    "realsense": REALSENSE,
+    "heavy": REALSENSE.scaled(2.0),
+}
+
+
+def camera_noise(name: str) -> CameraNoise:
+    if name not in CAMERA_NOISE:
+        raise ValueError(f"unknown camera noise {name!r}; expected one of {tuple(CAMERA_NOISE)}")
+    return CAMERA_NOISE[name]
+
+
+def calibration_error(noise: CameraNoise, rng: np.random.Generator) -> RigidTransform:
+    """X_CB: the pose perception believes the camera has (B) in the true camera frame C;
+    `calib_translation` and `calib_rotation_deg` long, in random directions."""
+    axis, direction = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
+    R = _axis_angle(axis, np.radians(noise.calib_rotation_deg))
+    return RigidTransform(R, noise.calib_translation * direction)
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> RotationMatrix:
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return RotationMatrix(np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k)
+
+
+def sense(depth: np.ndarray, focal_px: float, center: tuple[float, float], noise: CameraNoise,
+          rng: np.random.Generator, frames: int = 1,
+          reflectance: np.ndarray | None = None) -> np.ndarray:
+    """`frames` depth images [F, H, W] (float32, NaN: no return) the sensor gives of the
+    scene rendered as `depth` [H, W] (0 or inf: out of range). The scene is at rest, so one
+    rendering serves every frame, and what the surfaces cause (holes, the edges' flying
+    pixels and missing returns) stays the same in each; the axial noise and the lateral
+    jitter are drawn per frame. `reflectance` [H, W]: each pixel's surface reflectance
+    (what `dark_holes` reads)."""
+    d = np.asarray(depth, np.float64).reshape(depth.shape[:2])
+    valid = np.isfinite(d) & (d > 0)
+    d = np.where(valid, d, np.nan)
+    base = d.copy()
+    edges, across = _edges(d)
+    if len(edges):
+        r = rng.random(len(edges))
+        flying = (r >= noise.edge_missing) & (r < noise.edge_missing + noise.flying)
+        mixed = d.flat[edges] + rng.random(len(edges)) * (across - d.flat[edges])
+        base.flat[edges[flying]] = mixed[flying]  # NaN where the other side has no return
+        base.flat[edges[r < noise.edge_missing]] = np.nan
+    base[rng.random(d.shape) < _hole_probability(d, focal_px, center, noise, reflectance)] \
+        = np.nan
+    # Lateral jitter to first order: the depth where the pixel's offset lands on its own
+    # surface (edges have their own errors above).
+    gu, gv = np.zeros_like(d), np.zeros_like(d)
+    gu[:, 1:-1], gv[1:-1, :] = (d[:, 2:] - d[:, :-2]) / 2, (d[2:, :] - d[:-2, :]) / 2
+    steep = ~(np.abs(gu) <= EDGE_JUMP) | ~(np.abs(gv) <= EDGE_JUMP)
+    gu[steep], gv[steep] = 0.0, 0.0
+    gu, gv = ((noise.lateral_px * g).astype(np.float32) for g in (gu, gv))
+    sigma = np.nan_to_num(noise.axial_sigma(base, focal_px)).astype(np.float32)
+    base = base.astype(np.float32)
+    out = np.empty((frames, *d.shape), np.float32)
+    for f in range(frames):
+        z = base.copy()
+        for scale in (gu, gv, sigma):
+            if scale.any():
+                z += scale * rng.standard_normal(d.shape, np.float32)
+        if noise.depth_unit > 0:
+            z = np.round(z / np.float32(noise.depth_unit)) * np.float32(noise.depth_unit)
+        out[f] = z
+    return out
+
+
+def _hole_probability(d, focal_px, center, noise, reflectance) -> np.ndarray | float:
+    """Each pixel's chance of no return, from its surface: grazing or dark."""
+    lost = 0.0
+    if noise.steep_holes > 0:
+        incidence = np.arccos(np.clip(_cos_incidence(d, focal_px, center), 0, 1))
+        ramp = (incidence - STEEP_FROM) / (np.pi / 2 - STEEP_FROM)
+        lost = np.maximum(lost, noise.steep_holes * np.clip(np.nan_to_num(ramp), 0, 1))
+    if noise.dark_holes > 0 and reflectance is not None:
+        ramp = (DARK_BELOW - reflectance) / DARK_BELOW
+        lost = np.maximum(lost, noise.dark_holes * np.clip(ramp, 0, 1))
+    return lost
+
+
+def _edges(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(flat indices of the pixels at a depth edge, the depth across the edge: that of the
+    4-neighbour with the largest step, NaN where it has no return)."""
+    pad = np.pad(d, 1, constant_values=np.nan)
+    h, w = d.shape
+    nbs = np.stack([pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]])
+    inside = np.ones((4, h, w), bool)
+    inside[0, 0], inside[1, -1], inside[2, :, 0], inside[3, :, -1] = False, False, False, False
+    # A neighbour with no return (beyond the range) is a step as large as can be.
+    step = np.where(np.isnan(nbs), np.inf, np.abs(nbs - d))
+    step = np.where(inside, np.nan_to_num(step, nan=0.0, posinf=np.inf), 0.0)
+    k = np.argmax(step, axis=0)
+    edge = np.isfinite(d) & (np.take_along_axis(step, k[None], 0)[0] > EDGE_JUMP)
+    idx = np.flatnonzero(edge)
+    across = np.take_along_axis(nbs, k[None], 0)[0].flat[idx]
+    return idx, across
+
+
+def _cos_incidence(d: np.ndarray, focal_px: float, center: tuple[float, float]) -> np.ndarray:
+    """|cos| of the angle between each pixel's surface normal (from its neighbours' points)
+    and its view ray; NaN where a neighbour has no return."""
+    h, w = d.shape
+    v, u = np.mgrid[0:h, 0:w]
+    ray = np.stack([(u - center[0]) / focal_px, (v - center[1]) / focal_px, np.ones((h, w))])
+    p = ray * d
+    gx = np.zeros_like(p)
+    gy = np.zeros_like(p)
+    gx[:, :, 1:-1] = p[:, :, 2:] - p[:, :, :-2]
+    gy[:, 1:-1, :] = p[:, 2:, :] - p[:, :-2, :]
+    n = np.cross(gx, gy, axis=0)
+    norm = np.linalg.norm(n, axis=0) * np.linalg.norm(ray, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.abs(np.sum(n * ray, axis=0)) / norm
+
+
+def reflectance_by_label(scene_graph) -> np.ndarray:
+    """Each render label's surface reflectance (its perception diffuse colour's luminance;
+    1 for labels without a colour), indexed by label: what `dark_holes` reads."""
+    from pydrake.geometry import Role
+
+    inspector = scene_graph.model_inspector()
+    known = {}
+    for gid in inspector.GetAllGeometryIds(Role.kPerception):
+        props = inspector.GetPerceptionProperties(gid)
+        if props.HasProperty("label", "id") and props.HasProperty("phong", "diffuse"):
+            rgb = props.GetProperty("phong", "diffuse").rgba[:3]
+            known[int(props.GetProperty("label", "id"))] = float(rgb @ [0.2126, 0.7152, 0.0722])
+    table = np.ones(max(known, default=0) + 2)  # the last: every label beyond (empty, ...)
+    for label, value in known.items():
+        table[label] = value
+    return table
