@@ -310,11 +310,11 @@ def write_recording(meshcat, path: str | Path, panel: str) -> Path:
 
 def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None, record=None,
             config: SolveConfig = DEFAULT_SOLVE, robot: str = "arm",
-            title: str = "symplan inspect") -> dict:
-    """Perceives `start_scene` (and `goal_scene`), reads and draws their symbols, plans
-    from start to goal (config's planner and timeout); returns the JSON result and writes
-    the recording to `record`."""
-    agent = Agent(robot, meshcat=meshcat)
+            title: str = "symplan inspect", camera_noise: str = "none") -> dict:
+    """Perceives `start_scene` (and `goal_scene`) with cameras of the sensor model
+    `camera_noise`, reads and draws their symbols, plans from start to goal (config's
+    planner and timeout); returns the JSON result and writes the recording to `record`."""
+    agent = Agent(robot, meshcat=meshcat, camera_noise=camera_noise)
     goal = agent.look(goal_scene) if goal_scene is not None else None
     start = agent.look(start_scene)  # the table stays in the start scene
     lost = start.lost + (goal.lost if goal is not None else [])

@@ -132,10 +132,11 @@ class _Clock:
 class Agent:
     """A robot with cameras that solves goals. `robot`: "arm" (the UR10 in full physics),
     "hand" (the fast hand), or a robot.backends.Backend to use as it is; `meshcat` shows
-    a robot built here live."""
+    a robot built here live, `camera_noise` is its cameras' sensor model (--camera-noise)."""
 
-    def __init__(self, robot: str | Backend = "arm", meshcat=None):
-        self.robot = make_backend(robot, meshcat=meshcat) if isinstance(robot, str) else robot
+    def __init__(self, robot: str | Backend = "arm", meshcat=None, camera_noise: str = "none"):
+        self.robot = (make_backend(robot, meshcat=meshcat, camera_noise=camera_noise)
+                      if isinstance(robot, str) else robot)
 
     def look(self, scene, clock: _Clock | None = None) -> beliefs.Named:
         """Puts `scene` on the table (robot home, physics settled) and perceives it, the
@@ -395,13 +396,14 @@ class _Run:
 
 def solve(start_scene, goal_scene, abstraction: Abstraction,
           config: SolveConfig = DEFAULT_SOLVE, meshcat=None, record=None,
-          robot: str = "arm") -> SolveResult:
-    """Solves one goal with a new robot; `record`: write a Meshcat HTML recording there
-    (a `meshcat` is started for it if none is given). seconds["setup"] is the station build."""
+          robot: str = "arm", camera_noise: str = "none") -> SolveResult:
+    """Solves one goal with a new robot (its cameras' sensor model `camera_noise`);
+    `record`: write a Meshcat HTML recording there (a `meshcat` is started for it if none
+    is given). seconds["setup"] is the station build."""
     t0 = time.perf_counter()
     if record is not None and meshcat is None:
         meshcat = StartMeshcat()
-    agent = Agent(robot, meshcat=meshcat)
+    agent = Agent(robot, meshcat=meshcat, camera_noise=camera_noise)
     setup = time.perf_counter() - t0
     result = agent.solve(start_scene, goal_scene, abstraction, config, record)
     result.seconds["setup"] = setup

@@ -5,6 +5,10 @@
     symplan problems make --out DIR --objects N --k K [K ...] --count C --seed S
     symplan eval planning --runs RUN [RUN ...] --problems DIR --json --plot out.png
 
+Each takes --camera-noise none|realsense|heavy, the cameras' sensor model: problem.json
+and problems.json, eval planning's settings and records and a noisy solve's result say
+which.
+
 Exit status: 0 solved (made, evaluated), 1 a verdict that is not success, 2 bad input (one
 line on stderr). Drake and torch are imported inside the command functions.
 """
@@ -19,6 +23,7 @@ from pathlib import Path
 from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
 from drake_symplan.cli.options import (
+    add_camera_noise_argument,
     add_json_argument,
     add_model_argument,
     add_robot_argument,
@@ -54,6 +59,7 @@ def _register_solve(subparsers) -> None:
     add_model_argument(p)
     add_solve_arguments(p)
     add_robot_argument(p)
+    add_camera_noise_argument(p)
     p.add_argument("--meshcat", action="store_true", help="serve the live scene on localhost")
     p.add_argument("--record", type=Path, help="write a self-contained HTML recording here")
     add_json_argument(p)
@@ -74,6 +80,7 @@ def _register_problems(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the set: attempt i samples from (seed, i)")
     add_robot_argument(p)
+    add_camera_noise_argument(p)
     p.add_argument("--max-attempts", type=positive_int, default=None,
                    help="give up after this many attempts (default 20 x count)")
     p.add_argument("--reproducible", action="store_true",
@@ -93,6 +100,7 @@ def _register_eval_planning(subparsers) -> None:
                    help="problem set directory (problems at any depth)")
     add_solve_arguments(p, monitor_flag=False, oracle=True)
     add_robot_argument(p)
+    add_camera_noise_argument(p)
     p.add_argument("--monitor", choices=("both", "on", "off"), default="both",
                    help="solve each problem monitored, open loop, or both (default both)")
     p.add_argument("--limit", type=positive_int, default=None, help="first N problems only")
@@ -125,8 +133,10 @@ def cmd_solve(args: argparse.Namespace) -> dict:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
             meshcat = StartMeshcat()
     result = solve(start, goal, Abstraction(bundle), config, meshcat=meshcat,
-                   record=args.record, robot=args.backend)
+                   record=args.record, robot=args.backend, camera_noise=args.camera_noise)
     out = result.to_json()
+    if args.camera_noise != "none":
+        out["camera_noise"] = args.camera_noise
     if args.record:
         out["recording"] = str(args.record)
     if not args.json:
@@ -149,7 +159,7 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
     check_output_dir(args.out)
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
-                            reproducible=args.reproducible)
+                            reproducible=args.reproducible, camera_noise=args.camera_noise)
     out = {"out": str(args.out), **summary}
     if not args.json:
         print(f"{summary['kept']} problem(s) in {args.out} after {summary['attempts']} "
@@ -171,7 +181,7 @@ def cmd_eval_planning(args: argparse.Namespace) -> dict:
     result = evaluate_planning(
         args.runs, args.problems, config, args.backend, monitor, args.limit, args.records,
         load=lambda run: Abstraction(load_bundle(run)), ray_address=args.ray,
-        workers=args.workers,
+        workers=args.workers, camera_noise=args.camera_noise,
         warn=lambda text: print(f"symplan eval planning: warning: {text}", file=sys.stderr))
     out = {"settings": result["settings"], "runs": result["runs"]}
     if "solves_by_node" in result:

@@ -6,6 +6,7 @@ import argparse
 
 from drake_symplan.cli.main import positive_float, positive_int
 from drake_symplan.cli.options import (
+    add_camera_noise_argument,
     add_device_argument,
     add_json_argument,
     add_robot_argument,
@@ -37,6 +38,7 @@ def register(subparsers) -> None:
     collect.add_argument("--noise-sigma", type=float, default=0.0, help="depth noise (m)")
     collect.add_argument("--noise-dropout", type=float, default=0.0,
                          help="fraction of depth pixels lost")
+    add_camera_noise_argument(collect)
     collect.add_argument("--time-step", type=positive_float, default=0.01,
                          help="physics step (s); 0.005 extends a collection made before 10 ms "
                               "became the step")
@@ -104,7 +106,8 @@ def cmd_collect(args: argparse.Namespace) -> dict:
         min_objects=lo, max_objects=hi, episode_length=args.episode_length,
         long_fraction=args.long_fraction, chunk_size=args.chunk_size,
         noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout,
-        time_step=args.time_step, explorer=args.explorer, active=active)
+        time_step=args.time_step, camera_noise=args.camera_noise, explorer=args.explorer,
+        active=active)
     if args.explorer == "active":
         from drake_symplan.explorers.rounds import collect_active
 

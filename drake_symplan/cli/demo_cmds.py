@@ -53,6 +53,7 @@ from drake_symplan.cli.main import (
     run,
 )
 from drake_symplan.cli.options import (
+    add_camera_noise_argument,
     add_model_argument,
     add_solve_arguments,
     check_objects,
@@ -87,6 +88,7 @@ def add_demo_arguments(p: argparse.ArgumentParser, out_dir: Path,
                    help="the HTML recording (default out/demo.html)")
     p.add_argument("--no-record", action="store_true", help="write no recording")
     add_solve_arguments(p)
+    add_camera_noise_argument(p)
     p.add_argument("--meshcat", action="store_true",
                    help="watch live on localhost; keeps serving until Enter is pressed")
     p.add_argument("--json", action="store_true", help="print the result as JSON only")
@@ -174,7 +176,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
                                         "--budget-minutes" if "no operators" in str(e) else ""))
             return 1
     settings = DemoSettings(args.seed, args.objects, args.k, args.start, args.goal,
-                            None if args.no_record else args.out, args.meshcat)
+                            None if args.no_record else args.out, args.meshcat,
+                            args.camera_noise)
     outcome = run_demo(bundle, settings, config, start, goal, say, t0)
     if args.json and outcome.result is not None:
         print(json.dumps(outcome.result, indent=2))

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer
 from drake_symplan.cli.options import (
+    add_camera_noise_argument,
     add_json_argument,
     add_planner_arguments,
     add_planning_argument,
@@ -48,6 +49,7 @@ def register(subparsers) -> None:
                    help="keep serving the live scene on localhost until Enter is pressed")
     add_planner_arguments(p)
     add_planning_argument(p)
+    add_camera_noise_argument(p)
     add_json_argument(p)
     p.set_defaults(func=cmd_inspect)
 
@@ -109,10 +111,13 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
 
     try:
         result = inspect(start, Abstraction(bundle), goal, meshcat, args.record, config,
-                         title=f"symplan inspect {args.scene.name}")
+                         title=f"symplan inspect {args.scene.name}",
+                         camera_noise=args.camera_noise)
     except (RuntimeError, PerceptionFailure) as e:  # the scene file cannot be perceived
         raise CommandError(f"{args.scene}: {e}") from e
     result["scene"] = str(args.scene)
+    if args.camera_noise != "none":
+        result["camera_noise"] = args.camera_noise
     if not args.json:
         print("\n".join(summary_lines(result, inspection_sections)))
     if args.meshcat:

@@ -46,6 +46,7 @@ from drake_symplan.data.packing import pack
 from drake_symplan.data.stats import dataset_stats
 from drake_symplan.robot.backends import BACKENDS, make_backend
 from drake_symplan.world.cameras import DepthNoise
+from drake_symplan.world.depth_sensor import camera_noise
 from drake_symplan.world.station import TIME_STEP
 
 EPISODE_STRIDE = 100_000  # episode ids of chunk c are c * EPISODE_STRIDE + k
@@ -68,6 +69,7 @@ class CollectConfig:
     noise_sigma: float = 0.0  # depth noise (m) along camera rays
     noise_dropout: float = 0.0
     time_step: float = TIME_STEP  # s of physics per step (world/station.py)
+    camera_noise: str = "none"  # the cameras' sensor model (world/depth_sensor.CAMERA_NOISE)
     # How actions are chosen: "random", or "active" with its settings (explorers/active.py,
     # ActiveConfig as a dict); the data layer records them, the explorers layer acts on them.
     explorer: str = "random"
@@ -81,6 +83,7 @@ class CollectConfig:
         if not 0 < self.time_step < math.inf:
             raise ValueError(f"time_step must be a positive number of seconds, got "
                              f"{self.time_step}")
+        camera_noise(self.camera_noise)  # ValueError naming the choices
         if not 2 <= self.min_objects <= self.max_objects <= 8:
             raise ValueError(f"objects must satisfy 2 <= min <= max <= 8, got "
                              f"{self.min_objects}-{self.max_objects}")
@@ -97,9 +100,10 @@ class CollectConfig:
                              self.long_fraction)
 
 
-def collection_backend(name: str, time_step: float):
-    """The back-end a collection's workers run: `name` at `time_step`."""
-    return make_backend(name, time_step=time_step)
+def collection_backend(name: str, time_step: float, sensor: str = "none"):
+    """The back-end a collection's workers run: `name` at `time_step`, its cameras'
+    sensor model `sensor` (CollectConfig.camera_noise)."""
+    return make_backend(name, time_step=time_step, camera_noise=sensor)
 
 
 def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
@@ -169,7 +173,7 @@ _worker: dict = {}
 def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
     config = CollectConfig(**config_dict)
     _worker.update(config=config, progress=progress, parent=parent_pid,
-                   backend=collection_backend(config.backend, config.time_step))
+                   backend=collection_backend(config.backend, config.time_step, config.camera_noise))
     progress.put(0)  # started: its station is built
 
 
@@ -232,7 +236,7 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
             started, jobs_by_node = _run_ray(ray, out_dir, config, todo,
                                              min(workers, len(todo)), bar, explorer)
         elif workers == 1:
-            backend = collection_backend(config.backend, config.time_step)
+            backend = collection_backend(config.backend, config.time_step, config.camera_noise)
             started = time.perf_counter()
             for c in todo:
                 storage.write_shard(out_dir, c, *chunk_shard(backend, config, c, explorer(c),
@@ -268,7 +272,7 @@ def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int
         stored = manifest.get("config")
         if isinstance(stored, dict):  # settings added since: what such a set was made with
             stored = {"time_step": LEGACY_TIME_STEP, "explorer": "random", "active": {},
-                      **stored}
+                      "camera_noise": "none", **stored}
         if stored != identity:
             if not _extends(stored, identity):
                 raise ValueError(
@@ -357,7 +361,8 @@ def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers
         advance(c, config.chunk_count(c))
         written.add(c)
 
-    return run_jobs(ray, collection_backend, (config.backend, config.time_step), chunk_shard,
+    return run_jobs(ray, collection_backend,
+                    (config.backend, config.time_step, config.camera_noise), chunk_shard,
                     [(c, config, c, explorer(c)) for c in todo], workers, write, advance)
 
 

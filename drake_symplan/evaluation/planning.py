@@ -86,7 +86,8 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
 def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SOLVE,
                       robot: str = "arm", monitor=(True, False), limit: int | None = None,
                       records_path=None, agent=None, load=None, progress=None,
-                      ray_address: str | None = None, workers: int = 1, warn=None) -> dict:
+                      ray_address: str | None = None, workers: int = 1, warn=None,
+                      camera_noise: str = "none") -> dict:
     """Solves every problem under `problems_dir` with each run's bundle (`runs`: bundle
     directories) under `config`, in each monitoring mode of `monitor`; returns
     {"settings", "runs": {label: {mode: summary}}, "records": [...]}, and with Ray
@@ -95,7 +96,9 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     (robot) each, one per CPU of the cluster (drake_symplan/cluster.py); with `workers` > 1
     on that many local processes, an agent each. `load(run)` gives a run's Abstraction
     (default: of ModelBundle.load(run)); `warn(text)` is told of a records file's cut last
-    line (default: a line on stderr)."""
+    line (default: a line on stderr). `camera_noise`: the sensor model of the cameras of
+    the agents built here (a given `agent` has its own), in the settings and each record;
+    a records file of solves under another is refused."""
     if not runs:
         raise ValueError("give at least one run (a model bundle directory)")
     problems = load_problems(problems_dir)[:limit]
@@ -104,6 +107,10 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
     abstractions = {run_label(run): load(run) for run in runs}
     _check_problems(problems, config)
     done, records = _resume(records_path, warn)
+    other = {r.get("camera_noise", "none") for r in records} - {camera_noise}
+    if other:
+        raise ValueError(f"{records_path} holds solves with camera noise {sorted(other)}, "
+                         f"not {camera_noise!r}; give another records file")
     if records_path is not None:
         Path(records_path).parent.mkdir(parents=True, exist_ok=True)
     # Monitoring mode by mode, run by run: an unfinished evaluation has whole runs of the
@@ -113,6 +120,7 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
             if (label, bool(mode), str(Path(problem["dir"]))) not in done]
 
     def finish(record: dict) -> None:
+        record["camera_noise"] = camera_noise
         records.append(record)
         if records_path is not None:
             with open(records_path, "a") as f:
@@ -121,13 +129,14 @@ def evaluate_planning(runs: list, problems_dir, config: SolveConfig = DEFAULT_SO
             progress(record)
 
     engine = (ray_address, workers, agent)
-    solves_by_node = _solve_all(todo, robot, abstractions, engine, finish)
+    solves_by_node = _solve_all(todo, (robot, camera_noise), abstractions, engine, finish)
     order = {(label, bool(mode), str(Path(p["dir"]))): i for i, (label, mode, p) in enumerate(
         (label, mode, p) for label in abstractions for mode in monitor for p in problems)}
     records = sorted((r for r in records if (r["run"], r["monitor"], r["problem"]) in order),
                      key=lambda r: order[(r["run"], r["monitor"], r["problem"])])
     out = {"settings": {"problems_dir": str(problems_dir), "problems": len(problems),
-                        "backend": robot, **config.to_dict()},
+                        "backend": robot, "camera_noise": camera_noise,
+                        **config.to_dict()},
            "runs": summarise(records), "records": records}
     if solves_by_node is not None:  # Ray: the solves each node's workers ran this time
         out["solves_by_node"] = solves_by_node
@@ -144,32 +153,39 @@ def _check_problems(problems: list[dict], config: SolveConfig) -> None:
             recorded_actions(problem)
 
 
-def _solve_all(todo: list, robot: str, abstractions: dict, engine: tuple,
+def _solve_all(todo: list, station: tuple, abstractions: dict, engine: tuple,
                finish) -> dict | None:
-    """Solves `todo`, each record to `finish`, where `engine` (ray_address, workers,
-    agent) says: on Ray (then {node id: solves}), local worker processes, or here."""
+    """Solves `todo`, each record to `finish`, with agents of `station` (robot, camera
+    noise) where `engine` (ray_address, workers, agent) says: on Ray (then {node id:
+    solves}), local worker processes, or here."""
     ray_address, workers, agent = engine
     if ray_address is not None:
         with ray_session(ray_address) as ray:
             if todo:
                 return run_jobs(
-                    ray, _worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
+                    ray, _worker_state, (station, abstractions), _solve_in_worker, _jobs(todo),
                     min(cluster_cpus(ray), len(todo)),
                     lambda i, record: finish(record)).jobs_by_node
         return None
     if workers > 1 and todo:
-        run_jobs_local(_worker_state, (robot, abstractions), _solve_in_worker, _jobs(todo),
+        run_jobs_local(_worker_state, (station, abstractions), _solve_in_worker, _jobs(todo),
                        min(workers, len(todo)), lambda i, record: finish(record))
     elif todo:
-        agent = agent or Agent(robot)
+        agent = agent or _agent(station)
         for label, mode_config, problem in todo:
             finish(solve_job(agent, label, abstractions[label], problem, mode_config))
     return None
 
 
-def _worker_state(robot: str, abstractions: dict) -> tuple:
-    """A worker's state: its own agent (station) and every run's abstraction, sent once."""
-    return Agent(robot), abstractions
+def _agent(station: tuple) -> Agent:
+    robot, camera_noise = station
+    return Agent(robot, camera_noise=camera_noise)
+
+
+def _worker_state(station: tuple, abstractions: dict) -> tuple:
+    """A worker's state: its own agent of `station` (robot, camera noise) and every run's
+    abstraction, sent once."""
+    return _agent(station), abstractions
 
 
 def _solve_in_worker(state: tuple, label: str, problem: dict, config: SolveConfig,

@@ -7,9 +7,10 @@ Each kept problem is a directory `pNNN/` with
   settled bodies; tilted objects with `rpy`). It is a world description, not a belief:
   `solve` only puts it on the table and perceives it, and so the goal a planner sees is the
   perceived one;
-- `problem.json`: {"k", "seed", "n_objects"} and bookkeeping (the actions, how far the
-  farthest object moved). `seed` alone regenerates the problem: numpy's
-  default_rng(seed) drives the scene sampler and the actions.
+- `problem.json`: {"k", "seed", "n_objects"} and bookkeeping (the back-end and its
+  cameras' sensor model, the actions, how far the farthest object moved). `seed` alone
+  regenerates the problem (with the same sensor model): numpy's default_rng(seed) drives
+  the scene sampler and the actions.
 
 Actions are chosen over the *perceived* objects (data/exploration.random_action), each
 executed on the perceived scene, whose names follow the objects through perception's
@@ -149,12 +150,13 @@ def replay(agent, start, actions: list[Action]):
 
 def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: str = "arm",
                   max_attempts: int | None = None, agent=None, progress=None,
-                  reproducible: bool = False) -> dict:
+                  reproducible: bool = False, camera_noise: str = "none") -> dict:
     """Writes `count` non-trivial problems with `n_objects` objects to `out_dir`/pNNN.
 
-    `k`: actions per problem, an int or a list taken in turn. A re-run with the same
-    arguments resumes (existing problems are kept; attempts go on from the last one).
-    Returns the summary written to `out_dir`/problems.json."""
+    `k`: actions per problem, an int or a list taken in turn; `camera_noise`: the sensor
+    model of the cameras that perceive (that of `agent` when one is given). A re-run with
+    the same arguments resumes (existing problems are kept; attempts go on from the last
+    one). Returns the summary written to `out_dir`/problems.json."""
     ks = [int(k)] if np.isscalar(k) else [int(v) for v in k]
     if not ks or min(ks) < 1:
         raise ValueError(f"k must be at least 1, got {k}")
@@ -164,10 +166,14 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / SUMMARY
     summary = read_json(summary_path) if summary_path.is_file() else {}
-    settings = {"n_objects": n_objects, "k": ks, "seed": seed, "backend": backend}
+    settings = {"n_objects": n_objects, "k": ks, "seed": seed, "backend": backend,
+                "camera_noise": camera_noise}
     if reproducible:  # only then, so that sets made before still resume
         settings["reproducible"] = True
-    if summary and summary.get("settings") != settings:
+    stored = summary.get("settings")
+    if isinstance(stored, dict):  # sets made before the sensor model was recorded: none
+        stored = {"camera_noise": "none", **stored}
+    if summary and stored != settings:
         raise ValueError(f"{out} holds problems made with {summary.get('settings')}, "
                          f"not {settings}")
     kept = len(list(out.glob("p*/problem.json")))
@@ -175,7 +181,7 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     rejected = Counter(summary.get("rejected", {}))
     max_attempts = max_attempts if max_attempts is not None else 20 * count
     if agent is None and kept < count:
-        agent = Agent(backend)
+        agent = Agent(backend, camera_noise=camera_noise)
     while kept < count and attempt < max_attempts:
         kk = ks[kept % len(ks)]
         pseed = problem_seed(seed, attempt)
@@ -190,7 +196,7 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
             save_scene(start, folder / "start.yaml")
             save_scene(goal, folder / "goal.yaml")
             record = {"k": kk, "seed": pseed, "n_objects": n_objects, "backend": backend,
-                      "attempt": attempt - 1, **info}
+                      "camera_noise": camera_noise, "attempt": attempt - 1, **info}
             write_atomic(folder / "problem.json", json.dumps(record, indent=1) + "\n")
             kept += 1
         summary = {"settings": settings, "kept": kept, "attempts": attempt,

@@ -43,7 +43,8 @@ def shown(path) -> str:
 class DemoSettings:
     """What the episode is asked: a sampled problem (`seed`, `objects`, `k`; None: 2 or 3
     by the seed) or the scene files `start`/`goal` it was given; where to `record` (None:
-    nowhere); `meshcat`: announce Meshcat's URL (the caller keeps it serving)."""
+    nowhere); `meshcat`: announce Meshcat's URL (the caller keeps it serving);
+    `camera_noise`: the cameras' sensor model."""
 
     seed: int | None = None
     objects: int = 3
@@ -52,6 +53,7 @@ class DemoSettings:
     goal: Path | None = None
     record: Path | None = None
     meshcat: bool = False
+    camera_noise: str = "none"
 
 
 @dc.dataclass
@@ -218,10 +220,13 @@ def run_demo(bundle, settings: DemoSettings, config, start=None, goal=None, say=
     if settings.meshcat or record is not None:  # a recording is Meshcat's page
         with contextlib.redirect_stdout(sys.stderr):  # Meshcat's URL: not on stdout
             meshcat = StartMeshcat(announce=settings.meshcat)
-    agent, abstraction = Agent("arm", meshcat=meshcat), Abstraction(bundle)
+    agent = Agent("arm", meshcat=meshcat, camera_noise=settings.camera_noise)
+    abstraction = Abstraction(bundle)
     say(f"model {shown(bundle.path)}: {bundle.n_unary} unary symbol(s), "
         f"{bundle.n_relations} relations, {len(bundle.operators)} operators")
     demo = {"seed": settings.seed}
+    if settings.camera_noise != "none":
+        demo["camera_noise"] = settings.camera_noise
     posed = pose_problem(agent, settings, start, goal, demo, say)
     if posed is None:
         return DemoOutcome(1)

@@ -79,6 +79,12 @@ class Backend:
         self.noise = noise if noise is not None and noise.active else None
         self.rng = rng or np.random.default_rng(0)
 
+    @property
+    def noisy(self) -> bool:
+        """Whether perceiving the same scene twice can see it differently (depth noise or
+        the cameras' sensor model)."""
+        return self.noise is not None or self.station.sensor.active
+
     def seconds(self) -> dict[str, float]:
         """Wall time spent so far in physics (simulating) and in perception (rendering
         included): where collection time goes, for `data stats` and the benchmark."""
@@ -139,7 +145,7 @@ class HandBackend(Backend):
             # The state is unusable; the episode ends and the next reset starts afresh.
             self.station.release()
             return Execution("sim_failure", message=f"simulation failed: {e}")
-        if motion.held is None and self.noise is None:
+        if motion.held is None and not self.noisy:
             # Nothing was caught, so nothing was simulated: the scene is exactly the one
             # perceived before, and perceiving it again would return the same objects.
             return Execution("ok", before if lift else None, before)
@@ -149,7 +155,7 @@ class HandBackend(Backend):
 
     def _perceive_if_moved(self, before):
         held = self.station.held
-        return self.perceive(before) if held is not None or self.noise is not None else None
+        return self.perceive(before) if held is not None or self.noisy else None
 
 
 class ArmBackend(Backend):
