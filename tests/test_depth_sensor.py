@@ -136,3 +136,19 @@ def test_the_filter_keeps_a_slanted_plane_and_drops_what_flies_off_it():
     assert kept[inner].mean() > 0.95
     assert np.std((out - truth)[inner][kept[inner]]) < 0.0007
     assert np.median(sigma[inner]) == pytest.approx(0.002 / 5)  # 25 pixels fitted
+
+
+def test_a_scene_is_seen_with_the_same_noise_whatever_came_before():
+    from drake_symplan.world.cameras import default_cameras
+    from drake_symplan.world.scenes import ObjectSpec, Scene
+    from drake_symplan.world.station import Station, StationConfig
+
+    station = Station(StationConfig(cameras=default_cameras(), camera_noise="realsense"))
+    a = Scene([ObjectSpec("a", "cube", [0.7, 0.0, 0.025])])
+    b = Scene([ObjectSpec("b", "long", [0.6, 0.1, 0.025])])
+    station.reset(a)
+    first = station.depth_frames(1)[0][0]
+    station.reset(b)
+    station.depth_frames(1)
+    station.reset(a)  # after other frames of another scene: the same noise again
+    assert np.array_equal(station.depth_frames(1)[0][0], first, equal_nan=True)

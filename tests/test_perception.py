@@ -54,11 +54,14 @@ def test_known_scene(request, sensor, case):
     perceived, report = perceive(station, objects)
     assert report["count_ok"], [o.to_json() for o in perceived.objects]
     assert report["invented"] == 0 and report["missed"] == 0
+    # A RealSense-like sensor leaves a cube's yaw, read from faces 1-3 mm rough, a few
+    # degrees off (up to 6.4 over calibration seeds 0-4 on these scenes; positions 4.5 mm).
+    yaw_limit = 3.0 if sensor == "none" else 8.0
     for name, kind, _ in objects:
         err = report["errors"][name]
         assert err["type_ok"], (name, kind)
         assert err["position_mm"] < 5.0, (name, err)
-        assert err["yaw_deg"] < 3.0, (name, err)
+        assert err["yaw_deg"] < yaw_limit, (name, err)
     truth_contacts = {tuple(sorted(c)) for c in contacts}
     assert station.contact_graph() == truth_contacts  # the scene is what we think
     assert report["contacts_ok"], sorted(perceived.contacts)

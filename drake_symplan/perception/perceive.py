@@ -96,7 +96,9 @@ class Perceiver:
         if not station.sensor.active:
             self.readings = []
             return station.point_clouds(noise=noise, rng=rng, z_min=z_min)
-        frames = station.depth_frames(self.depth_filter.frames, rng)
+        # The sensor's own noise comes from the station (its seed and the scene), so a
+        # scene is seen alike whatever the caller's stream has drawn before.
+        frames = station.depth_frames(self.depth_filter.frames)
         clouds, self.readings = filtered_clouds(station.cameras, frames, station.sensor,
                                                 self.depth_filter, z_min)
         if noise is not None and noise.active:

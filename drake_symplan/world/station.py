@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 import time
+import zlib
 from importlib import resources
 from pathlib import Path
 
@@ -107,6 +108,13 @@ def AddUr10(plant, parser: Parser):
     (arm,) = parser.AddModels(url="package://drake_symplan_models/ur10/ur10.urdf")
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link", arm))
     return arm
+
+
+def _scene_digest(scene: Scene) -> int:
+    """A stable number of a scene's objects (names, types, poses to 0.1 mm)."""
+    text = ";".join(f"{o.name},{o.type},{np.round(o.position, 4).tolist()},{o.yaw:.4f}"
+                    for o in scene.objects)
+    return zlib.crc32(text.encode())
 
 
 def _parked_pose(index: int) -> RigidTransform:
@@ -230,6 +238,10 @@ class Station:
                     f"{len(self.pool[t])} (StationConfig.pool_{t}s)")
         self.context.SetTime(0.0)
         self._following = None
+        # The frames' noise restarts from the scene itself: a problem's start is seen with
+        # the same noise whichever solves ran before it, in whichever worker.
+        self.sensor_rng = np.random.default_rng([self.config.camera_seed, 1,
+                                                 _scene_digest(scene)])
         plant, ctx = self.plant, self.plant_context
         self.assigned, self.types = {}, {}
         used = {t: 0 for t in OBJECT_TYPES}
