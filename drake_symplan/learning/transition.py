@@ -27,8 +27,8 @@ from drake_symplan.learning.layers import MLP
 def target_bits(logits: torch.Tensor) -> torch.Tensor:
     """The next scene's bits as the symbols read them (logit > 0), as fixed targets: a
     gradient through them would let the encoder make the next bits predictable by making
-    them say less (measured on tests/synthetic_rule.sticky_rule: every bit stops changing
-    and the effect error rises sixfold)."""
+    them say less (measured on tests/synthetic_rule.sticky_rule: half of the changes vanish
+    from the symbols and the effect error rises four- to tenfold; docs/symbols.md)."""
     return (logits.detach() > 0).to(logits.dtype)
 
 
