@@ -302,17 +302,24 @@ def test_scene_pairs_must_hold_the_same_objects():
         beliefs.check_scene_pair(START, longer)
 
 
-def test_evaluate_planning_on_a_fake_world(tmp_path):
+def fake_problem_set(root):
+    """ROOT/set/p000: START to GOAL, one action away; returns ROOT/set."""
     import json
 
-    from drake_symplan.evaluation.planning import evaluate_planning
     from drake_symplan.world.scenes import save_scene
 
-    folder = tmp_path / "set" / "p000"
+    folder = root / "set" / "p000"
     folder.mkdir(parents=True)
     save_scene(START, folder / "start.yaml")
     save_scene(GOAL, folder / "goal.yaml")
     (folder / "problem.json").write_text(json.dumps({"k": 1, "seed": 0, "n_objects": 3}))
+    return root / "set"
+
+
+def test_evaluate_planning_on_a_fake_world(tmp_path):
+    from drake_symplan.evaluation.planning import evaluate_planning
+
+    fake_problem_set(tmp_path)
     records = tmp_path / "results" / "records.jsonl"  # a folder not made yet
     kwargs = dict(agent=Agent(FakeBackend()), load=lambda run: OracleAbstraction(),
                   records_path=records)

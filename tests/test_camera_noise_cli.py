@@ -144,18 +144,13 @@ def test_problems_make_records_the_sensor_model(tmp_path, capsys):
 
 
 def test_eval_planning_records_the_sensor_model_and_keeps_a_records_file_to_one(tmp_path):
-    from test_agent_loop import GOAL, START, FakeBackend, OracleAbstraction
+    from test_agent_loop import FakeBackend, OracleAbstraction, fake_problem_set
 
     from drake_symplan.agent.config import SolveConfig
     from drake_symplan.agent.solve import Agent
     from drake_symplan.evaluation.planning import evaluate_planning
-    from drake_symplan.world.scenes import save_scene
 
-    folder = tmp_path / "set" / "p000"
-    folder.mkdir(parents=True)
-    save_scene(START, folder / "start.yaml")
-    save_scene(GOAL, folder / "goal.yaml")
-    (folder / "problem.json").write_text(json.dumps({"k": 1, "seed": 0, "n_objects": 3}))
+    fake_problem_set(tmp_path)
     records = tmp_path / "records.jsonl"
     kwargs = dict(agent=Agent(FakeBackend()), load=lambda run: OracleAbstraction(),
                   records_path=records, monitor=(True,))
