@@ -58,6 +58,15 @@ def test_the_stages_of_a_scale(tmp_path):
     on_ray = Reproduction("small", tmp_path, ray="10.0.0.1:6379")
     assert on_ray.collect_stages()[0].argv[-2:] == ["--ray", "10.0.0.1:6379"]
     assert on_ray.planning_stage().argv[-2:] == ["--ray", "10.0.0.1:6379"]
+    # Every stage that perceives runs with the sensor model asked for; none adds no flag.
+    noisy = Reproduction("small", tmp_path, camera_noise="realsense")
+    perceiving = [*noisy.collect_stages(), *noisy.problem_stages(), noisy.planning_stage(),
+                  *noisy.mode_stages()]
+    for st in perceiving:
+        assert st.argv[st.argv.index("--camera-noise") + 1] == "realsense", st.name
+    assert not any("--camera-noise" in st.argv for st in [
+        *rep.collect_stages(), *rep.problem_stages(), rep.planning_stage(), *rep.mode_stages()])
+    assert not any("--camera-noise" in st.argv for st in noisy.train_stages())
 
 
 def test_finished_stages_are_skipped_and_partial_ones_resume(tmp_path):

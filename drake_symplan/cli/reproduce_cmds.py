@@ -13,6 +13,7 @@ from pathlib import Path
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
 from drake_symplan.cli.options import (
+    add_camera_noise_argument,
     add_device_argument,
     add_json_argument,
     add_solve_arguments,
@@ -36,7 +37,8 @@ def register(subparsers) -> None:
                    help="small: a toy run (~10 min on 2 cores); paper: the README's run")
     add_run_arguments(p, "reproduce", "collect and solve the arm problems on Ray",
                       "write results.md from the stages done so far",
-                      extra=lambda: add_solve_arguments(p, monitor_flag=False))
+                      extra=lambda: (add_solve_arguments(p, monitor_flag=False),
+                                     add_camera_noise_argument(p)))
     p.set_defaults(func=run_reproduce)
 
     from drake_symplan.pipelines.learning_curve import CURVE_SCALES
@@ -78,7 +80,7 @@ def run_reproduce(args):
     check_device(args.device)
     rep = Reproduction(args.scale, out, jobs=args.jobs, ray=args.ray, device=args.device,
                        say=lambda text: print(text, file=sys.stderr, flush=True),
-                       solve=solve_config(args))
+                       solve=solve_config(args), camera_noise=args.camera_noise)
     if args.report:
         if not (rep.results / "effects.json").exists():
             raise CommandError(f"nothing to report in {out}: its effects stage has not run")

@@ -82,12 +82,15 @@ class Reproduction(StageRunner):
     """The stages of one scale in `out`; `run()` runs what is not done yet."""
 
     def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
-                 say=print, solve: SolveConfig = DEFAULT_SOLVE, device: str = "auto"):
+                 say=print, solve: SolveConfig = DEFAULT_SOLVE, device: str = "auto",
+                 camera_noise: str = "none"):
         if scale not in SCALES:
             raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
         super().__init__(out, jobs, say)
         self.name, self.scale = scale, SCALES[scale]
         self.ray, self.solve, self.device = ray, solve, device  # device: the train stages'
+        # The depth sensor every perceiving stage runs with (world/depth_sensor.py).
+        self.camera_noise = camera_noise
         self.train_data, self.heldout_data = self.out / "data/train", self.out / "data/heldout"
         self.results = self.out / "results"
 
@@ -96,13 +99,17 @@ class Reproduction(StageRunner):
     def _ray(self) -> list[str]:
         return [] if self.ray is None else ["--ray", self.ray] if self.ray else ["--ray"]
 
+    def _sensor(self) -> list[str]:
+        """The perceiving stages' --camera-noise (none: no flag, as before the option)."""
+        return [] if self.camera_noise == "none" else ["--camera-noise", self.camera_noise]
+
     def collect_stages(self) -> list[Stage]:
         s = self.scale
 
         def collect(name, data, n, seed):
             argv = ["collect", "--backend", "hand", "--transitions", n, "--out", data,
                     "--seed", seed, "--objects", s.objects, "--no-progress", "--json",
-                    *(self._ray() or ["--workers", self.jobs])]
+                    *self._sensor(), *(self._ray() or ["--workers", self.jobs])]
             return Stage(name, argv, data / "collected.json", stdout=data / "collected.json")
 
         return [collect("collect train", self.train_data, s.train, s.train_seed),
@@ -169,7 +176,8 @@ class Reproduction(StageRunner):
             stages.append(Stage(f"problems {n} objects",
                                 ["problems", "make", "--out", folder, "--objects", n,
                                  "--k", *s.planning_k, "--count", s.planning_problems,
-                                 "--seed", s.problem_seed + n, "--backend", "arm", "--json"],
+                                 "--seed", s.problem_seed + n, "--backend", "arm", "--json",
+                                 *self._sensor()],
                                 folder / "done.json", stdout=folder / "done.json"))
         return stages
 
@@ -190,7 +198,7 @@ class Reproduction(StageRunner):
                      ["eval", "planning", "--runs", *runs, "--problems", self.out / "problems",
                       "--records", self.results / "planning.jsonl", "--plot",
                       self.results / "planning.png", "--json", *self.solve.flags(),
-                      "--monitor", "on", *self._workers()],
+                      "--monitor", "on", *self._sensor(), *self._workers()],
                      self.results / "planning.json", stdout=self.results / "planning.json")
 
     def mode_stages(self) -> list[Stage]:
@@ -209,7 +217,7 @@ class Reproduction(StageRunner):
                  "--records", out.with_suffix(".jsonl"), "--json",
                  *self.solve.replace(planning=mode).flags(),
                  "--monitor", "off" if main or PLANNING_MODES[mode].open_loop_only else "on",
-                 *self._workers()],
+                 *self._sensor(), *self._workers()],
                 out.with_suffix(".json"), stdout=out.with_suffix(".json")))
         return sorted(stages, key=lambda st: st.name.endswith("open loop"))
 
@@ -254,7 +262,8 @@ class Reproduction(StageRunner):
         record = {
             "command": f"symplan reproduce --scale {self.name} --out {self.out}"
                        + (f" --ray {self.ray}" if self.ray is not None else "")
-                       + (f" --device {self.device}" if self.device != "auto" else ""),
+                       + (f" --device {self.device}" if self.device != "auto" else "")
+                       + "".join(f" {a}" for a in self._sensor()),
             "scale": dc.asdict(self.scale),
             "data": {name: {"dir": str(d), "fingerprint": fingerprint(d)}
                      for name, d in (("train", self.train_data), ("heldout", self.heldout_data))},
