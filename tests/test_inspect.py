@@ -163,3 +163,21 @@ def test_the_docs_screenshot_is_a_1200_by_800_png_of_scenes_in_docs():
 
     scenes = REPO / "docs" / "inspect_scenes"
     check_scene_pair(load_scene(scenes / "start.yaml"), load_scene(scenes / "goal.yaml"))
+
+
+def test_inspect_draws_each_cameras_noisy_cloud(tmp_path, capsys):
+    start = tmp_path / "start.yaml"
+    save_scene(Scene([ObjectSpec("o0", "cube", [0.70, -0.15, 0.025])]), start)
+    record = tmp_path / "inspect.html"
+    argv = ["inspect", "--scene", start, "--model", bundle_for_tests(), "--record", record,
+            "--clouds", "--json"]
+    code, out, err = run([*argv, "--camera-noise", "realsense"], capsys)
+    assert code == 0, err
+    noisy = json.loads(out)["start"]["cloud_points"]
+    paths = recorded_paths(record.read_text())
+    assert len(noisy) == 3 and min(noisy) > 1000  # three cameras see the table's cube
+    for i in range(3):
+        assert f"/symplan/start/clouds/camera{i}" in paths, sorted(paths)
+    code, out, err = run([*argv, "--camera-noise", "none"], capsys)
+    exact = json.loads(out)["start"]["cloud_points"]
+    assert noisy != exact  # holes and flying pixels change what each camera returns

@@ -10,7 +10,10 @@ draws, under `/symplan` in Meshcat:
   r_k's colour from x's centre to y's, a ball at y's end; only certain bits that are set,
   only between objects perceived in contact (what the planner reads);
 - with a goal scene: `/symplan/goal/...` the same for the perceived goal, translucent, and
-  `/symplan/plan/step<i>`: an arc from step i's source to its target.
+  `/symplan/plan/step<i>`: an arc from step i's source to its target;
+- with `clouds`: `/symplan/start/clouds/camera<i>`: what each camera's sensor gave for the
+  start scene (one frame, world frame as perception believes the camera is, with the
+  sensor model's noise, holes and flying pixels), before perception filters it.
 
 Meshcat draws no text, so the legend (bit pattern -> colour, relation -> colour), the
 objects' symbols and the plan step by step (operator, preconditions, effects) go into
@@ -35,6 +38,7 @@ from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
 PREFIX = "/symplan"
+CLOUD_Z_MIN = 0.003  # m: points at the table's height and below are not drawn
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#edc948", "#76b7b2",
            "#ff9da7", "#9c755f", "#86bcb6", "#d4a6c8", "#8cd17d", "#f1ce63", "#a0cbe8",
            "#ffbe7d", "#d37295")
@@ -194,6 +198,20 @@ def draw_view(meshcat, named_scene, view: dict, layer: str = "start", alpha: flo
         _ball(meshcat, f"{path}/head", q + off, rgba)
 
 
+CLOUD_COLOURS = ("#e15759", "#4e79a7", "#59a14f", "#b07aa1")
+
+
+def draw_clouds(meshcat, clouds: list[np.ndarray], layer: str = "start") -> None:
+    """Each camera's points [n, 3] as a point cloud in its own colour."""
+    from pydrake.perception import PointCloud
+
+    for i, points in enumerate(clouds):
+        cloud = PointCloud(len(points))
+        cloud.mutable_xyzs()[:] = np.asarray(points, np.float32).T
+        meshcat.SetObject(f"{PREFIX}/{layer}/clouds/camera{i}", cloud, point_size=0.002,
+                          rgba=_rgba(CLOUD_COLOURS[i % len(CLOUD_COLOURS)]))
+
+
 def draw_plan(meshcat, start_view: dict, plan: list[dict]) -> None:
     """Step i as an arc from its source to its target (start-scene positions) under
     /symplan/plan/step<i>, with a ball at the target's end."""
@@ -310,10 +328,12 @@ def write_recording(meshcat, path: str | Path, panel: str) -> Path:
 
 def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None, record=None,
             config: SolveConfig = DEFAULT_SOLVE, robot: str = "arm",
-            title: str = "symplan inspect", camera_noise: str = "none") -> dict:
+            title: str = "symplan inspect", camera_noise: str = "none",
+            clouds: bool = False) -> dict:
     """Perceives `start_scene` (and `goal_scene`) with cameras of the sensor model
     `camera_noise`, reads and draws their symbols, plans from start to goal (config's
-    planner and timeout); returns the JSON result and writes the recording to `record`."""
+    planner and timeout); with `clouds`, also the start scene's raw point clouds (their
+    sizes in the result); returns the JSON result and writes the recording to `record`."""
     agent = Agent(robot, meshcat=meshcat, camera_noise=camera_noise)
     goal = agent.look(goal_scene) if goal_scene is not None else None
     start = agent.look(start_scene)  # the table stays in the start scene
@@ -324,6 +344,9 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
     result = {"model": str(abstraction.bundle.path),
               "start": symbol_view(start.scene, start_reading)}
     result["start"]["atoms"] = sorted(a.text() for a in abstraction.atoms(start_reading)[0])
+    raw = agent.robot.station.point_clouds(z_min=CLOUD_Z_MIN) if clouds else []
+    if clouds:
+        result["start"]["cloud_points"] = [len(c) for c in raw]
     if goal is not None:
         goal_reading = abstraction.read_scene(goal.scene)
         result["goal"] = symbol_view(goal.scene, goal_reading)
@@ -336,6 +359,7 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
         result["candidates"] = [c.to_json() for c in found.candidates]
     if meshcat is not None:
         draw_view(meshcat, start.scene, result["start"])
+        draw_clouds(meshcat, raw)
         look_at(meshcat, [o["position"] for o in result["start"]["objects"]])
         if goal is not None:
             draw_view(meshcat, goal.scene, result["goal"], "goal", alpha=0.3)

@@ -50,6 +50,9 @@ def register(subparsers) -> None:
     add_planner_arguments(p)
     add_planning_argument(p)
     add_camera_noise_argument(p)
+    p.add_argument("--clouds", action="store_true",
+                   help="also draw what each camera's sensor gave (with --camera-noise: its "
+                   "noise, holes and flying pixels), and count its points in the JSON")
     add_json_argument(p)
     p.set_defaults(func=cmd_inspect)
 
@@ -112,7 +115,7 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     try:
         result = inspect(start, Abstraction(bundle), goal, meshcat, args.record, config,
                          title=f"symplan inspect {args.scene.name}",
-                         camera_noise=args.camera_noise)
+                         camera_noise=args.camera_noise, clouds=args.clouds)
     except (RuntimeError, PerceptionFailure) as e:  # the scene file cannot be perceived
         raise CommandError(f"{args.scene}: {e}") from e
     result["scene"] = str(args.scene)
