@@ -33,6 +33,7 @@ COMMAND_MODULES = [
     "drake_symplan.cli.learning_cmds",
     "drake_symplan.cli.planning_cmds",
     "drake_symplan.cli.agent_cmds",
+    "drake_symplan.cli.goal_cmds",
     "drake_symplan.cli.inspect_cmds",
     "drake_symplan.cli.reproduce_cmds",
     "drake_symplan.cli.demo_cmds",

@@ -17,7 +17,6 @@ import numpy as np
 
 from drake_symplan.actions import OFFSETS, Action
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.hand_place import hand_pick_place
 from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
 from drake_symplan.world.scenes import ObjectSpec, Scene, validate_scene
@@ -85,11 +84,6 @@ def kept(poses: dict, name: str, types: dict[str, str]) -> bool:
     return all(rests_on(poses, r, b, types) for r, b in supports(name).items())
 
 
-def _beliefs(scene: Scene) -> dict[str, ObjectState]:
-    return {o.name: ObjectState(o.name, o.type, np.array(o.position), o.yaw)
-            for o in scene.objects}
-
-
 class Runner:
     """One station per back-end; runs an action from a fresh scene, returns its verdict."""
 
@@ -104,11 +98,11 @@ class Runner:
         start = {n: X.translation()[2] for n, X in station.object_poses().items()}
         t = time.process_time()
         if backend == "arm":
-            status = pick_place(station, self.planner, action, _beliefs(scene)).status
+            status = pick_place(station, self.planner, action, scene.object_states()).status
         else:
             status = "ok"
             try:
-                hand_pick_place(station, action, _beliefs(scene))
+                hand_pick_place(station, action, scene.object_states())
             except RuntimeError:
                 status = "sim_failure"
         cpu = time.process_time() - t

@@ -42,6 +42,7 @@ from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import write_atomic
 from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.data.exploration import left_workspace, random_action
+from drake_symplan.evaluation import goals
 from drake_symplan.json_files import read_json
 from drake_symplan.world.scenes import (
     SceneError,
@@ -100,6 +101,14 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
         infeasible = 0
         actions.append(str(action))
         now = after
+    made = settle_goal(agent, start, first, now, actions, reproducible)
+    return made if isinstance(made, str) else (start, *made)
+
+
+def settle_goal(agent, start, first, now, actions: list[str], reproducible: bool):
+    """(goal, info) of the scene `actions` left (`now` perceived, `first` the start
+    perceived), or why it is no goal: trivial, invalid or unstable as a file, or (with
+    `reproducible`) not reached again when the actions are replayed from the saved start."""
     end = beliefs.positions(now)
     moved = displacement(beliefs.positions(first), end)
     if moved <= NONTRIVIAL_DISTANCE:
@@ -119,7 +128,33 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
         if isinstance(again, str) or displacement(
                 beliefs.positions(shown.scene), beliefs.positions(again)) > GOAL_TOLERANCE:
             return "not_reproducible"
-    return start, goal, {"actions": actions, "moved_cm": round(moved * 100, 2)}
+    return goal, {"actions": actions, "moved_cm": round(moved * 100, 2)}
+
+
+def build_goal(agent, start, structures: list, reproducible: bool = True):
+    """(goal, info) of the written goal `structures` (evaluation/goals.py) built by the
+    robot from the `start` scene, or why not (a string); goals.SpecError, before anything
+    moves, when the start cannot give them. The author checks the built scene against the
+    structures on the simulator's poses (the goal's author may; a planner may not)."""
+    seen = agent.look(start)
+    if seen.lost or seen.extra:
+        return "perception_start"
+    objects = seen.scene.object_states()
+    goals.check(structures, objects)
+    now, done = seen.scene, []
+    for action in goals.build_actions(structures, objects):
+        now = act(agent, now, action)
+        if isinstance(now, str):
+            return f"{now} at {action}"
+        done.append(str(action))
+    truth = agent.robot.ground_truth_states()
+    positions = {n: o.position for n, o in truth.items()}
+    types = {n: o.type for n, o in truth.items()}
+    for structure in structures:
+        wrong = goals.holds(structure, positions, types)
+        if wrong is not None:
+            return f"not built: {structure.text()!r}: {wrong}"
+    return settle_goal(agent, start, seen.scene, now, done, reproducible)
 
 
 def act(agent, now, action: Action):

@@ -23,10 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.atomic import write_atomic
+from drake_symplan.boxes import HALF_EXTENTS, LONG, OBJECT_TYPES, SIDE
 
 # HALF_EXTENTS and OBJECT_TYPES are also imported from here by modules not yet moved to
 # drake_symplan.boxes (skills, station).
-from drake_symplan.boxes import HALF_EXTENTS, LONG, OBJECT_TYPES, SIDE
+from drake_symplan.datasets import ObjectState
 
 # Where objects may be placed (box centres), metres.
 WORKSPACE_X = (0.45, 1.0)
@@ -81,6 +82,11 @@ class Scene:
     @property
     def names(self) -> list[str]:
         return [o.name for o in self.objects]
+
+    def object_states(self) -> dict[str, ObjectState]:
+        """The scene as written, as object states (a file's author's view of it)."""
+        return {o.name: ObjectState(o.name, o.type, np.array(o.position, float), o.yaw)
+                for o in self.objects}
 
     def object(self, name: str) -> ObjectSpec:
         for o in self.objects:
@@ -244,12 +250,13 @@ def as_saved(scene: Scene) -> Scene:
     return scene_from_yaml(scene_to_yaml(scene))
 
 
-def save_scene(scene: Scene, path: str | Path) -> None:
+def save_scene(scene: Scene, path: str | Path, header: str = "") -> None:
     """Writes `scene` as YAML to `path` (its folder made if need be), atomically; what is
-    written must read back valid (`as_saved`)."""
+    written must read back valid (`as_saved`). `header`: comment lines put first (e.g. the
+    spec that made a goal)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    text = scene_to_yaml(scene)
+    text = "".join(f"# {line}\n" for line in header.splitlines()) + scene_to_yaml(scene)
     scene_from_yaml(text)
     write_atomic(path, text)
 

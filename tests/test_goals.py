@@ -1,0 +1,94 @@
+"""Goals written in one line (evaluation/goals.py, `symplan goal`): each word's actions and
+geometry, every spec the world cannot give refused in one line before anything runs, and a
+goal built by the robot holding what its spec names."""
+
+from __future__ import annotations
+
+import pytest
+from conftest import assert_bad_input, run
+
+from drake_symplan.actions import Action
+from drake_symplan.evaluation import goals
+from drake_symplan.world.scenes import ObjectSpec, Scene, load_scene, save_scene
+
+START = Scene([
+    ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),
+    ObjectSpec("o1", "cube", [0.75, -0.25, 0.025]),
+    ObjectSpec("o2", "cube", [0.60, 0.00, 0.025]),
+    ObjectSpec("o3", "cube", [0.75, 0.05, 0.025]),
+    ObjectSpec("o4", "long", [0.90, -0.10, 0.025]),
+    ObjectSpec("o5", "cube", [0.60, 0.15, 0.025]),
+])
+
+
+def test_each_word_compiles_to_the_actions_that_build_it():
+    objects = START.object_states()
+    build = goals.build_actions
+    assert build(goals.parse(["tower o3 o1 o0"]), objects) == [
+        Action("o1", "center", "o0", "center"), Action("o3", "center", "o1", "center")]
+    assert build(goals.parse(["on o3 o4"]), objects) == [Action("o3", "center", "o4", "center")]
+    # the long block lands 7.5 cm from the first support, towards the second
+    assert build(goals.parse(["bridge o4 o2 o5"]), objects) == [
+        Action("o4", "center", "o2", "right")]
+    assert build(goals.parse(["bridge o4 o5 o2"]), objects) == [
+        Action("o4", "center", "o5", "left")]
+    assert build(goals.parse(["row o0 o1 o3"]), objects) == [
+        Action("o1", "center", "o0", "right"), Action("o3", "center", "o1", "right")]
+
+
+def test_each_word_names_its_geometry():
+    types = {"a": "cube", "b": "cube", "c": "cube", "L": "long"}
+    tower = goals.Structure("tower", ("a", "b", "c"))
+    stacked = {"a": [0.7, 0.0, 0.125], "b": [0.7, 0.0, 0.075], "c": [0.7, 0.0, 0.025]}
+    assert goals.holds(tower, stacked, types) is None
+    assert goals.holds(tower, {**stacked, "a": [0.7, 0.0, 0.175]}, types) == "a is not on b"
+    bridge = goals.Structure("bridge", ("L", "a", "b"))
+    spanned = {"L": [0.7, 0.075, 0.075], "a": [0.7, 0.0, 0.025], "b": [0.7, 0.15, 0.025]}
+    assert goals.holds(bridge, spanned, types) is None
+    assert goals.holds(bridge, {**spanned, "b": [0.7, 0.15, 0.075]}, types) == \
+        "L does not rest on b"
+    row = goals.Structure("row", ("a", "b", "c"))
+    spaced = {"a": [0.7, 0.0, 0.025], "b": [0.7, 0.075, 0.025], "c": [0.7, 0.15, 0.025]}
+    assert goals.holds(row, spaced, types) is None
+    assert "c is not 7.5 cm along y from b" in goals.holds(
+        row, {**spaced, "c": [0.7, 0.20, 0.025]}, types)
+
+
+@pytest.mark.parametrize("start, spec, why", [
+    (START, "tower o0 o1 o0", "o0 named twice"),
+    (START, "bridge o0 o2 o5", "o0 is a cube; a bridge needs a long block"),
+    (START, "bridge o4 o0 o5", "o0 and o5 stand 40 cm apart along y"),
+    (START, "tower o9 o1", "o9 not in the start scene"),
+    (START, "fly o1 o2", "unknown word 'fly'"),
+    (START, "on o1", "on takes 2 objects, got 1"),
+    (START, "row o4 o0", "o4 is a long block"),
+])
+def test_a_spec_the_world_cannot_give_is_one_line_and_writes_nothing(tmp_path, capsys,
+                                                                   start, spec, why):
+    save_scene(start, tmp_path / "start.yaml")
+    out = tmp_path / "goal.yaml"
+    assert_bad_input(*run(["goal", "--start", tmp_path / "start.yaml", spec, "--out", out],
+                          capsys), why)
+    assert not out.exists()
+
+
+def test_an_unnamed_box_on_a_named_one_stays_so_the_spec_is_refused():
+    rider = Scene([*START.objects[:5], ObjectSpec("o5", "cube", [0.60, 0.0, 0.075])])
+    with pytest.raises(goals.SpecError, match="o5 rests on o2 and is not named"):
+        goals.check(goals.parse(["tower o2 o3"]), rider.object_states())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("specs", [["tower o3 o1 o0", "bridge o4 o2 o5"], ["row o0 o1 o3"]])
+def test_the_hand_builds_what_the_specs_name(tmp_path, capsys, specs):
+    save_scene(START, tmp_path / "start.yaml")
+    out = tmp_path / "goal.yaml"
+    code, _, err = run(["goal", "--start", tmp_path / "start.yaml", *specs, "--out", out,
+                        "--backend", "hand", "--json"], capsys)
+    assert code == 0, err
+    goal = load_scene(out)  # the written file, as a planner's goal would be read
+    positions = {o.name: o.position for o in goal.objects}
+    types = {o.name: o.type for o in goal.objects}
+    for structure in goals.parse(specs):
+        assert goals.holds(structure, positions, types) is None, structure
+    assert out.read_text().startswith(f"# goal: {'; '.join(specs)}\n")
