@@ -92,3 +92,35 @@ def test_the_hand_builds_what_the_specs_name(tmp_path, capsys, specs):
     for structure in goals.parse(specs):
         assert goals.holds(structure, positions, types) is None, structure
     assert out.read_text().startswith(f"# goal: {'; '.join(specs)}\n")
+
+
+def test_a_task_samples_a_structure_k_actions_away():
+    import numpy as np
+
+    objects, rng = START.object_states(), np.random.default_rng(0)
+    (tower,) = goals.sample_structures(rng, objects, "tower", 3)
+    assert tower.word == "tower" and len(set(tower.objects)) == 4
+    assert len(goals.build_actions([tower], objects)) == 3
+    two = goals.sample_structures(rng, objects, "towers", 4)
+    assert [s.word for s in two] == ["tower", "tower"] and min(len(s.objects) for s in two) >= 2
+    assert len(goals.build_actions(two, objects)) == 4
+    (row,) = goals.sample_structures(rng, objects, "row", 2)
+    assert all(objects[n].type == "cube" for n in row.objects)
+    assert goals.sample_structures(rng, objects, "row", 5) == "too_few_objects"  # 5 cubes
+
+
+@pytest.mark.slow
+def test_problems_make_builds_a_tower_task(tmp_path, capsys):
+    import json
+
+    code, _, err = run(["problems", "make", "--out", tmp_path, "--objects", "3", "--k", "2",
+                        "--count", "1", "--task", "tower", "--backend", "hand", "--json"],
+                       capsys)
+    assert code == 0, err
+    problem = json.loads((tmp_path / "p000" / "problem.json").read_text())
+    (spec,) = problem["spec"]
+    assert spec.startswith("tower ") and len(problem["actions"]) == 2
+    goal = load_scene(tmp_path / "p000" / "goal.yaml")
+    positions = {o.name: o.position for o in goal.objects}
+    types = {o.name: o.type for o in goal.objects}
+    assert goals.holds(goals.parse([spec])[0], positions, types) is None

@@ -35,6 +35,7 @@ from drake_symplan.cli.options import (
     load_scene_pair,
     solve_config,
 )
+from drake_symplan.evaluation.goals import TASKS
 
 
 def register(subparsers) -> None:
@@ -86,6 +87,10 @@ def _register_problems(subparsers) -> None:
     p.add_argument("--reproducible", action="store_true",
                    help="keep a goal only if its actions, replayed from the start as saved, "
                    "reach it again (drops chaotic goals; the oracle then solves every one)")
+    p.add_argument("--task", choices=TASKS, default=None,
+                   help="goals built by design, k actions away (evaluation/goals.py): a tower "
+                   "of k + 1 boxes, a row of k + 1 cubes, two towers of k + 2 boxes; "
+                   "default: k random actions")
     add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)
 
@@ -159,7 +164,8 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
     check_output_dir(args.out)
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
-                            reproducible=args.reproducible, camera_noise=args.camera_noise)
+                            reproducible=args.reproducible, camera_noise=args.camera_noise,
+                            task=args.task)
     out = {"out": str(args.out), **summary}
     if not args.json:
         print(f"{summary['kept']} problem(s) in {args.out} after {summary['attempts']} "

@@ -38,7 +38,8 @@ def register(subparsers) -> None:
     p.add_argument("--start", required=True, type=Path, help="start scene YAML")
     p.add_argument("--out", required=True, type=Path, help="goal scene YAML to write")
     p.add_argument("--no-reproducible", dest="reproducible", action="store_false",
-                   help="keep a built goal even if replaying its actions lands elsewhere")
+                   help="keep a built goal even if replaying its actions lands elsewhere "
+                   "(default: only a goal the replay reaches again)")
     add_robot_argument(p)
     add_camera_noise_argument(p)
     add_json_argument(p)

@@ -23,7 +23,6 @@ import numpy as np
 from drake_symplan.actions import OFFSET_METRES, Action
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
-from drake_symplan.skills.carry import riders
 
 ARITY = {"on": (2, 2), "tower": (2, None), "bridge": (3, 3), "row": (2, None)}
 BRIDGE_SPAN = (0.06, 0.17)  # m: supports' distance along y that the long block spans
@@ -64,6 +63,8 @@ def parse(specs: list[str]) -> list[Structure]:
 
 def check(structures: list[Structure], objects: dict[str, ObjectState]) -> None:
     """SpecError, naming why, unless the start scene `objects` (beliefs) can give them."""
+    from drake_symplan.skills.carry import riders  # Drake: not when the CLI is built
+
     named = [n for s in structures for n in s.objects]
     unknown = sorted(set(named) - set(objects))
     if unknown:
@@ -125,6 +126,27 @@ def build_actions(structures: list[Structure], objects: dict[str, ObjectState]) 
             actions += [Action(names[i + 1], "center", names[i], "right")
                         for i in range(len(names) - 1)]
     return actions
+
+
+TASKS = ("tower", "row", "towers")  # `problems make --task`: what a random goal builds
+
+
+def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState], task: str,
+                      k: int) -> list[Structure] | str:
+    """A random goal of `task` that takes `k` actions to build from `objects`: a tower of
+    k + 1 boxes, a row of k + 1 cubes, or two towers of k + 2 boxes; or why the scene
+    cannot give one (a string)."""
+    names = [str(n) for n in rng.permutation(sorted(objects))]
+    if task == "row":
+        names = [n for n in names if objects[n].type == "cube"]
+    need = k + 2 if task == "towers" else k + 1
+    if len(names) < need:
+        return "too_few_objects"
+    names = names[:need]
+    if task == "towers":
+        cut = int(rng.integers(2, need - 1))  # each tower of two or more
+        return [Structure("tower", tuple(names[:cut])), Structure("tower", tuple(names[cut:]))]
+    return [Structure(task, tuple(names))]
 
 
 def holds(structure: Structure, positions: dict[str, np.ndarray], types: dict[str, str],

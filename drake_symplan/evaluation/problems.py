@@ -79,10 +79,13 @@ def problem_seed(seed: int, attempt: int) -> int:
 
 
 def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float = 0.5,
-                 reproducible: bool = False):
-    """(start, goal, info) for one random problem, or the reason it was dropped (a string)."""
+                 reproducible: bool = False, task: str | None = None):
+    """(start, goal, info) for one random problem, or the reason it was dropped (a string);
+    with `task` (goals.TASKS) the goal is a structure k actions away, built by design."""
     rng = np.random.default_rng(seed)
     start = sample_scene(rng, n_objects, long_fraction=long_fraction)
+    if task is not None:
+        return _built_problem(agent, rng, start, task, k, reproducible)
     seen = agent.look(start)
     if seen.lost or seen.extra:
         return "perception_start"
@@ -103,6 +106,21 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
         now = after
     made = settle_goal(agent, start, first, now, actions, reproducible)
     return made if isinstance(made, str) else (start, *made)
+
+
+def _built_problem(agent, rng, start, task: str, k: int, reproducible: bool):
+    """(start, goal, info) of a random goal of `task` built from `start`, or why not."""
+    structures = goals.sample_structures(rng, start.object_states(), task, k)
+    if isinstance(structures, str):
+        return structures
+    try:
+        made = build_goal(agent, start, structures, reproducible)
+    except goals.SpecError:
+        return "spec_refused"
+    if isinstance(made, str):
+        return made.split(" ", 1)[0].removesuffix(":")  # the reason's class, for counting
+    goal, info = made
+    return start, goal, {"spec": [s.text() for s in structures], **info}
 
 
 def settle_goal(agent, start, first, now, actions: list[str], reproducible: bool):
@@ -185,7 +203,8 @@ def replay(agent, start, actions: list[Action]):
 
 def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: str = "arm",
                   max_attempts: int | None = None, agent=None, progress=None,
-                  reproducible: bool = False, camera_noise: str = "none") -> dict:
+                  reproducible: bool = False, camera_noise: str = "none",
+                  task: str | None = None) -> dict:
     """Writes `count` non-trivial problems with `n_objects` objects to `out_dir`/pNNN.
 
     `k`: actions per problem, an int or a list taken in turn; `camera_noise`: the sensor
@@ -205,6 +224,8 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
                 "camera_noise": camera_noise}
     if reproducible:  # only then, so that sets made before still resume
         settings["reproducible"] = True
+    if task is not None:
+        settings["task"] = task
     stored = summary.get("settings")
     if isinstance(stored, dict):  # sets made before the sensor model was recorded: none
         stored = {"camera_noise": "none", **stored}
@@ -221,7 +242,7 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
         kk = ks[kept % len(ks)]
         pseed = problem_seed(seed, attempt)
         attempt += 1
-        made = make_problem(agent, pseed, n_objects, kk, reproducible=reproducible)
+        made = make_problem(agent, pseed, n_objects, kk, reproducible=reproducible, task=task)
         if isinstance(made, str):
             rejected[made] += 1
         else:
