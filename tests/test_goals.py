@@ -124,3 +124,24 @@ def test_problems_make_builds_a_tower_task(tmp_path, capsys):
     positions = {o.name: o.position for o in goal.objects}
     types = {o.name: o.type for o in goal.objects}
     assert goals.holds(goals.parse([spec])[0], positions, types) is None
+
+
+def test_solve_takes_a_goal_spec_checked_like_goals(tmp_path, capsys):
+    save_scene(START, tmp_path / "start.yaml")
+    assert_bad_input(*run(["solve", "--start", tmp_path / "start.yaml", "--goal-spec",
+                           "tower o2 o2"], capsys), "o2 named twice")
+    assert_bad_input(*run(["solve", "--start", tmp_path / "start.yaml", "--goal",
+                           tmp_path / "start.yaml", "--goal-spec", "on o1 o2"], capsys),
+                     "not allowed with argument")
+
+
+@pytest.mark.slow
+def test_solve_builds_the_written_goal_then_solves_it(tmp_path, capsys):
+    import json
+
+    save_scene(START, tmp_path / "start.yaml")
+    code, out, err = run(["solve", "--start", tmp_path / "start.yaml", "--goal-spec",
+                          "on o3 o2", "--backend", "hand", "--json"], capsys)
+    result = json.loads(out)
+    assert result["goal_spec"] == ["on o3 o2"]
+    assert code == 0 and result["status"] == "success", err

@@ -54,9 +54,13 @@ def _register_solve(subparsers) -> None:
         "models/demo/ holds the demo's.")
     p.add_argument("--start", required=True, type=Path,
                    help="start scene YAML (world/scenes.py format)")
-    p.add_argument("--goal", required=True, type=Path,
-                   help="goal scene YAML with the start's objects (only perceived; the file "
-                   "names the objects)")
+    goal = p.add_mutually_exclusive_group(required=True)
+    goal.add_argument("--goal", type=Path,
+                      help="goal scene YAML with the start's objects (only perceived; the "
+                      "file names the objects)")
+    goal.add_argument("--goal-spec", nargs="+", metavar="SPEC",
+                      help="the goal written in one line instead ('tower o3 o1 o0', "
+                      "docs/goals.md), built from the start by the robot before solving")
     add_model_argument(p)
     add_solve_arguments(p)
     add_robot_argument(p)
@@ -126,8 +130,21 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
     check_output_file(args.record, "--record")
-    start, goal = load_scene_pair(args.start, args.goal)
-    bundle = load_bundle(args.model)
+    if args.goal_spec:
+        from drake_symplan.cli.goal_cmds import built_goal, checked_specs
+        from drake_symplan.cli.world_cmds import load_scene_file
+
+        start = load_scene_file(args.start)
+        structures = checked_specs(start, args.goal_spec)
+        bundle = load_bundle(args.model)
+        made = built_goal(start, structures, args.backend, args.camera_noise)
+        if isinstance(made, str):
+            print(f"symplan solve: the goal was not built: {made}", file=sys.stderr)
+            return NegativeAnswer({"status": "not_built", "reason": made})
+        goal = made[0]
+    else:
+        start, goal = load_scene_pair(args.start, args.goal)
+        bundle = load_bundle(args.model)
 
     from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.solve import solve
@@ -140,6 +157,8 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     result = solve(start, goal, Abstraction(bundle), config, meshcat=meshcat,
                    record=args.record, robot=args.backend, camera_noise=args.camera_noise)
     out = result.to_json()
+    if args.goal_spec:
+        out["goal_spec"] = [" ".join(spec.split()) for spec in args.goal_spec]
     if args.camera_noise != "none":
         out["camera_noise"] = args.camera_noise
     if args.record:

@@ -46,27 +46,43 @@ def register(subparsers) -> None:
     p.set_defaults(func=cmd_goal)
 
 
+def checked_specs(start, specs: list[str]) -> list:
+    """The structures of `specs`, checked against the start scene's file (before Drake
+    loads); CommandError (one line, exit 2) naming what the start cannot give."""
+    from drake_symplan.evaluation import goals
+
+    try:
+        structures = goals.parse(specs)
+        goals.check(structures, start.object_states())
+    except goals.SpecError as e:
+        raise CommandError(str(e)) from e
+    return structures
+
+
+def built_goal(start, structures: list, backend: str, camera_noise: str,
+               reproducible: bool = True):
+    """(goal scene, info) built by the `backend` robot from `start`, or why not (a string)."""
+    from drake_symplan.agent.solve import Agent
+    from drake_symplan.evaluation import goals
+    from drake_symplan.evaluation.problems import build_goal
+
+    try:
+        return build_goal(Agent(backend, camera_noise=camera_noise), start, structures,
+                          reproducible)
+    except goals.SpecError as e:  # what was perceived cannot give it
+        raise CommandError(str(e)) from e
+
+
 def cmd_goal(args: argparse.Namespace) -> dict:
     from drake_symplan.cli.world_cmds import load_scene_file
-    from drake_symplan.evaluation import goals
 
     check_output_file(args.out, "--out")
     start = load_scene_file(args.start)
-    try:
-        structures = goals.parse(args.specs)
-        goals.check(structures, start.object_states())  # the file, before Drake loads
-    except goals.SpecError as e:
-        raise CommandError(str(e)) from e
+    structures = checked_specs(start, args.specs)
 
-    from drake_symplan.agent.solve import Agent
-    from drake_symplan.evaluation.problems import build_goal
     from drake_symplan.world.scenes import save_scene
 
-    agent = Agent(args.backend, camera_noise=args.camera_noise)
-    try:
-        made = build_goal(agent, start, structures, args.reproducible)
-    except goals.SpecError as e:  # what was perceived cannot give it
-        raise CommandError(str(e)) from e
+    made = built_goal(start, structures, args.backend, args.camera_noise, args.reproducible)
     out = {"start": str(args.start), "specs": [s.text() for s in structures],
            "backend": args.backend}
     if isinstance(made, str):
