@@ -145,3 +145,12 @@ def test_solve_builds_the_written_goal_then_solves_it(tmp_path, capsys):
     result = json.loads(out)
     assert result["goal_spec"] == ["on o3 o2"]
     assert code == 0 and result["status"] == "success", err
+
+
+def test_the_demo_takes_a_goal_spec_checked_before_anything_runs(tmp_path, capsys):
+    out = tmp_path / "demo.html"
+    assert_bad_input(*run(["demo", "--goal-spec", "tower o0 o0", "--out", out], capsys),
+                     "o0 named twice")
+    assert_bad_input(*run(["demo", "--goal-spec", "tower o0 o5", "--objects", "3", "--out",
+                           out], capsys), "o5 not in the start scene")
+    assert not out.exists()

@@ -84,6 +84,10 @@ def add_demo_arguments(p: argparse.ArgumentParser, out_dir: Path,
                    help="start scene YAML (with --goal), e.g. a problem of `symplan "
                    "problems make` or a file of `symplan scene sample`")
     p.add_argument("--goal", type=Path, default=None, help="goal scene YAML (with --start)")
+    p.add_argument("--goal-spec", nargs="+", metavar="SPEC", default=None,
+                   help="a goal written in one line ('tower o0 o1 o2 o3', docs/goals.md), "
+                   "built by the arm from --start or, by default, from a scattered start of "
+                   "--objects boxes sampled with --seed (default 0)")
     p.add_argument("--out", type=Path, default=out_dir / "demo.html",
                    help="the HTML recording (default out/demo.html)")
     p.add_argument("--no-record", action="store_true", help="write no recording")
@@ -131,6 +135,8 @@ def check_inputs(args: argparse.Namespace):
     from drake_symplan.pipelines.demo import shipped_problem
     from drake_symplan.pipelines.from_scratch import MIN_BUDGET_MINUTES
 
+    if args.goal_spec:
+        return _spec_inputs(args)
     if (args.start is None) != (args.goal is None):
         raise CommandError("give --start and --goal together")
     if args.start is not None and args.seed is not None:
@@ -150,6 +156,24 @@ def check_inputs(args: argparse.Namespace):
         raise CommandError(f"--budget-minutes must be at least {MIN_BUDGET_MINUTES:g}, got "
                            f"{args.budget_minutes:g}")
     return None, start, goal
+
+
+def _spec_inputs(args: argparse.Namespace):
+    """check_inputs for --goal-spec: (bundle, start, None), the start given or scattered."""
+    from drake_symplan.cli.goal_cmds import checked_specs
+    from drake_symplan.cli.world_cmds import load_scene_file
+    from drake_symplan.pipelines.demo import scattered_start
+
+    if args.goal is not None or args.from_scratch:
+        raise CommandError("give --goal-spec without --goal and --from-scratch")
+    if args.start is not None:
+        start = load_scene_file(args.start)
+    else:
+        check_objects(args.objects)
+        args.seed = 0 if args.seed is None else args.seed
+        start = scattered_start(args.seed, args.objects)
+    checked_specs(start, args.goal_spec)
+    return load_bundle(args.model, missing="no model at"), start, None
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -177,7 +201,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             return 1
     settings = DemoSettings(args.seed, args.objects, args.k, args.start, args.goal,
                             None if args.no_record else args.out, args.meshcat,
-                            args.camera_noise)
+                            args.camera_noise, args.goal_spec)
     outcome = run_demo(bundle, settings, config, start, goal, say, t0)
     if args.json and outcome.result is not None:
         print(json.dumps(outcome.result, indent=2))

@@ -54,6 +54,7 @@ class DemoSettings:
     record: Path | None = None
     meshcat: bool = False
     camera_noise: str = "none"
+    goal_spec: list[str] | None = None  # a goal written in one line, built from the start
 
 
 @dc.dataclass
@@ -120,8 +121,36 @@ def panel(result: dict, demo: dict) -> str:
     return panel_html(f"symplan demo (seed {demo.get('seed', '-')})", sections)
 
 
+def scattered_start(seed: int, objects: int):
+    """A start scene of `objects` boxes standing apart on the table (sampled with `seed`)."""
+    from drake_symplan.world.scenes import sample_scene
+
+    return sample_scene(np.random.default_rng(seed), objects)
+
+
+def build_spec_goal(agent, settings: DemoSettings, start, demo: dict, say):
+    """(start, goal) with the goal built from `start` by the arm after settings.goal_spec
+    (evaluation/goals.py); None when it could not be built (told)."""
+    from drake_symplan.evaluation import goals
+    from drake_symplan.evaluation.problems import build_goal
+
+    structures = goals.parse(settings.goal_spec)
+    say(f"building the goal {'; '.join(s.text() for s in structures)} with the UR10 ...")
+    made = build_goal(agent, start, structures)
+    if isinstance(made, str):
+        say(f"the goal was not built: {made}; try another --seed")
+        return None
+    goal, info = made
+    demo.update(goal_spec=[s.text() for s in structures], actions=info["actions"],
+                k=len(info["actions"]))
+    say(f"goal: {'; '.join(demo['goal_spec'])}, {demo['k']} designed actions away")
+    return start, goal
+
+
 def pose_problem(agent, settings: DemoSettings, start, goal, demo: dict, say):
     """(start, goal) of the episode, told and noted in `demo`; None when no goal came."""
+    if settings.goal_spec:
+        return build_spec_goal(agent, settings, start, demo, say)
     if start is None:
         say(f"making a goal: {settings.objects} objects, random actions by the UR10 ...")
         made = make_goal(agent, settings.seed, settings.objects, settings.k, say)
