@@ -118,7 +118,7 @@ def _built_problem(agent, rng, start, task: str, k: int, reproducible: bool):
     except goals.SpecError:
         return "spec_refused"
     if isinstance(made, str):
-        return made.split(" ", 1)[0].removesuffix(":")  # the reason's class, for counting
+        return made.split(" ", 1)[0].removesuffix(":")  # its class (not_built, ...), counted
     goal, info = made
     return start, goal, {"spec": [s.text() for s in structures], **info}
 
@@ -171,7 +171,7 @@ def build_goal(agent, start, structures: list, reproducible: bool = True):
     for structure in structures:
         wrong = goals.holds(structure, positions, types)
         if wrong is not None:
-            return f"not built: {structure.text()!r}: {wrong}"
+            return f"not_built: {structure.text()!r}: {wrong}"
     return settle_goal(agent, start, seen.scene, now, done, reproducible)
 
 
