@@ -243,24 +243,23 @@ def situation(tr: Lifted) -> tuple:
     """What the action met, whatever its objects are named: (grasp, release, objects, atoms
     before as operators read them) in the order of the other objects that gives the
     smallest atoms. Transitions in one situation differ only in what followed."""
-    return situation_effect(tr)[0]
+    pre = min(_sorted(_rename(tr.read_before, tr.bindings[sel]))
+              for sel in tr.bindings if len(sel) == tr.n - 2)
+    return tr.grasp, tr.release, tr.n, pre
 
 
 def situation_effect(tr: Lifted) -> tuple[tuple, tuple]:
     """(situation, symbolic effect (add, delete)) named by the same binding: of the
     orderings of the other objects that give the situation's atoms, the one giving the
     smallest effect, so two transitions that differ only in names get equal keys."""
-    views = []
-    for sel in tr.bindings:
-        if len(sel) != tr.n - 2:
-            continue
-        m = tr.bindings[sel]
-        add, delete = changes(*(_rename(x, m) for x in (
-            tr.before, tr.after, tr.unknown_before, tr.unknown_after)))
-        views.append((_sorted(_rename(tr.read_before, m)), (_sorted(add), _sorted(delete))))
-    pre = min(v[0] for v in views)
-    effect = min(e for p, e in views if p == pre)
-    return (tr.grasp, tr.release, tr.n, pre), effect
+    where = situation(tr)
+    effects = []
+    for sel, m in tr.bindings.items():
+        if len(sel) == tr.n - 2 and _sorted(_rename(tr.read_before, m)) == where[3]:
+            add, delete = changes(*(_rename(x, m) for x in (
+                tr.before, tr.after, tr.unknown_before, tr.unknown_after)))
+            effects.append((_sorted(add), _sorted(delete)))
+    return where, min(effects)
 
 
 def _compatible(add, delete, unknown, group_add, group_delete) -> bool:
