@@ -70,18 +70,23 @@ class Level:
     plan carries the scene predicted after each step and is monitored on positions (else
     on its symbols); `symbolic`, a plan on symbols alone, which the agent completes as it
     runs: offsets (abstraction/offsets.py, the geometric scorer) and repositionings
-    (agent/reposition.py)."""
+    (agent/reposition.py); `subgoal`, the plan reaches a subgoal on the way (a skeleton's
+    first steps, bilevel.py's receding horizon): at its end the agent plans again from
+    what it sees, a replan the plan scheduled rather than a departure."""
 
     name: str
     predicts_positions: bool
     symbolic: bool
+    subgoal: bool = False
 
 
-# Plan.level's values: the symbolic planner's plan, a refined skeleton, the continuous
-# search's plan, the steps predicted nearest the goal (bilevel.py), the oracle's replay.
+# Plan.level's values: the symbolic planner's plan, a refined skeleton, a skeleton's first
+# steps refined to its subgoal, the continuous search's plan, the steps predicted nearest
+# the goal (bilevel.py), the oracle's replay.
 LEVELS = {level.name: level for level in (
     Level("symbolic", predicts_positions=False, symbolic=True),
     Level("bilevel", predicts_positions=True, symbolic=False),
+    Level("receding", predicts_positions=True, symbolic=False, subgoal=True),
     Level("continuous", predicts_positions=True, symbolic=False),
     Level("nearest", predicts_positions=True, symbolic=False),
     Level("oracle", predicts_positions=False, symbolic=False))}
@@ -120,6 +125,11 @@ class Plan:
         """Is it a plan on symbols alone, for the agent to complete? (Level)"""
         return LEVELS[self.level].symbolic
 
+    @property
+    def subgoal(self) -> bool:
+        """Does it end at a subgoal, where the agent plans on? (Level)"""
+        return LEVELS[self.level].subgoal
+
 
 def problem_text(task: Task, costs: bool) -> str:
     """The PDDL problem of `task` (minimising total cost with `costs`)."""
@@ -129,7 +139,7 @@ def problem_text(task: Task, costs: bool) -> str:
 
 def plan_task(operators, domain: Callable[[], str], task: Task, planner: str = "fd",
               wall_seconds: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None,
-              penalties: Mapping[tuple[str, str], int] | None = None) -> PlanResult:
+              penalties: Mapping[tuple[str, ...], int] | None = None) -> PlanResult:
     """Plans `task` with `operators`: Fast Downward's search on the task grounded here
     (planning/grounding.py, where `penalties` make moves of (source, target) pairs dearer)
     where its build has a search binary, else the planner on the PDDL `domain()` text
@@ -217,7 +227,7 @@ class Abstraction:
 
     def plan(self, start: Reading, goal: Reading, planner: str = "fd",
              budget: Budget | None = None, focus: bool = True,
-             penalties: Mapping[tuple[str, str], int] | None = None) -> Plan:
+             penalties: Mapping[tuple[str, ...], int] | None = None) -> Plan:
         """Plans from start to goal within `budget` (planning.budget.Budget, from now;
         default DEFAULT_TIMEOUT CPU seconds). The `focus` objects first; only if that
         proves unsolvable, all of them, in the time left (`focus=False`: all of them). The

@@ -9,7 +9,15 @@ operators over the same objects after which the rest of the skeleton still reach
 goal's atoms, ordered by the predicted distance to the goal), then up to `extra_moves`
 moves that put a box down at its goal spot.
 A refinement is accepted when every box is predicted within the tolerance less a margin
-of its goal position; otherwise the search backtracks over choices, then skeletons. When
+of its goal position; otherwise the search backtracks over choices, then skeletons.
+With a receding `horizon` (`--planning receding`), a skeleton longer than it is refined
+only over its first `horizon` steps, to the skeleton's subgoal there (SeSamE's expected
+atoms, with positions: `Refiner.subgoal_reached`): the rest still reaches the goal's atoms,
+every box the rest leaves alone and the first steps placed is predicted at its goal, and
+no box the rest leaves alone is predicted farther from its goal than before. The learned
+model checks one or two steps well and ten badly (its error after five actions is several
+centimetres), so a long plan is checked piecewise: the agent runs the first steps,
+perceives, and plans again from what it sees. When
 no skeleton refines (or the planner finds none) a weighted best-first search over all
 pick/place actions, with the same model and the summed predicted distance to the goal as
 its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap
@@ -48,6 +56,8 @@ SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
+SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
+MOVED = 0.02  # m: a box predicted to go this far has moved (a rider too)
 SEARCH = "continuous"  # the Candidate.source of the continuous search
 
 
@@ -56,11 +66,17 @@ class Search:
     """How `plan_bilevel` plans: `skeletons`, refine the symbolic planner's skeletons
     first (bilevel), else the continuous search alone; `planner`, the symbolic planner's
     back-end (planning.planners.PLANNERS); `alternatives`, skeletons asked for beyond the
-    first two (`skeletons`)."""
+    first two (`skeletons`); `horizon`, refine a longer skeleton only that far, to its
+    subgoal (None: whole skeletons)."""
+
+    def __post_init__(self):
+        if self.horizon is not None and self.horizon < 1:
+            raise ValueError(f"the receding horizon must be 1 or more, got {self.horizon}")
 
     skeletons: bool = True
     planner: str = "fd"
     alternatives: int = 0
+    horizon: int | None = None  # steps of a longer skeleton refined to its subgoal
 
     @property
     def level(self) -> str:
@@ -94,16 +110,24 @@ class Candidate:
 
 @dataclass
 class Refined:
-    """A plan of typed steps with the scene predicted after each."""
+    """A plan of typed steps with the scene predicted after each; `subgoal`: the first
+    steps of a longer skeleton, refined to its subgoal (Refiner.refine's horizon)."""
 
     steps: list[PlanStep]
     predicted: list[Boxes]
+    subgoal: bool = False
 
 
 def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> bool:
     """Is every box predicted within `limit` of its goal, its spread counted against it
     (boxes.goal_reached)?"""
     return goal_reached(goal_errors(boxes, goal), limit)
+
+
+def moved(before: Boxes, after: Boxes) -> set[str]:
+    """The boxes predicted more than MOVED from where they were."""
+    then = before.where()
+    return {n for n, p in after.where().items() if np.linalg.norm(p - then[n]) > MOVED}
 
 
 def moves(names, sources, half_length, kind: str = "reposition") -> list[Reposition]:
@@ -147,12 +171,21 @@ class Refiner:
         return rollout(self._predict, boxes, steps)[-1] if steps else boxes
 
     def refine(self, skeleton: list[Step], start: Boxes, believed, goal_atoms,
-               goal: dict[str, np.ndarray], budget: Budget) -> Refined | None:
+               goal: dict[str, np.ndarray], budget: Budget, horizon: int | None = None
+               ) -> Refined | None:
         """The skeleton's offsets chosen and extra moves added so that the predicted end
-        reaches `goal` (positions by name), or None."""
+        reaches `goal` (positions by name), or None. A skeleton longer than `horizon`:
+        its first `horizon` steps' offsets, chosen so that they reach its subgoal."""
+        before = goal_errors(start, goal)
+
         def extend(i: int, boxes: Boxes, state, done: Refined) -> Refined | None:
             if i == len(skeleton):
                 return self.finish(boxes, done, goal, budget)
+            if i == horizon:
+                placed = {s.action.source for s in done.steps}
+                later = moved(boxes, self.rollout(boxes, skeleton[i:]))
+                return done if self.subgoal_reached(boxes, goal, before, placed, later) \
+                    else None
             scorer = PredictedScorer(self._predict, boxes, goal)
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
@@ -164,6 +197,23 @@ class Refiner:
             return None
 
         return extend(0, start, frozenset(believed), Refined([], []))
+
+    def subgoal_reached(self, boxes: Boxes, goal: dict[str, np.ndarray],
+                        before: dict[str, float], placed: set[str], later: set[str]) -> bool:
+        """Does the predicted scene `boxes` reach a skeleton's subgoal? Of the boxes the
+        rest of the skeleton does not move (`later`: predicted to move, riders too), those `placed` by the
+        steps so far and those at their goal `before` them (errors by name) are predicted
+        within the limit of their goal, and the others no farther from it than before
+        (SLACK)."""
+        for name, error in goal_errors(boxes, goal).items():
+            if name in later:
+                continue
+            if name in placed or before[name] <= self.limit:
+                if error > self.limit:
+                    return False
+            elif error > before[name] + SLACK:
+                return False
+        return True
 
     def finish(self, boxes: Boxes, done: Refined, goal, budget: Budget,
                depth: int = 0) -> Refined | None:
@@ -233,12 +283,14 @@ class _LookedAt:
 
 
 def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observation,
-                 budget: Budget, search: Search | None = None) -> Plan:
+                 budget: Budget, search: Search | None = None,
+                 penalties: dict[tuple[str, ...], int] | None = None) -> Plan:
     """A plan from the perceived `start` to `goal` (abstraction.Observation) within
     `budget`: with `search.skeletons` the symbolic planner's skeletons refined, then the
     continuous search; else the search alone (Search). An abstraction.Plan whose `level`
     says which found it, with the scene predicted after each step and the candidates
-    looked at (the rejected ones with why)."""
+    looked at (the rejected ones with why). `penalties`: costs added to the skeletons'
+    moves of (source, target) pairs (planning/grounding.py)."""
     t0 = time.perf_counter()
     search = search or Search()
     target = goal.boxes.where()
@@ -246,10 +298,11 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
     unverified = None  # the first skeleton, run on its symbols if nothing else is found
     if search.skeletons:
         refined, unverified = _refine_skeletons(abstraction, refiner, start, goal, budget,
-                                                search, looked_at)
+                                                search, looked_at, penalties)
         if refined is not None:
+            level = "receding" if refined.subgoal else "bilevel"
             return Plan("solved", refined.steps, time.perf_counter() - t0, "", search.planner,
-                        level="bilevel", predicted=refined.predicted,
+                        level=level, predicted=refined.predicted,
                         candidates=looked_at.candidates)
     looked_at.restart()  # a planner call that gave no new skeleton is not counted
     refined, nearest = refiner.search(start.boxes, target, budget)
@@ -279,7 +332,8 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
 
 
 def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: Observation,
-                      budget: Budget, search: Search, looked_at: _LookedAt
+                      budget: Budget, search: Search, looked_at: _LookedAt,
+                      penalties: dict[tuple[str, ...], int] | None = None
                       ) -> tuple[Refined | None, Plan | None]:
     """The skeletons' part of `plan_bilevel`, in its share of `budget`: (the first
     skeleton refined or None, the first skeleton the planner found or None)."""
@@ -289,15 +343,20 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
     symbolic = budget.share(1 - SEARCH_SHARE)
     unverified = None
     for i, found in enumerate(skeletons(abstraction, start.reading, goal.reading,
-                                        search.planner, symbolic, search.alternatives), 1):
+                                        search.planner, symbolic, search.alternatives,
+                                        penalties), 1):
         if not found.solved:
             looked_at(Candidate(f"skeleton {i}", [], False, f"planner: {found.status}"))
             continue
         unverified = unverified or found
+        horizon = search.horizon if search.horizon is not None \
+            and len(found.steps) > search.horizon else None
         refined = refiner.refine(found.steps, start.boxes, believed, goal_atoms, target,
-                                 symbolic)
+                                 symbolic, horizon)
+        if refined is not None:
+            refined.subgoal = horizon is not None
         looked_at(_candidate(f"skeleton {i}", found.steps, refined, refiner, start.boxes,
-                             target))
+                             target, horizon))
         if refined is not None:
             return refined, unverified
         if symbolic.spent():
@@ -315,15 +374,19 @@ def _nearer(plan: Refined, start: Boxes, goal: dict[str, np.ndarray]) -> bool:
 
 
 def skeletons(abstraction, start, goal, planner: str, budget: Budget,
-              alternatives: int = 0):
+              alternatives: int = 0, given: dict[tuple[str, ...], int] | None = None):
     """The symbolic planner's plans: the focus objects' first, then over every object
     when that gives another, then up to `alternatives` more over every object, each with
     the moves of the plans so far made dearer by PENALTY per plan (diverse planning by
     penalties: the next plan moves other boxes, or onto others, where the domain allows;
     the refiner already tries other offsets of the same moves). Each call has
     SKELETON_SHARE of the budget left; no further call after a timeout, an unsolved call
-    or a plan seen before."""
+    or a plan seen before. `given`: penalties every call starts from."""
+    base = dict(given or {})
+    penalties: Counter = Counter(base)
+
     def call(**options):
+        options.setdefault("penalties", base or None)
         return abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE), **options)
 
     first = call()
@@ -331,7 +394,6 @@ def skeletons(abstraction, start, goal, planner: str, budget: Budget,
     if first.status == "timeout" or budget.spent():
         return
     seen: set[tuple[str, ...]] = set()
-    penalties: Counter = Counter()
 
     def remember(plan):
         seen.add(tuple(map(str, plan.steps)))
@@ -353,15 +415,23 @@ def skeletons(abstraction, start, goal, planner: str, budget: Budget,
 
 
 def _candidate(source: str, skeleton, refined: Refined | None, refiner: Refiner,
-               start: Boxes, target) -> Candidate:
+               start: Boxes, target, horizon: int | None = None) -> Candidate:
     """The candidate record of a refinement or search (rejected when `refined` is None:
-    the skeleton's own predicted end is what missed)."""
+    the skeleton's own predicted end, or its subgoal's with a `horizon`, is what
+    missed)."""
     if refined is not None:
         end = refined.predicted[-1] if refined.predicted else start
-        return Candidate(source, [str(s) for s in refined.steps], True, "",
+        why = f"the first {horizon} of {len(skeleton)} steps, to their subgoal" \
+            if refined.subgoal else ""
+        return Candidate(source, [str(s) for s in refined.steps], True, why,
                          _cm(goal_errors(end, target)))
     if not skeleton:
         return Candidate(source, [], False, "no plan within the budget")
+    if horizon is not None:
+        return Candidate(source, [str(s) for s in skeleton], False,
+                         f"no choice of offsets for the first {horizon} steps reaches the "
+                         "subgoal", _cm(goal_errors(refiner.rollout(start, skeleton[:horizon]),
+                                                    target)))
     errors = _cm(goal_errors(refiner.rollout(start, skeleton), target))
     far = {n: e for n, e in errors.items() if e > 100 * refiner.limit}
     return Candidate(source, [str(s) for s in skeleton], False,

@@ -58,6 +58,9 @@ FAILURE_CAUSES = ("no_plan", "timeout", "execution", "perception", "infeasible",
 PHASES = ("perceive", "symbols", "plan", "execute", "total")
 # Planner statuses -> the agent's status (= failure cause) when the plan cannot be had.
 PLANNER_STATUS = {"unsolvable": "no_plan", "timeout": "timeout", "error": "error"}
+# Plans made at subgoals per object at most: a tower of n boxes from a scattered start is
+# n - 1 of them; unstacking first about doubles that.
+SUBGOALS_PER_OBJECT = 3
 
 
 @dc.dataclass
@@ -80,12 +83,16 @@ class SolveResult:
     # The first plan's candidates (bilevel and continuous planning): the plans looked at,
     # the rejected ones with why (abstraction/bilevel.py: Candidate).
     candidates: list = dc.field(default_factory=list)
-    # Which level found the first plan: "symbolic", "bilevel", "continuous", "nearest" (no
+    # Which level found the first plan: "symbolic", "bilevel", "receding" (a long skeleton's
+    # first steps, to its subgoal), "continuous", "nearest" (no
     # plan reaches the goal in prediction: the steps predicted nearest it) or "oracle".
     level: str = ""
     # Steps after which a box perceived resting on the carried one no longer rests on it
     # (skills/carry.riders on the perceived scenes before and after): riders dropped.
     dropped_riders: int = 0
+    # Plans made again where a plan ended at its subgoal (receding planning), apart from
+    # the replans on a departure
+    subgoals: int = 0
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -104,6 +111,8 @@ class SolveResult:
             out["candidates"] = [c.to_json() for c in self.candidates]
         if self.dropped_riders:
             out["dropped_riders"] = self.dropped_riders
+        if self.subgoals:
+            out["subgoals"] = self.subgoals
         if not self.success:
             out["failure_cause"] = self.failure_cause
             out["message"] = self.message
@@ -260,8 +269,13 @@ class _Run:
         return [_Planned(s, predicted[i] if i < len(predicted) else None)
                 for i, s in enumerate(found.steps)]
 
-    def _replan(self) -> list[_Planned]:
-        self.result.replans += 1
+    def _replan(self, scheduled: bool = False) -> list[_Planned]:
+        """A new plan from the scene perceived now: `scheduled` where the last plan
+        ended at its subgoal (counted apart from the replans on a departure)."""
+        if scheduled:
+            self.result.subgoals += 1
+        else:
+            self.result.replans += 1
         return self._steps(self._search())
 
     # --- execute --------------------------------------------------------------------
@@ -341,6 +355,7 @@ class _Run:
         (planning_modes.PlanningMode.departs), replans."""
         with self.clock("symbols"):
             self._perceived(self.scene)
+            self.planner.observed(step, predicted, self.now)
             wrong = self.planner.departs(step, predicted, self.now, self.rest,
                                          self.believed, self.goal_atoms, self.goal)
         if wrong and self.result.replans < self.config.max_replans:
@@ -355,14 +370,20 @@ class _Run:
     def _goal_seen(self) -> bool:
         """The plan has run out. The monitor checks that the goal's atoms are seen too (a
         step can pass its own check and still disturb another object): True when it
-        replanned and there are steps to run."""
-        if not self.config.monitor or self.result.replans >= self.config.max_replans:
+        replanned and there are steps to run. A plan that ended at its subgoal is
+        followed by the next (at most SUBGOALS_PER_OBJECT per object, apart from
+        `max_replans`)."""
+        if not self.config.monitor:
+            return False
+        scheduled = self.planner.subgoal_plan and \
+            self.result.subgoals < SUBGOALS_PER_OBJECT * len(self.scene.names)
+        if not scheduled and self.result.replans >= self.config.max_replans:
             return False
         with self.clock("symbols"):
             reached = self.planner.goal_seen(self.now, self.goal_atoms, self.goal)
         if reached:
             return False
-        self.todo = self._replan()
+        self.todo = self._replan(scheduled)
         return bool(self.todo)
 
     # --- check ----------------------------------------------------------------------

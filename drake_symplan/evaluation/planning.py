@@ -77,7 +77,7 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
         "symbolic_goal_reached": result.symbolic_goal_reached, "plan_length": len(result.plan),
         "level": result.level,
         "executed": len(result.executed), "replans": result.replans,
-        "dropped_riders": result.dropped_riders,
+        "dropped_riders": result.dropped_riders, "subgoals": result.subgoals,
         "seconds": {k: round(v, 4) for k, v in result.seconds.items()},
         "error_cm": {n: o["error_cm"] for n, o in result.objects.items()},
     }

@@ -81,9 +81,11 @@ def _bindings(op: LiftedOperator, by_slot: list[list[Atom]], objects: Sequence[s
 
 
 def ground(operators: Sequence[LiftedOperator], task: Task,
-           penalties: Mapping[tuple[str, str], int] | None = None) -> GroundTask:
+           penalties: Mapping[tuple[str, ...], int] | None = None) -> GroundTask:
     """The task's reachable actions and variables (module docstring); `penalties`: cost
-    added to every action that moves a (source, target) pair, whatever its offsets."""
+    added to every action whose arguments begin with the key: (source, target) for every
+    move of the pair whatever its offsets, longer keys for those that also name the
+    others (a carry's riders)."""
     penalties = penalties or {}
     ops = [(op, _slot_order(op)) for op in operators if op.n_params <= len(task.objects)]
     facts = set(task.init)
@@ -99,7 +101,8 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
                 found[op.name, args] = GroundAction(
                     f"{op.name} {' '.join(args)}", frozenset(a.ground(args) for a in op.pre),
                     add, frozenset(a.ground(args) for a in op.delete) - add,
-                    op.cost + penalties.get(args[:2], 0))
+                    op.cost + sum(cost for key, cost in penalties.items()
+                                  if args[:len(key)] == key))
                 grown |= not add <= facts
                 facts |= add
     actions = list(found.values())
@@ -145,7 +148,7 @@ def sas_text(task: GroundTask) -> str:
 def fast_downward_task(operators: Sequence[LiftedOperator], task: Task,
                        wall_seconds: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
                        cpu_seconds: float | None = None,
-                       penalties: Mapping[tuple[str, str], int] | None = None) -> PlanResult:
+                       penalties: Mapping[tuple[str, ...], int] | None = None) -> PlanResult:
     """Fast Downward's search on `task` grounded here (with `penalties`, see `ground`);
     the grounding's CPU time (this thread's: `eval operators` plans in threads) counts
     against `cpu_seconds` and its seconds against `wall_seconds`."""
