@@ -5,6 +5,7 @@ continuous search where the symbols find nothing; the continuous model's arithme
 from __future__ import annotations
 
 import time
+from collections import Counter
 from types import SimpleNamespace
 
 import numpy as np
@@ -14,7 +15,12 @@ from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.bilevel import PENALTY, Refiner, Search, plan_bilevel
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
 from drake_symplan.actions import Action, release_shift
-from drake_symplan.agent.planning_modes import BilevelMode, PlanningMode, SymbolicMode
+from drake_symplan.agent.planning_modes import (
+    BilevelMode,
+    PlanningMode,
+    RecedingMode,
+    SymbolicMode,
+)
 from drake_symplan.features import object_features
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import LiftedOperator, Reposition, Step
@@ -70,10 +76,12 @@ def observed(scene: Boxes) -> Observation:
     return Observation(None, None, scene)
 
 
-def solve(abstraction, goal: Boxes, extra_moves=0, skeletons=True, alternatives=0):
+def solve(abstraction, goal: Boxes, extra_moves=0, skeletons=True, alternatives=0,
+          horizon=None, penalties=None):
     refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=extra_moves)
     return plan_bilevel(abstraction, refiner, observed(START), observed(goal),
-                        Budget(10.0, 30.0), Search(skeletons, alternatives=alternatives))
+                        Budget(10.0, 30.0), Search(skeletons, alternatives=alternatives,
+                                                   horizon=horizon), penalties)
 
 
 def test_a_skeleton_whose_predicted_end_misses_the_goal_is_rejected_for_one_that_meets_it():
@@ -320,12 +328,13 @@ def test_each_mode_is_one_registered_class_whose_flags_say_what_it_needs():
     from drake_symplan.agent.config import SolveConfig
     from drake_symplan.agent.planning_modes import PLANNING_MODES, mode_names
 
-    assert tuple(PLANNING_MODES) == ("bilevel", "symbolic", "continuous", "oracle")
+    assert tuple(PLANNING_MODES) == ("bilevel", "receding", "symbolic", "continuous",
+                                     "oracle")
     assert all(issubclass(m, PlanningMode) and m.name == n for n, m in PLANNING_MODES.items())
-    assert mode_names() == ("bilevel", "symbolic", "continuous")  # solve has no actions
+    assert mode_names() == ("bilevel", "receding", "symbolic", "continuous")  # no actions
     assert mode_names(recorded_actions=True) == tuple(PLANNING_MODES)
-    assert [n for n, m in PLANNING_MODES.items() if m.needs_refiner] == ["bilevel",
-                                                                        "continuous"]
+    assert [n for n, m in PLANNING_MODES.items() if m.needs_refiner] == [
+        "bilevel", "receding", "continuous"]
     assert [n for n, m in PLANNING_MODES.items() if m.open_loop_only] == ["oracle"]
     assert SymbolicMode.needs_refiner is False
     try:
@@ -334,3 +343,60 @@ def test_each_mode_is_one_registered_class_whose_flags_say_what_it_needs():
         assert "bilevel" in str(e)
     else:
         raise AssertionError("an unknown mode passed")
+
+
+TOWER = boxes(a=(0.7, 0.0, 0.075), b=(0.7, 0.0, 0.125), c=(0.7, 0.0, 0.025))
+
+
+def test_a_long_skeleton_is_refined_to_its_subgoal_one_step_at_a_time():
+    # Two skeletons for the tower b on a on c; the first puts a on b, which the rest
+    # (b onto a) leaves there, off a's goal: its subgoal is missed.
+    wrong = Plan("solved", [Step(STACK["center"], ("a", "b")), Step(STACK["center"], ("b", "a"))])
+    right = Plan("solved", [Step(STACK["center"], ("a", "c")), Step(STACK["center"], ("b", "a"))])
+    found = solve(Skeletons(wrong, right), TOWER, horizon=1)
+    assert found.solved and found.level == "receding" and found.subgoal
+    assert [s.action for s in found.steps] == [Action("a", "center", "c", "center")]
+    assert np.allclose(found.predicted[-1].where()["a"], [0.7, 0.0, 0.075])
+    first, second = found.candidates
+    assert not first.accepted and "subgoal" in first.why
+    assert second.accepted and second.why == "the first 1 of 2 steps, to their subgoal"
+    # Without a horizon the same skeleton is refined whole: both steps, checked at the end.
+    whole = solve(Skeletons(wrong, right), TOWER)
+    assert whole.level == "bilevel" and not whole.subgoal and len(whole.steps) == 2
+    # A skeleton no longer than the horizon is refined whole too.
+    last = solve(Skeletons(Plan("solved", [Step(STACK["center"], ("b", "a"))])),
+                 boxes(a=(0.5, 0.2, 0.025), b=(0.5, 0.2, 0.075), c=(0.7, 0.0, 0.025)),
+                 horizon=1)
+    assert last.level == "bilevel" and len(last.steps) == 1
+
+
+def test_a_subgoal_holds_the_boxes_the_rest_leaves_alone_to_their_goals():
+    refiner = Refiner(list(STACK.values()), Stacking())
+    goal = TOWER.where()
+    before = {"a": 0.3, "b": 0.3, "c": 0.0}
+    at_goal = TOWER
+    assert refiner.subgoal_reached(at_goal, goal, before, placed={"a"}, later={"b"})
+    b_away = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    # b is 0.3 m off its goal and left alone: it may stay so, but not be placed off it...
+    assert refiner.subgoal_reached(b_away, goal, before, placed={"a"}, later=set())
+    assert not refiner.subgoal_reached(b_away, goal, before, placed={"a", "b"}, later=set())
+    # ... nor be pushed farther from it; and c, at its goal before, must stay there.
+    assert not refiner.subgoal_reached(b_away, goal, {**before, "b": 0.25}, {"a"}, set())
+    c_moved = boxes(a=(0.7, 0.0, 0.075), b=(0.7, 0.0, 0.125), c=(0.6, 0.0, 0.025))
+    assert not refiner.subgoal_reached(c_moved, goal, before, {"a"}, later={"b"})
+    assert refiner.subgoal_reached(c_moved, goal, before, {"a"}, later={"b", "c"})
+
+
+def test_a_step_that_missed_its_prediction_makes_its_move_dearer_in_later_plans():
+    planner = object.__new__(RecedingMode)  # the monitor's side alone
+    planner.penalties = Counter()
+    step = Step(STACK["center"], ("a", "c"))
+    predicted = Stacking().predict(START, [step.action])[0]
+    planner.observed(step, predicted, observe(Seen(predicted)))  # as predicted
+    assert not planner.penalties
+    planner.observed(step, predicted, observe(Seen(START)))  # a never left
+    assert planner.penalties == {("a", "c"): PENALTY}
+    # The penalties reach every skeleton the symbolic planner is asked for.
+    asked = Penalized()
+    solve(asked, TOWER, horizon=1, penalties=dict(planner.penalties))
+    assert asked.asked[0] == {("a", "c"): PENALTY}

@@ -87,6 +87,9 @@ def test_penalties_make_the_planner_move_other_boxes():
     assert first.plan == [f"({PUT.name} {source} c)", f"({MARK.name} {source} c)"]
     again = fast_downward_task([PUT, MARK], task, penalties={(source, "c"): 1000})
     assert again.plan == [f"({PUT.name} {other} c)", f"({MARK.name} {other} c)"]
+    # A key that names more arguments (a carry's rider) only prices actions that name them.
+    assert fast_downward_task([PUT, MARK], task, penalties={(source, "c", other): 1000}
+                              ).plan == first.plan
     # Where every plan moves the pair, the penalty costs but the plan stays.
     one = Task(("a", "c"), frozenset({Atom("p0", "a")}), frozenset({Atom("p1", "c")}))
     assert fast_downward_task([PUT, MARK], one, penalties={("a", "c"): 1000}).solved
