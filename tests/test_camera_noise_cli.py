@@ -189,3 +189,14 @@ def test_the_hand_perceives_again_after_a_miss_only_with_a_noisy_sensor(noise):
     # A real camera's next frames differ even when nothing moved: it looks again.
     assert (done.after is before) == (noise == "none")
     assert (hand.perception_seconds > seen) == (noise != "none")
+
+
+@pytest.mark.parametrize("noise", ["none", "realsense"])
+def test_perceive_prints_what_it_saw_with_and_without_a_sensor_model(noise, capsys):
+    code, out, err = run(["perceive", "--scene", DEMO / "start.yaml", "--camera-noise", noise],
+                         capsys)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert sum(" -> o" in ln for ln in lines) == 4  # the demo's four boxes, each matched
+    assert sum(ln.startswith("camera ") for ln in lines) == (3 if noise == "realsense" else 0)
+    assert lines[-1].startswith("contacts:")

@@ -67,7 +67,7 @@ def cmd_perceive(args: argparse.Namespace) -> dict:
         for d in objects:
             print(f"{d['name']} {d['type']:5s} {d['position']} yaw={d['yaw_deg']} "
                   f"tilt={d['tilt_deg']} -> {d['matched']}")
-        for r in result["sensor"]:
+        for r in result.get("sensor", []):
             print(f"camera {r['camera']}: {r['returns']} returns, {r['holes']} holes, "
                   f"{r['kept']} points kept, table tilt {r['table_tilt_deg']} deg")
         print(f"contacts: {result['contacts']}  ({seconds * 1000:.1f} ms)")
