@@ -126,13 +126,27 @@ def test_problems_make_builds_a_tower_task(tmp_path, capsys):
     assert goals.holds(goals.parse([spec])[0], positions, types) is None
 
 
-def test_solve_takes_a_goal_spec_checked_like_goals(tmp_path, capsys):
+@pytest.mark.parametrize("command, start", [("solve", "--start"), ("inspect", "--scene")])
+def test_solve_and_inspect_take_a_goal_spec_checked_like_goals(tmp_path, capsys, command,
+                                                               start):
     save_scene(START, tmp_path / "start.yaml")
-    assert_bad_input(*run(["solve", "--start", tmp_path / "start.yaml", "--goal-spec",
+    assert_bad_input(*run([command, start, tmp_path / "start.yaml", "--goal-spec",
                            "tower o2 o2"], capsys), "o2 named twice")
-    assert_bad_input(*run(["solve", "--start", tmp_path / "start.yaml", "--goal",
+    assert_bad_input(*run([command, start, tmp_path / "start.yaml", "--goal",
                            tmp_path / "start.yaml", "--goal-spec", "on o1 o2"], capsys),
                      "not allowed with argument")
+
+
+@pytest.mark.slow
+def test_inspect_builds_the_written_goal_and_plans_to_it(tmp_path, capsys):
+    import json
+
+    save_scene(START, tmp_path / "start.yaml")
+    code, out, err = run(["inspect", "--scene", tmp_path / "start.yaml", "--goal-spec",
+                          "on o3 o2", "--json"], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["goal_spec"] == ["on o3 o2"], err
+    assert result["plan_status"] == "solved" and len(result["plan"]) >= 1
 
 
 @pytest.mark.slow

@@ -96,6 +96,7 @@ class Candidate:
     why: str
     errors_cm: dict[str, float] = field(default_factory=dict)
     seconds: float = 0.0
+    rest: list[str] = field(default_factory=list)  # a subgoal's: the skeleton's steps after it
 
     @property
     def searched(self) -> bool:
@@ -103,9 +104,10 @@ class Candidate:
         return self.source == SEARCH
 
     def to_json(self) -> dict:
-        return {"source": self.source, "steps": self.steps, "accepted": self.accepted,
-                "why": self.why, "errors_cm": self.errors_cm,
-                "seconds": round(self.seconds, 4)}
+        out = {"source": self.source, "steps": self.steps, "accepted": self.accepted,
+               "why": self.why, "errors_cm": self.errors_cm,
+               "seconds": round(self.seconds, 4)}
+        return {**out, "rest": self.rest} if self.rest else out
 
 
 @dataclass
@@ -423,8 +425,9 @@ def _candidate(source: str, skeleton, refined: Refined | None, refiner: Refiner,
         end = refined.predicted[-1] if refined.predicted else start
         why = f"the first {horizon} of {len(skeleton)} steps, to their subgoal" \
             if refined.subgoal else ""
+        rest = [str(s) for s in skeleton[horizon:]] if refined.subgoal else []
         return Candidate(source, [str(s) for s in refined.steps], True, why,
-                         _cm(goal_errors(end, target)))
+                         _cm(goal_errors(end, target)), rest=rest)
     if not skeleton:
         return Candidate(source, [], False, "no plan within the budget")
     if horizon is not None:

@@ -291,12 +291,26 @@ def inspection_sections(result: dict) -> list[tuple[str, str]]:
                         for i, s in enumerate(result["plan"]))
         sections.append((f"Plan ({result['plan_status']}, {len(result['plan'])} steps)",
                          f"<ol style='padding-left:18px;margin:2px 0'>{steps}</ol>"))
+        for text in subgoal_texts(result):
+            sections.append(("Subgoal (then a new plan from what is seen)", _html.escape(text)))
         rejected = [c for c in result.get("candidates", []) if not c["accepted"]]
         if rejected:
             sections.append(("Rejected candidate plans", "".join(
                 f"<div>{_html.escape(c['source'])}: {_html.escape(' '.join(c['steps']))}"
                 f"<br><i>{_html.escape(c['why'])}</i></div>" for c in rejected)))
     return sections
+
+
+def subgoal_texts(result: dict) -> list[str]:
+    """A receding plan's subgoal (the accepted candidate that stops short of the goal):
+    where it stops, how far each box is predicted from its goal there, what comes next."""
+    out = []
+    for c in result.get("candidates", []):
+        if c["accepted"] and c.get("rest"):
+            far = {n: e for n, e in c["errors_cm"].items() if e > 0}
+            out.append(f"{c['why']}; predicted cm from the goal there: {far}; the skeleton "
+                       f"goes on: {' '.join(c['rest'])}")
+    return out
 
 
 def _step_html(s: dict) -> str:

@@ -131,17 +131,15 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     config = solve_config(args)
     check_output_file(args.record, "--record")
     if args.goal_spec:
-        from drake_symplan.cli.goal_cmds import built_goal, checked_specs
+        from drake_symplan.cli.goal_cmds import checked_specs, goal_of_specs
         from drake_symplan.cli.world_cmds import load_scene_file
 
         start = load_scene_file(args.start)
         structures = checked_specs(start, args.goal_spec)
         bundle = load_bundle(args.model)
-        made = built_goal(start, structures, args.backend, args.camera_noise)
-        if isinstance(made, str):
-            print(f"symplan solve: the goal was not built: {made}", file=sys.stderr)
-            return NegativeAnswer({"status": "not_built", "reason": made})
-        goal = made[0]
+        goal = goal_of_specs("solve", start, structures, args.backend, args.camera_noise)
+        if isinstance(goal, NegativeAnswer):
+            return goal
     else:
         start, goal = load_scene_pair(args.start, args.goal)
         bundle = load_bundle(args.model)

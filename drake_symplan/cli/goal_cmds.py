@@ -73,6 +73,18 @@ def built_goal(start, structures: list, backend: str, camera_noise: str,
         raise CommandError(str(e)) from e
 
 
+def goal_of_specs(command: str, start, structures: list, backend: str, camera_noise: str):
+    """The goal scene a command solves or shows, built from `start` (checked_specs); or the
+    NegativeAnswer it returns (exit 1, why on stderr) when the build fails."""
+    import sys
+
+    made = built_goal(start, structures, backend, camera_noise)
+    if isinstance(made, str):
+        print(f"symplan {command}: the goal was not built: {made}", file=sys.stderr)
+        return NegativeAnswer({"status": "not_built", "reason": made})
+    return made[0]
+
+
 def cmd_goal(args: argparse.Namespace) -> dict:
     from drake_symplan.cli.world_cmds import load_scene_file
 

@@ -1,6 +1,7 @@
 """`symplan inspect` and `symplan explain`: seeing what the learned symbols are.
 
-    symplan inspect --scene scene.yaml [--model DIR] [--goal goal.yaml] [--record out.html]
+    symplan inspect --scene scene.yaml [--model DIR] [--goal goal.yaml | --goal-spec SPEC ...]
+                    [--record out.html]
                     [--meshcat] [--planner fd|pyperplan] [--timeout 10] --json
     symplan explain [--model DIR] --data DIR [--margin 3] [--plot out.png] --json
 
@@ -40,7 +41,11 @@ def register(subparsers) -> None:
         "as arcs. The legend, the symbols and the plan's steps (operator, preconditions, "
         "effects) are printed and written into the recording's page.")
     p.add_argument("--scene", required=True, type=Path, help="scene YAML")
-    p.add_argument("--goal", type=Path, default=None, help="goal scene YAML (same objects)")
+    goal = p.add_mutually_exclusive_group()
+    goal.add_argument("--goal", type=Path, default=None, help="goal scene YAML (same objects)")
+    goal.add_argument("--goal-spec", nargs="+", metavar="SPEC", default=None,
+                      help="the goal written in one line instead ('tower o3 o1 o0', "
+                      "docs/goals.md), built from the scene by the arm first")
     p.add_argument("--model", type=Path, default=None,
                    help="model bundle directory (default: the shipped models/learned/)")
     p.add_argument("--record", type=Path, default=None,
@@ -98,9 +103,17 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     goal = load_scene_file(args.goal) if args.goal is not None else None
     if goal is not None:
         check_scene_pair(start, goal)
+    if args.goal_spec:
+        from drake_symplan.cli.goal_cmds import checked_specs, goal_of_specs
+
+        structures = checked_specs(start, args.goal_spec)
     from drake_symplan.symbolic.bundle import ModelBundle
 
     bundle = ModelBundle.load(_model_dir(args.model))
+    if args.goal_spec:
+        goal = goal_of_specs("inspect", start, structures, "arm", args.camera_noise)
+        if isinstance(goal, NegativeAnswer):
+            return goal
 
     from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.inspection import inspect, inspection_sections
@@ -119,6 +132,8 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     except (RuntimeError, PerceptionFailure) as e:  # the scene file cannot be perceived
         raise CommandError(f"{args.scene}: {e}") from e
     result["scene"] = str(args.scene)
+    if args.goal_spec:
+        result["goal_spec"] = [s.text() for s in structures]
     if args.camera_noise != "none":
         result["camera_noise"] = args.camera_noise
     if not args.json:
@@ -133,6 +148,8 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
 
 def summary_lines(result: dict, sections=None) -> list[str]:
     """The inspection as text: legend, objects, relations, goal atoms, plan steps."""
+    from drake_symplan.agent.inspection import subgoal_texts
+
     start = result["start"]
     lines = ["legend (unary bit pattern p0.. -> box colour): " + ", ".join(
         f"{p} {c}" for p, c in sorted(start["legend"]["unary"].items())),
@@ -154,6 +171,7 @@ def summary_lines(result: dict, sections=None) -> list[str]:
                       f"{s['reliability']:.0%}]",
                       f"     pre: {', '.join(s['preconditions'])}",
                       f"     add: {', '.join(s['add']) or '-'}; del: {', '.join(s['delete']) or '-'}"]
+        lines += [f"subgoal: {text}" for text in subgoal_texts(result)]
         lines += [f"rejected {c['source']}: {' '.join(c['steps']) or 'no steps'}: {c['why']}"
                   for c in result.get("candidates", []) if not c["accepted"]]
     if "recording" in result:
