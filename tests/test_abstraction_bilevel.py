@@ -360,6 +360,7 @@ def test_a_long_skeleton_is_refined_to_its_subgoal_one_step_at_a_time():
     first, second = found.candidates
     assert not first.accepted and "subgoal" in first.why
     assert second.accepted and second.why == "the first 1 of 2 steps, to their subgoal"
+    assert second.to_json()["rest"] == [str(Step(STACK["center"], ("b", "a")))]
     # Without a horizon the same skeleton is refined whole: both steps, checked at the end.
     whole = solve(Skeletons(wrong, right), TOWER)
     assert whole.level == "bilevel" and not whole.subgoal and len(whole.steps) == 2
