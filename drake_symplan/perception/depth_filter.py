@@ -64,34 +64,36 @@ def filtered_clouds(cameras: list[DepthCamera], frames: list[np.ndarray], noise,
     for cam, stack in zip(cameras, frames, strict=True):
         rows, cols = _workspace_window(cam, stack[0], cfg.radius)
         depth = temporal_median(stack[:, rows, cols], cfg.min_returns)
-        sigma = (noise.axial_sigma(depth, cam.info.focal_x()) * MEDIAN_EFFICIENCY
-                 / np.sqrt(len(stack)))
-        smooth = np.full(stack.shape[1:], np.nan)
-        spread = np.zeros(stack.shape[1:])
+        sigma = noise.axial_sigma(depth, cam.info.focal_x()) * np.float32(
+            MEDIAN_EFFICIENCY / np.sqrt(len(stack)))
+        smooth = np.full(stack.shape[1:], np.nan, np.float32)
+        spread = np.zeros(stack.shape[1:], np.float32)
         smooth[rows, cols], spread[rows, cols] = local_plane_depth(
             depth, np.nan_to_num(sigma), cfg)
         idx = np.flatnonzero(np.isfinite(smooth))
         xyz = back_project(cam, smooth)  # the points of pixels idx
-        xyz, tilt, height = level_on_table(xyz, cam.X_WB.translation(), cfg)
+        R, p, tilt, height = table_levelling(xyz, cam.X_WB.translation(), cfg)
         if z_min is not None:
             # The table's own points reach a few sigma above it: its crop grows with them.
+            # Most points are the table's: only those kept are levelled in full.
             sigma_z = spread.flat[idx] * np.abs(cam.rays[idx, 2])
-            xyz = xyz[xyz[:, 2] > z_min + cfg.table_sigmas * sigma_z]
+            z = np.einsum("ij,j->i", xyz, R[2]) + p[2]
+            xyz = xyz[z > z_min + cfg.table_sigmas * sigma_z]
+        clouds.append(np.einsum("ij,kj->ik", xyz, R) + p)  # (BLAS is slow for [N, 3])
         returns = int(np.isfinite(stack[0]).sum())
         pixels = stack[0].size
         readings.append(CameraReading(cam.config.name, pixels, returns, pixels - returns,
                                       len(xyz), tilt, height))
-        clouds.append(xyz)
     return clouds, readings
 
 
 def _workspace_window(cam: DepthCamera, depth: np.ndarray, margin: int) -> tuple[slice, slice]:
     """The image rows and columns (with `margin`) that see the workspace: filtering the
     rest would be wasted."""
-    xyz = cam.X_WB.translation() + np.nan_to_num(depth).reshape(-1, 1) * cam.rays
-    inside = ((xyz[:, 0] > CROP_X[0] - 0.05) & (xyz[:, 0] < CROP_X[1] + 0.05)
-              & (xyz[:, 1] > CROP_Y[0] - 0.05) & (xyz[:, 1] < CROP_Y[1] + 0.05)
-              & (xyz[:, 2] > -0.05)).reshape(depth.shape)
+    d = np.nan_to_num(depth).reshape(-1).astype(np.float64)
+    x, y, z = (o + d * cam.rays[:, k] for k, o in enumerate(cam.X_WB.translation()))
+    inside = ((x > CROP_X[0] - 0.05) & (x < CROP_X[1] + 0.05) & (y > CROP_Y[0] - 0.05)
+              & (y < CROP_Y[1] + 0.05) & (z > -0.05)).reshape(depth.shape)
     if not inside.any():
         return slice(0, 0), slice(0, 0)
     r, c = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
@@ -101,18 +103,32 @@ def _workspace_window(cam: DepthCamera, depth: np.ndarray, margin: int) -> tuple
 
 
 def temporal_median(stack: np.ndarray, min_returns: float) -> np.ndarray:
-    """Per-pixel median of the frames' returns [F, H, W] -> [H, W]; NaN where fewer than
-    `min_returns` of the frames returned."""
+    """Per-pixel median of the frames' returns [F, H, W] -> [H, W] (float32); NaN where
+    fewer than `min_returns` of the frames returned."""
     f = len(stack)
-    if f == 1:
-        return stack[0].astype(np.float64)
-    s = np.sort(stack, axis=0)  # NaN last
-    n = np.sum(np.isfinite(stack), axis=0)
-    lo = np.take_along_axis(s, np.maximum((n - 1) // 2, 0)[None], 0)[0]
-    hi = np.take_along_axis(s, np.maximum(n // 2, 0)[None], 0)[0]
-    med = (lo.astype(np.float64) + hi) / 2
+    returns = np.isfinite(stack)
+    # The frames sorted pixel by pixel (no return: inf, last) by an odd-even transposition
+    # network: f rounds of elementwise min and max, much faster than np.sort across frames.
+    s = [np.fmin(frame, np.float32(np.inf)) for frame in stack]
+    for i in range(f):
+        for j in range(i % 2, f - 1, 2):
+            lo = np.minimum(s[j], s[j + 1])
+            np.maximum(s[j], s[j + 1], out=s[j + 1])
+            s[j] = lo
+    n = returns.sum(axis=0)
+    med = _pick(s, (n - 1) // 2)
+    med += _pick(s, n // 2)
+    med *= np.float32(0.5)
     med[n < max(1, np.ceil(min_returns * f))] = np.nan
     return med
+
+
+def _pick(planes: list[np.ndarray], k: np.ndarray) -> np.ndarray:
+    """planes[k] pixel by pixel (planes[0] where k is out of range)."""
+    out = planes[0].astype(np.float32)
+    for j in range(1, len(planes)):
+        np.copyto(out, planes[j], where=k == j)
+    return out
 
 
 def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
@@ -127,36 +143,49 @@ def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
     least squares of 1/depth on the pixel offsets (du, dv); where the whole window is on
     one surface that is the window's mean (the offsets are symmetric), elsewhere a small
     fit per pixel. Returns the depths and their standard deviations (sigma over the root of
-    the pixels fitted)."""
+    the pixels fitted), float32."""
     r = cfg.radius
     size = 2 * r + 1
+    depth = np.asarray(depth, np.float32)
+    sigma = np.asarray(sigma, np.float32)
     valid = np.isfinite(depth)
-    tol = cfg.same_surface + 3 * sigma
-    big = np.where(valid, depth, np.inf)
-    spread = (ndimage.maximum_filter(np.where(valid, depth, -np.inf), size, mode="constant",
-                                     cval=np.inf)
-              - ndimage.minimum_filter(big, size, mode="constant", cval=-np.inf))
-    whole = valid & (spread <= tol)  # every neighbour there and on the same surface
-    inv = np.where(valid, 1.0 / np.where(valid, depth, 1.0), 0.0)
-    out = np.full(depth.shape, np.nan)
-    fitted = np.full(depth.shape, float(size * size))
+    tol = np.float32(cfg.same_surface) + 3 * sigma
+    # Beyond the image: a spread too large; holes: left out.
+    hi = _window_extreme(np.fmax(depth, -np.inf), size, np.maximum, np.inf)
+    lo = _window_extreme(np.fmin(depth, np.inf), size, np.minimum, -np.inf)
+    whole = valid & (hi - lo <= tol)  # every neighbour there and on the same surface
+    # A full window whose every pixel is on the centre's surface (on a steep one the
+    # window's spread passes the tolerance) fits the plane the whole window does.
+    full = _window_extreme(valid, size, np.minimum, False)
+    whole |= full & (hi - depth <= tol) & (depth - lo <= tol)
+    inv = np.zeros_like(depth)
+    np.divide(1, depth, out=inv, where=valid)
     mean = ndimage.uniform_filter(inv, size, mode="constant")
-    out[whole] = 1.0 / mean[whole]
+    out = np.full(depth.shape, np.nan, np.float32)
+    np.divide(1, mean, out=out, where=whole)
     idx = np.flatnonzero(valid & ~whole)
     if len(idx) == 0:
         return out, sigma / size
-    h, w = depth.shape
-    padded = np.pad(np.where(valid, depth, np.nan), r, constant_values=np.nan)
-    dv, du = (g.ravel() for g in np.mgrid[-r:r + 1, -r:r + 1])
+    fitted = np.full(depth.shape, size * size, np.float32)
+    w = depth.shape[1]
+    padded = np.pad(np.where(valid, depth, np.nan), r, constant_values=np.nan).ravel()
+    k = np.arange(-r, r + 1)
     rows, cols = np.divmod(idx, w)
-    nb = padded[rows[:, None] + r + dv, cols[:, None] + r + du]  # [N, size^2]
-    centre = depth.flat[idx]
-    on = np.abs(nb - centre[:, None]) <= tol.flat[idx][:, None]
-    y = np.where(on, 1.0 / np.where(on, nb, 1.0), 0.0)
-    wgt = on.astype(np.float64)
-    n, su, sv = wgt.sum(1), wgt @ du, wgt @ dv
-    suu, suv, svv = wgt @ (du * du), wgt @ (du * dv), wgt @ (dv * dv)
-    sy, suy, svy = y.sum(1), y @ du, y @ dv
+    at = (rows + r) * (w + 2 * r) + cols + r
+    # The windows [dv, du, N], pixels last: the sums below add whole rows of arrays (no
+    # BLAS: for these shapes its threads cost more than they save).
+    nb = np.take(padded, (k[:, None] * (w + 2 * r) + k).reshape(-1, 1) + at)
+    on = np.abs(nb - depth.flat[idx]) <= tol.flat[idx]
+    y = np.reciprocal(nb).reshape(size, size, -1)
+    np.copyto(y, 0, where=~on.reshape(y.shape))
+    on = on.reshape(size, size, -1).astype(np.float32)  # counts: exact in float32
+    kk = k[:, None].astype(np.float64)
+    by_u, by_v = on.sum(0, dtype=np.float64), on.sum(1, dtype=np.float64)
+    n, su, suu = by_u.sum(0), (kk * by_u).sum(0), (kk * kk * by_u).sum(0)
+    sv, svv = (kk * by_v).sum(0), (kk * kk * by_v).sum(0)
+    suv = (kk * sum(np.float32(k[i]) * on[i] for i in range(size))).sum(0)
+    yu, yv = y.sum(0, dtype=np.float64), y.sum(1, dtype=np.float64)
+    sy, suy, svy = yu.sum(0), (kk * yu).sum(0), (kk * yv).sum(0)
     # Cramer's rule for the intercept of [[n su sv] [su suu suv] [sv suv svv]] x = [sy suy svy].
     det = n * (suu * svv - suv ** 2) - su * (su * svv - suv * sv) + sv * (su * suv - suu * sv)
     num = sy * (suu * svv - suv ** 2) - su * (suy * svv - suv * svy) + sv * (suy * suv - suu * svy)
@@ -172,17 +201,35 @@ def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
     return out, sigma / np.sqrt(fitted)
 
 
-def level_on_table(xyz: np.ndarray, origin: np.ndarray, cfg: DepthFilter) -> tuple[np.ndarray, float, float]:
-    """The cloud of the camera at `origin` turned and lifted so that the table's points lie
-    on z = 0, correcting the camera's calibration in tilt and height; with the plane's tilt
-    (deg) and its height at the workspace's centre (mm) before. Unchanged when too little
-    table is seen."""
+def _window_extreme(a: np.ndarray, size: int, extreme, outside: float) -> np.ndarray:
+    """Each pixel's largest (np.maximum) or smallest (np.minimum) value of its
+    (size x size) window, `outside` beyond the image: ndimage's filter, several times
+    faster for small windows."""
+    r = size // 2
+    h, w = a.shape
+    padded = np.pad(a, r, constant_values=outside)
+    rows = padded[:, :w].copy()
+    for j in range(1, size):
+        extreme(rows, padded[:, j:j + w], out=rows)
+    out = rows[:h].copy()
+    for j in range(1, size):
+        extreme(out, rows[j:j + h], out=out)
+    return out
+
+
+def table_levelling(xyz: np.ndarray, origin: np.ndarray, cfg: DepthFilter
+                    ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(R, p): the turn and lift, xyz -> xyz R^T + p, that put the table's points of the
+    cloud of the camera at `origin` on z = 0, correcting the camera's calibration in tilt
+    and height; with the plane's tilt (deg) and its height at the workspace's centre (mm)
+    before. The identity when too little table is seen."""
     centre = np.array([np.mean(CROP_X), np.mean(CROP_Y), 0.0])
-    table = xyz[(np.abs(xyz[:, 2]) < cfg.table_band) & (xyz[:, 0] > CROP_X[0])
-                & (xyz[:, 0] < CROP_X[1]) & (xyz[:, 1] > CROP_Y[0]) & (xyz[:, 1] < CROP_Y[1])]
-    if len(table) < 1000:
-        return xyz, float("nan"), float("nan")
-    table = table[::max(1, len(table) // 20000)]  # plenty for three parameters
+    x, y, z = xyz.T
+    on_table = np.flatnonzero((np.abs(z) < cfg.table_band) & (x > CROP_X[0]) & (x < CROP_X[1])
+                              & (y > CROP_Y[0]) & (y < CROP_Y[1]))
+    if len(on_table) < 1000:
+        return np.eye(3), np.zeros(3), float("nan"), float("nan")
+    table = xyz[on_table[::max(1, len(on_table) // 20000)]]  # plenty for three parameters
     keep = np.ones(len(table), bool)
     for _ in range(cfg.table_iterations):
         # z = a x + b y + c, the boxes' low side points trimmed by their residuals.
@@ -199,10 +246,9 @@ def level_on_table(xyz: np.ndarray, origin: np.ndarray, cfg: DepthFilter) -> tup
     k = np.zeros((3, 3)) if s < 1e-12 else _skew(axis / s)
     R = np.eye(3) + s * k + (1 - cos) * k @ k
     on_plane = centre + [0.0, 0.0, c]
-    lift = -((on_plane - origin) @ R.T + origin)[2]
-    out = np.einsum("ij,kj->ik", xyz - origin, R) + origin  # (BLAS is slow for [N, 3])
-    out[:, 2] += lift
-    return out, float(np.degrees(np.arccos(min(cos, 1.0)))), float(c * 1000)
+    p = origin - R @ origin
+    p[2] -= (R @ on_plane + p)[2]
+    return R, p, float(np.degrees(np.arccos(min(cos, 1.0)))), float(c * 1000)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:

@@ -199,7 +199,9 @@ def back_project(cam: DepthCamera, depth: np.ndarray, z_min: float | None = None
     believes them (from X_WB), those at or below `z_min` dropped."""
     depth = depth.reshape(-1)
     idx = np.flatnonzero(np.isfinite(depth) & (depth > 0))
-    xyz = cam.X_WB.translation() + depth[idx, None].astype(float) * cam.rays[idx]
+    xyz = np.take(cam.rays, idx, axis=0)  # (faster than rays[idx]; in place below)
+    xyz *= depth[idx, None]
+    xyz += cam.X_WB.translation()
     return xyz if z_min is None else xyz[xyz[:, 2] > z_min]
 
 

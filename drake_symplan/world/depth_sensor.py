@@ -5,6 +5,7 @@ rendered depth image. `CAMERA_NOISE` names the settings (`--camera-noise`); `sen
 from __future__ import annotations
 
 import dataclasses as dc
+import functools
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
@@ -89,9 +90,12 @@ def sense(depth: np.ndarray, focal_px: float, center: tuple[float, float], noise
     pixels and missing returns) stays the same in each; the axial noise and the lateral
     jitter are drawn per frame. `reflectance` [H, W]: each pixel's surface reflectance
     (what `dark_holes` reads)."""
-    d = np.asarray(depth, np.float64).reshape(depth.shape[:2])
-    valid = np.isfinite(d) & (d > 0)
-    d = np.where(valid, d, np.nan)
+    d = np.asarray(depth, np.float32).reshape(depth.shape[:2])
+    d = np.where(np.isfinite(d) & (d > 0), d, np.float32(np.nan))
+    # Central differences across columns (du) and rows (dv); 0 on the image's border.
+    du, dv = np.zeros_like(d), np.zeros_like(d)
+    np.subtract(d[:, 2:], d[:, :-2], out=du[:, 1:-1])
+    np.subtract(d[2:, :], d[:-2, :], out=dv[1:-1, :])
     base = d.copy()
     edges, across = _edges(d)
     if len(edges):
@@ -100,75 +104,105 @@ def sense(depth: np.ndarray, focal_px: float, center: tuple[float, float], noise
         mixed = d.flat[edges] + rng.random(len(edges)) * (across - d.flat[edges])
         base.flat[edges[flying]] = mixed[flying]  # NaN where the other side has no return
         base.flat[edges[r < noise.edge_missing]] = np.nan
-    base[rng.random(d.shape) < _hole_probability(d, focal_px, center, noise, reflectance)] \
-        = np.nan
+    lost = _hole_probability(d, du, dv, focal_px, center, noise, reflectance)
+    base[rng.random(d.shape, np.float32) < lost] = np.nan
     # Lateral jitter to first order: the depth where the pixel's offset lands on its own
-    # surface (edges have their own errors above).
-    gu, gv = np.zeros_like(d), np.zeros_like(d)
-    gu[:, 1:-1], gv[1:-1, :] = (d[:, 2:] - d[:, :-2]) / 2, (d[2:, :] - d[:-2, :]) / 2
-    steep = ~(np.abs(gu) <= EDGE_JUMP) | ~(np.abs(gv) <= EDGE_JUMP)
-    gu[steep], gv[steep] = 0.0, 0.0
-    gu, gv = ((noise.lateral_px * g).astype(np.float32) for g in (gu, gv))
-    sigma = np.nan_to_num(noise.axial_sigma(base, focal_px)).astype(np.float32)
-    base = base.astype(np.float32)
+    # surface, gradient . offset (edges have their own errors above); it and the axial
+    # noise are independent zero-mean normals, so their sum is one normal whose variance
+    # is theirs summed.
+    var = np.square(noise.axial_sigma(base, focal_px), dtype=np.float32)
+    np.nan_to_num(var, copy=False)
+    if noise.lateral_px > 0:
+        smooth = (np.abs(du) <= 2 * EDGE_JUMP) & (np.abs(dv) <= 2 * EDGE_JUMP)
+        slope = np.where(smooth, np.square(du) + np.square(dv), np.float32(0.0))
+        var += np.float32((noise.lateral_px / 2) ** 2) * slope
     out = np.empty((frames, *d.shape), np.float32)
-    for f in range(frames):
-        z = base.copy()
-        for scale in (gu, gv, sigma):
-            if scale.any():
-                z += scale * rng.standard_normal(d.shape, np.float32)
-        if noise.depth_unit > 0:
-            z = np.round(z / np.float32(noise.depth_unit)) * np.float32(noise.depth_unit)
-        out[f] = z
+    if var.any():
+        rng.standard_normal(dtype=np.float32, out=out)
+        out *= np.sqrt(var)
+        out += base
+    else:
+        out[:] = base
+    if noise.depth_unit > 0:
+        unit = np.float32(noise.depth_unit)
+        np.divide(out, unit, out=out)
+        np.rint(out, out=out)
+        out *= unit
     return out
 
 
-def _hole_probability(d, focal_px, center, noise, reflectance) -> np.ndarray | float:
+def _hole_probability(d, du, dv, focal_px, center, noise, reflectance) -> np.ndarray | float:
     """Each pixel's chance of no return, from its surface: grazing or dark."""
-    lost = 0.0
+    lost = np.float32(0.0)
     if noise.steep_holes > 0:
-        incidence = np.arccos(np.clip(_cos_incidence(d, focal_px, center), 0, 1))
-        ramp = (incidence - STEEP_FROM) / (np.pi / 2 - STEEP_FROM)
-        lost = np.maximum(lost, noise.steep_holes * np.clip(np.nan_to_num(ramp), 0, 1))
+        # fmin: where the normal is unknown (NaN), as if facing the camera
+        incidence = np.arccos(np.fmin(_cos_incidence(d, du, dv, focal_px, center), 1))
+        ramp = (incidence - np.float32(STEEP_FROM)) / np.float32(np.pi / 2 - STEEP_FROM)
+        lost = np.maximum(lost, np.float32(noise.steep_holes) * np.clip(ramp, 0, 1))
     if noise.dark_holes > 0 and reflectance is not None:
-        ramp = (DARK_BELOW - reflectance) / DARK_BELOW
-        lost = np.maximum(lost, noise.dark_holes * np.clip(ramp, 0, 1))
+        ramp = (DARK_BELOW - np.asarray(reflectance, np.float32)) / np.float32(DARK_BELOW)
+        lost = np.maximum(lost, np.float32(noise.dark_holes) * np.clip(ramp, 0, 1))
     return lost
 
 
 def _edges(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(flat indices of the pixels at a depth edge, the depth across the edge: that of the
     4-neighbour with the largest step, NaN where it has no return)."""
-    pad = np.pad(d, 1, constant_values=np.nan)
     h, w = d.shape
-    nbs = np.stack([pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]])
-    inside = np.ones((4, h, w), bool)
-    inside[0, 0], inside[1, -1], inside[2, :, 0], inside[3, :, -1] = False, False, False, False
-    # A neighbour with no return (beyond the range) is a step as large as can be.
-    step = np.where(np.isnan(nbs), np.inf, np.abs(nbs - d))
-    step = np.where(inside, np.nan_to_num(step, nan=0.0, posinf=np.inf), 0.0)
+    # A neighbour with no return (beyond the range) is a step as large as can be; outside
+    # the image there is none. Most pixels have no edge: find those that do, then look
+    # at their four neighbours.
+    rows = ~(np.abs(d[1:] - d[:-1]) <= EDGE_JUMP)
+    cols = ~(np.abs(d[:, 1:] - d[:, :-1]) <= EDGE_JUMP)
+    jump = np.zeros((h, w), bool)
+    jump[1:] |= rows
+    jump[:-1] |= rows
+    jump[:, 1:] |= cols
+    jump[:, :-1] |= cols
+    idx = np.flatnonzero(jump & np.isfinite(d))
+    r, c = np.divmod(idx, w)
+    pad = np.pad(d, 1, constant_values=np.nan).ravel()
+    at = (r + 1) * (w + 2) + c + 1
+    nbs = np.stack([pad[at - (w + 2)], pad[at + (w + 2)], pad[at - 1], pad[at + 1]])
+    inside = np.stack([r > 0, r < h - 1, c > 0, c < w - 1])
+    step = np.where(np.isnan(nbs), np.inf, np.abs(nbs - d.flat[idx]))
+    step = np.where(inside, step, 0.0)
     k = np.argmax(step, axis=0)
-    edge = np.isfinite(d) & (np.take_along_axis(step, k[None], 0)[0] > EDGE_JUMP)
-    idx = np.flatnonzero(edge)
-    across = np.take_along_axis(nbs, k[None], 0)[0].flat[idx]
+    across = np.take_along_axis(nbs, k[None], 0)[0]
     return idx, across
 
 
-def _cos_incidence(d: np.ndarray, focal_px: float, center: tuple[float, float]) -> np.ndarray:
+def _cos_incidence(d: np.ndarray, du: np.ndarray, dv: np.ndarray, focal_px: float,
+                   center: tuple[float, float]) -> np.ndarray:
     """|cos| of the angle between each pixel's surface normal (from its neighbours' points)
-    and its view ray; NaN where a neighbour has no return."""
+    and its view ray; NaN where a neighbour has no return (or on the image's border).
+    `du`, `dv`: the depth's central differences across columns and rows.
+
+    With the ray r = (x, y, 1) and the point p = d r, the tangents are
+    p(u+1) - p(u-1) = du r + (su / f, 0, 0) and p(v+1) - p(v-1) = dv r + (0, sv / f, 0),
+    su and sv the sums of the two neighbours' depths; their cross product, the normal, is
+    (-du b, -dv a, du b x + dv a y + a b) with a = su / f, b = sv / f, and its dot with
+    r is a b."""
     h, w = d.shape
-    v, u = np.mgrid[0:h, 0:w]
-    ray = np.stack([(u - center[0]) / focal_px, (v - center[1]) / focal_px, np.ones((h, w))])
-    p = ray * d
-    gx = np.zeros_like(p)
-    gy = np.zeros_like(p)
-    gx[:, :, 1:-1] = p[:, :, 2:] - p[:, :, :-2]
-    gy[:, 1:-1, :] = p[:, 2:, :] - p[:, :-2, :]
-    n = np.cross(gx, gy, axis=0)
-    norm = np.linalg.norm(n, axis=0) * np.linalg.norm(ray, axis=0)
+    x, y, ray_norm = _rays(h, w, float(focal_px), float(center[0]), float(center[1]))
+    a = np.zeros_like(d)
+    b = np.zeros_like(d)
+    inv_f = np.float32(1.0 / focal_px)
+    np.multiply(d[:, 2:] + d[:, :-2], inv_f, out=a[:, 1:-1])
+    np.multiply(d[2:, :] + d[:-2, :], inv_f, out=b[1:-1, :])
+    ab = a * b
+    nz = du * b * x + dv * a * y + ab
+    norm = np.sqrt(np.square(du * b) + np.square(dv * a) + np.square(nz)) * ray_norm
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.abs(np.sum(n * ray, axis=0)) / norm
+        return np.abs(ab) / norm
+
+
+@functools.lru_cache(maxsize=8)
+def _rays(h: int, w: int, focal_px: float, cx: float, cy: float):
+    """A camera's pixel rays (x [1, W], y [H, 1], with z = 1) and their lengths [H, W]."""
+    x = ((np.arange(w) - cx) / focal_px).astype(np.float32)[None, :]
+    y = ((np.arange(h) - cy) / focal_px).astype(np.float32)[:, None]
+    return x, y, np.sqrt(np.square(x) + np.square(y) + 1, dtype=np.float32)
 
 
 def reflectance_by_label(scene_graph) -> np.ndarray:
