@@ -160,13 +160,16 @@ class _ContinuousModelMode(PlanningMode):
 
         self.refiner = Refiner(abstraction.bundle.planning,
                                ContinuousModel(abstraction.bundle.continuous))
+        # costs added to the skeletons' moves, by their leading arguments (`observed`)
+        self.penalties: Counter = Counter()
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         from drake_symplan.abstraction.bilevel import Search, plan_bilevel
 
         return plan_bilevel(self.abs, self.refiner, now, goal, self.budget(),
                             Search(self.skeletons, self.config.planner,
-                                   self.config.alternatives, self.horizon))
+                                   self.config.alternatives, self.horizon),
+                            dict(self.penalties))
 
     def departs(self, step: PlanStep, predicted: Boxes | None, seen: Observation,
                 rest: list[PlanStep], believed, goal_atoms, goal: Observation | None = None
@@ -208,11 +211,6 @@ class RecedingMode(_ContinuousModelMode):
     skeletons = True
     horizon = HORIZON
 
-    def __init__(self, abstraction: Abstraction, config: SolveConfig,
-                 given: list[Action] | None = None):
-        super().__init__(abstraction, config, given)
-        self.penalties: Counter = Counter()
-
     def observed(self, step: PlanStep, predicted: Boxes | None, seen: Observation) -> None:
         """A step whose outcome was not the predicted one (its positions, else its
         operator's symbols) makes its move, with the same riders, dearer."""
@@ -223,13 +221,6 @@ class RecedingMode(_ContinuousModelMode):
         if off_prediction(predicted, seen) if predicted is not None \
                 else self.abs.mismatches(seen.reading, step):
             self.penalties[tuple(step.args)] += PENALTY
-
-    def _plan(self, now: Observation, goal: Observation) -> Plan:
-        from drake_symplan.abstraction.bilevel import Search, plan_bilevel
-
-        return plan_bilevel(self.abs, self.refiner, now, goal, self.budget(),
-                            Search(True, self.config.planner, self.config.alternatives,
-                                   self.horizon), dict(self.penalties))
 
 
 class ContinuousMode(_ContinuousModelMode):
