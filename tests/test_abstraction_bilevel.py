@@ -188,9 +188,25 @@ def test_the_continuous_model_carries_a_lifted_box_to_the_release_point():
     assert np.allclose(after["c"], [0.7, 0.0, 0.025]) and np.allclose(after["b"], START.where()["b"])
     rolled = model.rollout(START, [Action("a", "center", "c", "center"),
                                    Action("b", "center", "a", "center")])
-    # b is carried to where a was predicted to be (this model's heights ignore the target).
-    assert np.allclose(rolled[-1].where()["b"], [0.7, 0.0, 0.075], atol=1e-6)
+    # b is carried to where a was predicted to be; this model's heights ignore the target,
+    # but b's centre is over a, so b comes to rest on a's top (continuous.rest).
+    assert np.allclose(rolled[-1].where()["b"], [0.7, 0.0, 0.125], atol=1e-6)
     assert ("a", "c") in rolled[0].contacts  # contacts of the predicted scene
+
+
+def test_a_box_predicted_over_another_rests_on_it_and_one_over_nothing_keeps_its_height():
+    from drake_symplan.abstraction.continuous import rest
+
+    scene = boxes(a=(0.7, 0.0, 0.025), b=(0.7, 0.0, 0.075), c=(0.7, 0.01, 0.089),
+                  d=(0.5, 0.2, 0.04))
+    out = rest(scene.positions.astype(float), scene.features, moved=[2, 3])
+    # c, released over the tower a-b, predicted at a mean height no box rests at: on b.
+    assert np.allclose(out[2], [0.7, 0.01, 0.125]) and np.allclose(out[:2], scene.positions[:2])
+    assert np.allclose(out[3], [0.5, 0.2, 0.04])  # over nothing: as predicted
+    # The lowest moved box settles first: a tower predicted low all the way up stacks.
+    low = boxes(a=(0.7, 0.0, 0.025), b=(0.7, 0.0, 0.06), c=(0.7, 0.0, 0.07))
+    assert np.allclose(rest(low.positions.astype(float), low.features, [1, 2])[:, 2],
+                       [0.025, 0.075, 0.125])
 
 
 def test_with_nothing_verified_the_first_skeleton_runs_on_its_symbols():

@@ -6,9 +6,11 @@ whatever touches them, as in training: data/exploration.py), each one's displace
 the end of the lift and after the release relative to where the carry put it (the effect,
 actions.py). A box predicted to rise with the hand is carried with it: the source's
 centre to the release point (the target's centre shifted along y, actions.release_centre),
-what rides on it by the same vector. Orientations are kept (a tipped box is predicted
-lying as it was), positions change, and the predicted scene's contacts come from the box
-geometry (boxes.contact_graph). Objects out of the action's reach stay. No simulator: what
+what rides on it by the same vector. A box that moved and whose centre is then over
+another comes to rest on it (`rest`: the network regresses a mean height, which for an
+outcome that goes either way is no height a box rests at). Orientations are kept (a
+tipped box is predicted lying as it was), positions change, and the predicted scene's
+contacts come from the box geometry (boxes.contact_graph). Objects out of the action's reach stay. No simulator: what
 the planner knows, the robot learned.
 """
 
@@ -157,42 +159,30 @@ SETTLE_MOVED = 0.01  # m: a box predicted to move this far comes to rest (`rest`
 
 
 def rest(positions: np.ndarray, features: np.ndarray, moved: list[int]) -> np.ndarray:
-    """`positions` with each `moved` box (lowest first) resting flat on the highest box
-    whose footprint its own overlaps, or on the table: boxes come down from above and do
-    not pass through each other. The effect model regresses the mean of what its data did
-    after an action, and where a release sometimes ends on top and sometimes beside, that
-    mean is a height no box rests at (a cube put on a tower of three predicted 9 cm low);
-    its footprint is predicted well, and what is under it says the height."""
+    """`positions` with each `moved` box (lowest first) whose centre is over another box
+    resting flat on the highest such box. The effect model regresses the mean of what its
+    data did after an action, and where a release sometimes ends on top and sometimes
+    beside, that mean is a height no box rests at (a cube put on a tower of three
+    predicted 9 cm low); the centre's place is predicted well, and what is under it says
+    the height. A box whose centre is over no box keeps the predicted height (it may lean
+    or lie across two)."""
     out = positions.copy()
-    half = {i: _footprint(features[i]) for i in range(len(out))}
     settled = [i for i in range(len(out)) if i not in moved]
     for i in sorted(moved, key=lambda k: out[k][2]):
-        top = 0.0
-        for j in settled:
-            if _overlap(out[i], half[i], out[j], half[j]):
-                top = max(top, out[j][2] + HALF_EXTENTS[box_of(features[j])[0]][2])
-        out[i][2] = top + HALF_EXTENTS[box_of(features[i])[0]][2]
+        under = [j for j in settled if _covers(features[j], out[j], out[i])]
+        if under:
+            top = max(out[j][2] + HALF_EXTENTS[box_of(features[j])[0]][2] for j in under)
+            out[i][2] = top + HALF_EXTENTS[box_of(features[i])[0]][2]
         settled.append(i)
     return out
 
 
-def _footprint(row: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(the box's xy axes [2, 2], its half extents along them)."""
+def _covers(row: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
+    """Is `point`'s xy over the top face of the box of features `row` standing at
+    `centre`?"""
     kind, _, R = box_of(row)
-    return R[:2, :2], np.asarray(HALF_EXTENTS[kind][:2])
-
-
-def _overlap(p: np.ndarray, a, q: np.ndarray, b) -> bool:
-    """Do two boxes' footprints (rectangles at p and q, `_footprint`) overlap, by more
-    than a millimetre on every separating axis?"""
-    d = (q - p)[:2]
-    for axes in (a[0], b[0]):
-        for k in range(2):
-            n = axes[:, k]
-            reach = sum(abs(n @ f[0][:, m]) * f[1][m] for f in (a, b) for m in range(2))
-            if abs(n @ d) >= reach - 0.001:
-                return False
-    return True
+    local = R[:2, :2].T @ (point - centre)[:2]
+    return bool(np.all(np.abs(local) <= np.asarray(HALF_EXTENTS[kind][:2])))
 
 
 def rollout(predict, boxes: Boxes, actions: list) -> list[Boxes]:
