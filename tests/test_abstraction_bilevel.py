@@ -352,6 +352,7 @@ def test_each_mode_is_one_registered_class_whose_flags_say_what_it_needs():
     assert [n for n, m in PLANNING_MODES.items() if m.needs_refiner] == [
         "bilevel", "receding", "continuous"]
     assert [n for n, m in PLANNING_MODES.items() if m.open_loop_only] == ["oracle"]
+    assert [n for n, m in PLANNING_MODES.items() if not m.reproduced] == ["receding"]
     assert SymbolicMode.needs_refiner is False
     try:
         SolveConfig(planning="nowhere")

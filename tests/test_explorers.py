@@ -70,9 +70,9 @@ def test_babbled_goals_ask_for_what_does_not_hold_and_never_contradict_themselve
 
 
 class Shifts(torch.nn.Module):
-    """A hand-written effect model: every object rises 10 cm with the hand when it is the
-    source (a placement), and the source moves `shift` m along x after the release when it
-    is grasped at its left end."""
+    """A hand-written effect model: the source rises 10 cm with the hand and comes down 5
+    cm onto the target's top (a placement; cubes of 5 cm), and moves `shift` m along x
+    after the release when it is grasped at its left end."""
 
     def __init__(self, shift: float):
         super().__init__()
@@ -81,6 +81,7 @@ class Shifts(torch.nn.Module):
     def forward(self, state, action, mask):
         effect = torch.zeros(*state.shape[:2], EFFECT_DIM)
         effect[..., 2] = 0.1 * action[..., IS_SOURCE]
+        effect[..., 5] = -0.05 * action[..., IS_SOURCE]
         effect[..., 3] = self.shift * action[..., IS_SOURCE + 1]  # grasp = left
         return effect
 

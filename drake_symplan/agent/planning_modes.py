@@ -22,8 +22,9 @@ the step's operator; `goal_seen` is the monitor's check at the plan's end.
 A mode's flags say what the rest of the agent needs to know of it: `needs_refiner` (it
 plans with the learned continuous model), `needs_recorded_actions` (it replays the
 problem's own actions: only `eval planning` has them, so `solve` does not offer it),
-`open_loop_only` (evaluated open loop only). A new mode is a PlanningMode subclass (here
-or in a module beside it) and its entry in PLANNING_MODES.
+`open_loop_only` (evaluated open loop only), `reproduced` (a row of `symplan
+reproduce`). A new mode is a PlanningMode subclass (here or in a module beside it) and
+its entry in PLANNING_MODES.
 
 Importing this module loads no torch (SolveConfig and the CLI read the registry): the
 learned models' modules are imported when a mode is made.
@@ -72,6 +73,7 @@ class PlanningMode:
     needs_refiner: ClassVar[bool] = False
     needs_recorded_actions: ClassVar[bool] = False
     open_loop_only: ClassVar[bool] = False
+    reproduced: ClassVar[bool] = True  # a row of `symplan reproduce`'s mode table
 
     def __init__(self, abstraction: Abstraction, config: SolveConfig,
                  given: list[Action] | None = None):
@@ -210,6 +212,9 @@ class RecedingMode(_ContinuousModelMode):
             "subgoal, then a new plan from what is seen")
     skeletons = True
     horizon = HORIZON
+    # Not better than bilevel on the reproducible sets (docs/planning.md); its row would add
+    # a fifth to the reproduction's time.
+    reproduced = False
 
     def observed(self, step: PlanStep, predicted: Boxes | None, seen: Observation) -> None:
         """A step whose outcome was not the predicted one (its positions, else its
