@@ -103,3 +103,29 @@ def test_a_rider_left_behind_is_counted_as_dropped():
                                            given=given)
     assert carried.dropped_riders == 0 and carried.status == "success", carried.to_json()
     assert "dropped_riders" not in carried.to_json()
+
+
+class MissesThird(FakeBackend):
+    """The third place lands the box on the table beside the target; the rest as planned."""
+
+    def execute(self, action, before, lift=True):
+        if len(self.executed) != 2:
+            return super().execute(action, before, lift)
+        self.executed.append(action)
+        self.station.truth[action.source] = np.array([0.5, -0.3, 0.025])
+        return Execution("ok", None, self.perceive(before))
+
+
+def test_a_long_plan_whose_third_step_departs_replans_from_what_is_seen():
+    start = Scene([cube("a", 0.6, -0.2), cube("b", 0.8, 0.0), cube("c", 0.6, 0.25),
+                   cube("d", 0.5, 0.1)])
+    tower = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.125),
+                   cube("d", 0.8, 0.0, 0.175)])
+    result, backend = solve(OracleAbstraction(), start=start, goal=tower, backend=MissesThird())
+    assert result.status == "success", result.to_json()
+    steps = ["(pick_center_place_center_n1_op0 a b)", "(pick_center_place_center_n1_op0 c a)",
+             "(pick_center_place_center_n1_op0 d c)"]
+    assert [str(s) for s in result.plan] == steps  # bottom up: only a free box takes one
+    # d landed on the table: the monitor saw it, and the plan from there is d on c again.
+    assert result.replans == 1 and [str(s) for s in result.executed] == steps + steps[-1:]
+    assert backend.station.truth["d"][2] == 0.175
