@@ -24,6 +24,7 @@ from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
 from drake_symplan.cli.options import (
     add_camera_noise_argument,
+    add_goal_spec_argument,
     add_json_argument,
     add_model_argument,
     add_robot_argument,
@@ -58,9 +59,7 @@ def _register_solve(subparsers) -> None:
     goal.add_argument("--goal", type=Path,
                       help="goal scene YAML with the start's objects (only perceived; the "
                       "file names the objects)")
-    goal.add_argument("--goal-spec", nargs="+", metavar="SPEC",
-                      help="the goal written in one line instead ('tower o3 o1 o0', "
-                      "docs/goals.md), built from the start by the robot before solving")
+    add_goal_spec_argument(goal, "built from the start by the robot before solving")
     add_model_argument(p)
     add_solve_arguments(p)
     add_robot_argument(p)

@@ -54,6 +54,7 @@ from drake_symplan.cli.main import (
 )
 from drake_symplan.cli.options import (
     add_camera_noise_argument,
+    add_goal_spec_argument,
     add_model_argument,
     add_solve_arguments,
     check_objects,
@@ -84,10 +85,8 @@ def add_demo_arguments(p: argparse.ArgumentParser, out_dir: Path,
                    help="start scene YAML (with --goal), e.g. a problem of `symplan "
                    "problems make` or a file of `symplan scene sample`")
     p.add_argument("--goal", type=Path, default=None, help="goal scene YAML (with --start)")
-    p.add_argument("--goal-spec", nargs="+", metavar="SPEC", default=None,
-                   help="a goal written in one line ('tower o0 o1 o2 o3', docs/goals.md), "
-                   "built by the arm from --start or, by default, from a scattered start of "
-                   "--objects boxes sampled with --seed (default 0)")
+    add_goal_spec_argument(p, "built by the arm from --start or, by default, from a "
+                           "scattered start of --objects boxes sampled with --seed (default 0)")
     p.add_argument("--out", type=Path, default=out_dir / "demo.html",
                    help="the HTML recording (default out/demo.html)")
     p.add_argument("--no-record", action="store_true", help="write no recording")

@@ -24,6 +24,7 @@ from pathlib import Path
 from drake_symplan.cli.main import CommandError, NegativeAnswer
 from drake_symplan.cli.options import (
     add_camera_noise_argument,
+    add_goal_spec_argument,
     add_json_argument,
     add_planner_arguments,
     add_planning_argument,
@@ -43,9 +44,7 @@ def register(subparsers) -> None:
     p.add_argument("--scene", required=True, type=Path, help="scene YAML")
     goal = p.add_mutually_exclusive_group()
     goal.add_argument("--goal", type=Path, default=None, help="goal scene YAML (same objects)")
-    goal.add_argument("--goal-spec", nargs="+", metavar="SPEC", default=None,
-                      help="the goal written in one line instead ('tower o3 o1 o0', "
-                      "docs/goals.md), built from the scene by the arm first")
+    add_goal_spec_argument(goal, "built from the scene by the arm first")
     p.add_argument("--model", type=Path, default=None,
                    help="model bundle directory (default: the shipped models/learned/)")
     p.add_argument("--record", type=Path, default=None,

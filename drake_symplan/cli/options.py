@@ -95,6 +95,13 @@ def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None
                    f"collision-free hand (default {default})")
 
 
+def add_goal_spec_argument(p, built: str) -> None:
+    """--goal-spec SPEC ... on `p` (a parser or a mutually exclusive group): a goal written
+    in one line (evaluation/goals.py), `built` saying by whom and from what."""
+    p.add_argument("--goal-spec", nargs="+", metavar="SPEC", default=None,
+                   help=f"a goal written in one line ('tower o3 o1 o0', docs/goals.md), {built}")
+
+
 def add_planning_argument(p: argparse.ArgumentParser, oracle: bool = False) -> None:
     """--planning, an agent.planning_modes.PLANNING_MODES key; with `oracle` also the modes
     that replay the problems' recorded actions."""
