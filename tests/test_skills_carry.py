@@ -79,3 +79,35 @@ def test_a_tower_on_a_cube_is_pinched_as_before_but_not_dropped_beside_the_targe
     g = action_geometry(beside, objects)
     _, release, _ = careful_points(beside, objects, g.grasp, g.release, 0.0)
     assert release[2] == pytest.approx(0.025 + 0.004)
+
+
+def _poses(spec):
+    from pydrake.math import RigidTransform
+    return {n: RigidTransform(np.array(p, float)) for n, p in spec.items()}
+
+
+def test_the_wrist_strikes_what_rises_past_the_palm_near_the_tool_axis():
+    from drake_symplan.boxes import HALF_EXTENTS
+    from drake_symplan.world.hand import wrist_strikes
+
+    half = {n: np.array(HALF_EXTENTS["cube"]) for n in ("a", "b", "c", "far")}
+    tcp = np.array([0.7, 0.0, 0.025])  # the fingers on the bottom cube of a tower
+    tower3 = _poses({"a": [0.7, 0.0, 0.025], "b": [0.7, 0.0, 0.075], "c": [0.7, 0.0, 0.125],
+                     "far": [0.7, 0.3, 0.025]})
+    assert wrist_strikes(tower3, half, tcp) == ["c"]  # its top reaches 12.5 cm above the TCP
+    tower2 = {n: X for n, X in tower3.items() if n != "c"}
+    assert wrist_strikes(tower2, half, tcp) == []  # the rider stops 7.5 cm above: the palm's
+    beside = _poses({"c": [0.7, 0.11, 0.175]})  # 8.5 cm from the axis, top 17.5 cm above
+    assert wrist_strikes(beside, half, tcp) == ["c"]  # in wrist_2's reach
+    assert wrist_strikes(beside, half, tcp + np.array([0.0, 0.0, 0.05])) == []  # under it
+
+
+def test_a_tall_tower_at_the_far_end_of_a_block_falls_on_both_back_ends(runner):
+    """The arm's wrist knocks a three-cube tower 9 cm along the block; the hand has no wrist
+    and kept it (6 of 9) until the arm twin ran what the wrist would strike."""
+    scene = suite_scene("tall_p9")
+    action = Action("base", "center", "target", "center")
+    for backend in ("hand", "arm"):
+        out = runner.run(backend, scene, "tall_p9", action)
+        assert out["status"] == "ok" and out["moved"] and not out["kept"], backend
+        assert out.get("by_arm", True), backend

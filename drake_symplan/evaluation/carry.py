@@ -17,8 +17,9 @@ import numpy as np
 
 from drake_symplan.actions import OFFSETS, Action
 from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.skills.arm_twin import ArmTwin
 from drake_symplan.skills.hand_place import hand_pick_place
-from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
+from drake_symplan.skills.pick_place import InfeasibleAction, PickPlaceMotions, pick_place
 from drake_symplan.world.scenes import ObjectSpec, Scene, validate_scene
 from drake_symplan.world.station import Station, StationConfig
 
@@ -42,6 +43,7 @@ HARD: dict[str, list[tuple[str, str, float, int]]] = {
     "hanging": [("base", "long", 0.0, 0), ("r0", "cube", 0.131, 1)],  # centre off the end
     "tall_p9": [("base", "long", 0.0, 0), ("r0", "cube", 0.09, 1), ("r1", "cube", 0.09, 2),
                 ("r2", "cube", 0.09, 3)],  # a three-cube tower at the far end
+    "tower3": [("base", "cube", 0.0, 0), ("r0", "cube", 0.0, 1), ("r1", "cube", 0.0, 2)],
 }
 SCENES = {**SUITE, **HARD}
 
@@ -90,6 +92,7 @@ class Runner:
     def __init__(self):
         self.arm, self.hand = Station(), Station(StationConfig(robot="hand"))
         self.planner = PickPlaceMotions()
+        self.twin = ArmTwin()
 
     def run(self, backend: str, scene: Scene, name: str, action: Action) -> dict:
         station = self.arm if backend == "arm" else self.hand
@@ -100,9 +103,12 @@ class Runner:
         if backend == "arm":
             status = pick_place(station, self.planner, action, scene.object_states()).status
         else:
-            status = "ok"
+            status, by_arm = "ok", False
             try:
-                hand_pick_place(station, action, scene.object_states())
+                by_arm = hand_pick_place(station, action, scene.object_states(),
+                                         twin=self.twin)[0].by_arm
+            except InfeasibleAction:
+                status = "infeasible"
             except RuntimeError:
                 status = "sim_failure"
         cpu = time.process_time() - t
@@ -110,8 +116,11 @@ class Runner:
         base = poses["base"].translation()
         moved = bool(np.linalg.norm(base[:2] - scene.object("base").position[:2]) > 0.05
                      or abs(base[2] - start["base"]) > 0.02)
-        return {"status": status, "kept": kept(poses, name, station.types), "moved": moved,
-                "cpu_s": round(cpu, 3)}
+        row = {"status": status, "kept": kept(poses, name, station.types), "moved": moved,
+               "cpu_s": round(cpu, 3)}
+        if backend == "hand":
+            row["by_arm"] = by_arm
+        return row
 
 
 def bench_scene(runner: Runner, name: str, yaw_deg: float) -> dict:

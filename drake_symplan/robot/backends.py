@@ -5,7 +5,8 @@ The agent executes plans with it and data collection explores with it.
 - `arm`: the UR10 executes the IK-planned pick/place in full physics (skills/pick_place).
 - `hand`: the collision-free simulated hand (world/hand.py, skills/hand_place.py) holds the
   grasped box with a weld constraint while carrying, then physics settles the scene; the
-  grasp and release geometry is the arm's.
+  grasp and release geometry is the arm's, and where the arm's wrist would strike a box
+  the arm itself runs the action (skills/arm_twin.py).
 
 Both see the world only through the same perception: `reset` puts a scene on the table,
 `perceive` returns a `PerceivedScene`, and `execute(action, before)` plans from the
@@ -27,6 +28,7 @@ from scipy.spatial import QhullError
 
 from drake_symplan.actions import Action
 from drake_symplan.perception.perceive import Perceiver
+from drake_symplan.skills.arm_twin import ArmTwin
 from drake_symplan.skills.hand_place import hand_pick_place
 from drake_symplan.skills.pick_place import InfeasibleAction, PickPlaceMotions, run_motion
 from drake_symplan.world.cameras import DepthNoise, default_cameras
@@ -126,7 +128,8 @@ class Backend:
 
 
 class HandBackend(Backend):
-    """The fast back-end: weld-constraint hand; carries are kinematic or rigid (hand_place)."""
+    """The fast back-end: weld-constraint hand; carries are kinematic or rigid (hand_place),
+    and what the arm's wrist would strike, the arm's (`twin`)."""
 
     name = "hand"
     robot = "hand"
@@ -134,18 +137,27 @@ class HandBackend(Backend):
     def __init__(self, *args, allow_kinematic: bool = True, **kwargs):
         super().__init__(*args, **kwargs)
         self.allow_kinematic = allow_kinematic
+        self.twin = ArmTwin()
+
+    def seconds(self) -> dict[str, float]:
+        out = super().seconds()
+        out["physics"] += self.twin.physics_seconds
+        return out
 
     def execute(self, action: Action, before, lift: bool = True) -> Execution:
         at_lift = (lambda: self._perceive_if_moved(before)) if lift else (lambda: None)
         try:
             motion, lifted = hand_pick_place(self.station, action, before.object_states(),
                                              at_lift=at_lift,
-                                             allow_kinematic=self.allow_kinematic)
+                                             allow_kinematic=self.allow_kinematic,
+                                             twin=self.twin)
+        except InfeasibleAction as e:
+            return Execution("infeasible", message=str(e))
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             self.station.release()
             return Execution("sim_failure", message=f"simulation failed: {e}")
-        if motion.held is None and not self.noisy:
+        if motion.held is None and not motion.by_arm and not self.noisy:
             # Nothing was caught, so nothing was simulated: the scene is exactly the one
             # perceived before, and perceiving it again would return the same objects.
             return Execution("ok", before if lift else None, before)
@@ -154,8 +166,8 @@ class HandBackend(Backend):
         return Execution("ok", lifted, self.perceive(before))
 
     def _perceive_if_moved(self, before):
-        held = self.station.held
-        return self.perceive(before) if held is not None or self.noisy else None
+        moved = self.station.held is not None or self.twin.running
+        return self.perceive(before) if moved or self.noisy else None
 
 
 class ArmBackend(Backend):

@@ -14,6 +14,10 @@ are simulated, which is most of the back-end's speed. Otherwise the lift runs in
 physics (what it raises rides along, what leaned on the box falls), and the load then
 moves rigidly to the release pose. Either way, a release pose that is not clear of the
 rest of the scene is reached by a descent in full physics from above it, as the arm's.
+
+Where the arm's wrist would strike a box on its way down to the grasp (world/hand.py's
+`wrist_strikes`, at the arm's own grasp point), the hand would keep what the arm knocks
+over; given an `ArmTwin`, the action is run by the arm instead (skills/arm_twin.py).
 """
 
 from __future__ import annotations
@@ -28,8 +32,9 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_symplan.actions import Action
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
-from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.world.hand import grasp_catches, hand_q_of_pose
+from drake_symplan.skills.arm_twin import ArmTwin
+from drake_symplan.skills.pick_place import action_geometry, arm_geometry
+from drake_symplan.world.hand import grasp_catches, hand_q_of_pose, wrist_strikes
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import Station
 
@@ -53,6 +58,8 @@ class HandMotion:
     t_release: float = 0.0
     t_above: float = 0.0  # end of the lateral carry, above the release point
     kinematic: bool = False  # nothing rides on the held box: skip simulating the carry
+    struck: list[str] = dc.field(default_factory=list)  # what the arm's wrist would strike
+    by_arm: bool = False  # the arm twin ran the action (hand_pick_place)
 
 
 def carry_duration(distance: float, steps: int) -> float:
@@ -70,8 +77,9 @@ def plan_hand(
     poses = station.object_poses()
     half = {n: np.array(HALF_EXTENTS[station.types[n]]) for n in poses}
     held = grasp_catches(poses, half, g.grasp)
+    struck = wrist_strikes(poses, half, arm_geometry(action, beliefs)[0].grasp)
     if held is None:
-        return HandMotion(None)
+        return HandMotion(None, struck=struck)
     X_WT0 = RigidTransform(RotationMatrix.MakeZRotation(g.yaw_grasp), g.grasp)
     X_TB = X_WT0.inverse().multiply(poses[held])
 
@@ -97,7 +105,7 @@ def plan_hand(
         times, q.T, zero_end_point_derivatives=True)
     kinematic = allow_kinematic and not _carries_others(station, held)
     return HandMotion(held, trajectory, float(times[1]), float(times[-1]), float(times[-2]),
-                      kinematic)
+                      kinematic, struck)
 
 
 def _carries_others(station: Station, held: str) -> bool:
@@ -132,17 +140,24 @@ def hand_pick_place(
     beliefs: dict[str, ObjectState],
     at_lift: Callable[[], object] | None = None,
     allow_kinematic: bool = True,
+    twin: ArmTwin | None = None,
 ) -> tuple[HandMotion, object]:
     """Executes the action from the station's current time; returns (motion, at_lift()).
 
     `at_lift` is called once the lift has ended (the held box is up), e.g. to perceive.
     With nothing caught nothing moves, and `at_lift` is called on the unchanged scene.
     `allow_kinematic=False` simulates every carry in full physics (no kinematic carry of
-    a free box, no rigid carry of a loaded one).
+    a free box, no rigid carry of a loaded one). With a `twin`, an action whose wrist
+    would strike a box is the twin arm's (InfeasibleAction where the arm cannot reach).
     """
     if station.config.robot != "hand":
         raise ValueError("hand_pick_place needs a station built with StationConfig(robot='hand')")
     motion = plan_hand(station, action, beliefs, allow_kinematic)
+    if motion.struck and twin is not None:
+        lifted = twin.run(station, action, beliefs, at_lift)
+        station.hold(station.robot_positions())
+        settle_until_rest(station, HAND_SETTLE_MIN, HAND_SETTLE_MAX)
+        return dc.replace(motion, by_arm=True), lifted
     if motion.held is None:
         return motion, at_lift() if at_lift else None
     station.grasp(motion.held)

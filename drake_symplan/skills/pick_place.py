@@ -130,6 +130,18 @@ def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGe
     return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
 
 
+def arm_geometry(action: Action, objects: dict[str, ObjectState]) -> tuple[ActionGeometry, bool]:
+    """Where the arm's TCP goes for `action` by the believed `objects`: the action's points,
+    or the careful carry's where the source carries a load (skills/carry.py); and whether
+    it carries carefully."""
+    g = action_geometry(action, objects)
+    if not riders(action.source, objects):
+        return g, False
+    grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
+                                             g.yaw_release - g.yaw_grasp)
+    return dc.replace(g, grasp=grasp, release=release), careful
+
+
 class PickPlaceMotions:
     """Turns an action and the caller's object states into a joint trajectory."""
 
@@ -148,12 +160,7 @@ class PickPlaceMotions:
              q_start: np.ndarray = HOME_Q, lift_hold: bool = True) -> Motion:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
         still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
-        g = action_geometry(action, objects)
-        careful = False
-        if riders(action.source, objects):  # a load: the careful carry (skills/carry.py)
-            grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
-                                                     g.yaw_release - g.yaw_grasp)
-            g = dc.replace(g, grasp=grasp, release=release)
+        g, careful = arm_geometry(action, objects)
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
         opening = CAREFUL_OPEN_SECONDS if careful else FINGER_SECONDS

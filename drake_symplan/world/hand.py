@@ -66,6 +66,40 @@ def grasp_catches(
     return best
 
 
+# The arm's wrist above its gripper (models/ur10/ur10.urdf), which the hand does not have:
+# wrist_3_link's cylinder about the tool axis (4.5 cm radius) from 8.7 cm above the TCP,
+# and at the wrist_3 joint, 17.7 cm above the TCP, wrist_2_link's cylinder sticking out
+# sideways up to 16.5 cm from the axis (towards the robot's base; any side, to be safe).
+# The palm below them is left out: a rider it presses is pinched and kept on both.
+WRIST_ZONES = (  # (height above the TCP from which, radius about the tool axis), m
+    (0.087, 0.045),
+    (0.132, 0.165),
+)
+WRIST_MARGIN = 0.01  # m added to each zone's radius
+
+
+def wrist_strikes(
+    poses: dict[str, RigidTransform],
+    half_extents: dict[str, np.ndarray],
+    tcp: np.ndarray,
+    zones: tuple = WRIST_ZONES,
+) -> list[str]:
+    """The boxes that the arm's wrist, coming straight down to the TCP point `tcp`, would
+    strike: those reaching above a zone's height within its radius of the tool axis."""
+    struck = []
+    for name, X in poses.items():
+        h = np.asarray(half_extents[name], float)
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)
+                            for sz in (-1, 1)]) * h
+        top = float(max(X.multiply(c)[2] for c in corners))
+        local = X.inverse().multiply(np.array([tcp[0], tcp[1], X.translation()[2]]))
+        reach = float(np.linalg.norm(np.maximum(np.abs(local[:2]) - h[:2], 0.0)))
+        if any(top > tcp[2] + above and reach < radius + WRIST_MARGIN
+               for above, radius in zones):
+            struck.append(name)
+    return struck
+
+
 class Hand:
     """Handles to the hand's model instance, joints, weld constraints and command source."""
 

@@ -230,7 +230,24 @@ class Station:
     def reset(self, scene: Scene, q_arm: np.ndarray = HOME_Q) -> None:
         """Puts the scene's objects on the table, parks the rest, robot home, time 0."""
         validate_scene(scene)
-        counts = {t: sum(o.type == t for o in scene.objects) for t in OBJECT_TYPES}
+        # The frames' noise restarts from the scene itself: a problem's start is seen with
+        # the same noise whichever solves ran before it, in whichever worker.
+        self.sensor_rng = np.random.default_rng([self.config.camera_seed, 1,
+                                                 _scene_digest(scene)])
+        self._put({o.name: o.type for o in scene.objects},
+                  {o.name: RigidTransform(RollPitchYaw(o.orientation),
+                                          np.asarray(o.position, float))
+                   for o in scene.objects}, q_arm)
+
+    def mirror(self, types: dict[str, str], poses: dict[str, RigidTransform],
+               q_arm: np.ndarray = HOME_Q) -> None:
+        """Like `reset`, with the objects at the poses of another station's (as simulated,
+        so not validated as a scene file is): the arm twin's start (skills/arm_twin.py)."""
+        self._put(types, poses, q_arm)
+
+    def _put(self, types: dict[str, str], poses: dict[str, RigidTransform],
+             q_arm: np.ndarray) -> None:
+        counts = {t: sum(v == t for v in types.values()) for t in OBJECT_TYPES}
         for t in OBJECT_TYPES:
             if counts[t] > len(self.pool[t]):
                 raise ValueError(
@@ -238,17 +255,13 @@ class Station:
                     f"{len(self.pool[t])} (StationConfig.pool_{t}s)")
         self.context.SetTime(0.0)
         self._following = None
-        # The frames' noise restarts from the scene itself: a problem's start is seen with
-        # the same noise whichever solves ran before it, in whichever worker.
-        self.sensor_rng = np.random.default_rng([self.config.camera_seed, 1,
-                                                 _scene_digest(scene)])
         plant, ctx = self.plant, self.plant_context
         self.assigned, self.types = {}, {}
         used = {t: 0 for t in OBJECT_TYPES}
-        for o in scene.objects:
-            body = self.pool[o.type][used[o.type]]
-            used[o.type] += 1
-            self.assigned[o.name], self.types[o.name] = body, o.type
+        for name, kind in types.items():
+            body = self.pool[kind][used[kind]]
+            used[kind] += 1
+            self.assigned[name], self.types[name] = body, kind
         self._name_of = {b.index(): n for n, b in self.assigned.items()}
         park = 0
         for t in OBJECT_TYPES:
@@ -260,9 +273,8 @@ class Station:
                     plant.SetFreeBodySpatialVelocity(ctx, body, SpatialVelocity.Zero())
                     fj.Lock(ctx)
                     park += 1
-        for o in scene.objects:
-            self.set_object_pose(o.name, RigidTransform(RollPitchYaw(o.orientation),
-                                                        np.asarray(o.position, float)))
+        for name, X in poses.items():
+            self.set_object_pose(name, X)
         if self.arm is not None:
             q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
             plant.SetPositions(ctx, self.arm, q)
