@@ -8,7 +8,9 @@ transition in physics, perception and the rest, and the rate the workers would r
 they only simulated (`physics_only_rate_per_s`: the ceiling for any speed-up outside the
 physics). `--parity-pairs N` also runs N identical (scene, action) pairs on both back-ends
 (data/parity.py), agreement also apart for the pairs that carry something
-(`--parity-structured`: on stacks, bridges and touching pairs, where sources carry).
+(`--parity-structured`: on stacks, bridges and touching pairs, where sources carry;
+`--parity-played`: on the states random play reaches; `--parity-no-twin`: the hand without
+its arm twin, skills/arm_twin.py).
 
 `--ray` compares the engines instead: per back-end, `--runs` rounds, each one collection
 with the local worker processes and one with Ray worker actors on this machine (same
@@ -103,6 +105,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--parity-structured", action="store_true",
                         help="parity on structured scenes of 3-5 objects (stacks, bridges), "
                              "where sources carry something")
+    parser.add_argument("--parity-played", action="store_true",
+                        help="parity on the states random play reaches (data/parity.py)")
+    parser.add_argument("--parity-no-twin", action="store_true",
+                        help="the hand without its arm twin (as before skills/arm_twin.py)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--ray", action="store_true",
                         help="compare Ray actors with the local workers on this machine")
@@ -135,6 +141,7 @@ def run_benchmarks(args: argparse.Namespace) -> dict:
 
         t0 = time.perf_counter()
         parity = measure_parity(args.parity_pairs, seed=args.seed, progress=not args.json,
+                                played=args.parity_played, arm_twin=not args.parity_no_twin,
                                 **({"structured": True, "objects": (3, 5)}
                                    if args.parity_structured else {}))
         parity.pop("rows")

@@ -6,8 +6,11 @@ execute it; we compare the outcome classes (exploration.classify) and the effect
 of the relevant objects (exploration.effects; per object the norm of the 6-d difference).
 Pairs the arm cannot reach, or whose scene either perception miscounts, are skipped and
 counted. Agreement is also reported apart for the pairs whose source carries something
-(the hand's perceived scene has a box resting on it: skills/carry.riders) and the rest. Scenes come from `scenes.sample_scene` or, when given, a fixed list. A measurement
-for tools/bench_collect.py (`--parity-pairs`) and test_data_collect; the pipeline does not use it.
+(the hand's perceived scene has a box resting on it: skills/carry.riders) and the rest.
+Scenes come from `scenes.sample_scene` or, when given, a fixed list; `played=True` takes
+instead the states random play reaches (leaning blocks, stacks, what lies where the last
+actions dropped it: `played_states`), put on both stations as simulated. A measurement for
+tools/bench_collect.py (`--parity-pairs`) and test_data_collect; the pipeline does not use it.
 """
 
 from __future__ import annotations
@@ -24,7 +27,9 @@ from drake_symplan.perception.perceive import associate
 from drake_symplan.robot.backends import make_backend
 from drake_symplan.skills.carry import riders
 from drake_symplan.skills.pick_place import action_geometry
-from drake_symplan.world.scenes import sample_scene, sample_structured_scene
+from drake_symplan.world.scenes import Scene, sample_scene, sample_structured_scene
+
+PLAY_LENGTH = 6  # random actions per played episode in `played_states`
 
 
 def _map_names(src_scene, dst_scene) -> dict[str, str]:
@@ -35,11 +40,13 @@ def _map_names(src_scene, dst_scene) -> dict[str, str]:
 def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
     """One pair: {'status', 'hand', 'arm', 'effect_diff'} (classes and per-object diffs)."""
     out, results = {}, {}
-    hand.reset(scene)
-    hb = hand.perceive()
-    arm.reset(scene)
-    ab = arm.perceive()
-    n = len(scene.objects)
+    for backend in (hand, arm):
+        if isinstance(scene, Scene):
+            backend.reset(scene)
+        else:  # a played state: (types, poses) as simulated
+            backend.mirror(*scene)
+    hb, ab = hand.perceive(), arm.perceive()
+    n = len(scene.objects) if isinstance(scene, Scene) else len(scene[0])
     if len(hb.objects) != n or len(ab.objects) != n:
         return {"status": "perception_count_mismatch"}
     if action is None:
@@ -74,14 +81,38 @@ def compare_pair(hand, arm, scene, action: Action | None, rng) -> dict:
     return out
 
 
+def played_states(hand, count: int, rng, objects: tuple[int, int]) -> list[tuple[dict, dict]]:
+    """`count` states (types, poses: simulator truth, as a scene file holds it) that random
+    play on the `hand` back-end reaches, PLAY_LENGTH actions per episode from sampled scenes;
+    each the state before one of the episode's actions."""
+    states = []
+    while len(states) < count:
+        hand.reset(sample_scene(rng, int(rng.integers(objects[0], objects[1] + 1))))
+        for _ in range(PLAY_LENGTH):
+            poses, types = hand.ground_truth_poses()
+            states.append((types, poses))
+            before = hand.perceive()
+            if len(before.names) < 2 or len(states) >= count:
+                break
+            if hand.execute(random_action(rng, before.names), before, lift=False).status \
+                    == "sim_failure":
+                break
+    return states
+
+
 def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
                    scenes_actions: list | None = None, progress: bool = False,
-                   structured: bool = False) -> dict:
+                   structured: bool = False, played: bool = False,
+                   arm_twin: bool = True) -> dict:
     """Runs `pairs` random pairs (or the given (scene, action) list); the parity report.
     `structured`: the scenes are stacks, bridges and touching pairs (sample_structured_scene),
-    where sources carry something, rather than boxes apart (sample_scene)."""
-    hand, arm = make_backend("hand"), make_backend("arm")
+    where sources carry something, rather than boxes apart (sample_scene); `played`: the
+    states random play reaches (`played_states`). `arm_twin=False`: the hand without its
+    arm twin (skills/arm_twin.py), as it was before it."""
+    hand, arm = make_backend("hand", arm_twin=arm_twin), make_backend("arm")
     rng = np.random.default_rng(seed)
+    if scenes_actions is None and played:
+        scenes_actions = [(s, None) for s in played_states(hand, pairs, rng, objects)]
     if scenes_actions is None:
         sample = sample_structured_scene if structured else sample_scene
         scenes_actions = [(sample(rng, int(rng.integers(objects[0], objects[1] + 1))), None)

@@ -96,6 +96,12 @@ class Backend:
         self.station.reset(scene)
         self.station.settle(RESET_SETTLE)
 
+    def mirror(self, types: dict[str, str], poses: dict) -> None:
+        """Puts objects at simulated poses (another station's state, from
+        `ground_truth_poses`), robot home, and lets them settle as `reset` does."""
+        self.station.mirror(types, poses)
+        self.station.settle(RESET_SETTLE)
+
     def perceive(self, prior=None):
         """The scene as perceived now; `prior`: the scene perceived before the action."""
         start = time.perf_counter()
@@ -134,14 +140,14 @@ class HandBackend(Backend):
     name = "hand"
     robot = "hand"
 
-    def __init__(self, *args, allow_kinematic: bool = True, **kwargs):
+    def __init__(self, *args, allow_kinematic: bool = True, arm_twin: bool = True, **kwargs):
         super().__init__(*args, **kwargs)
         self.allow_kinematic = allow_kinematic
-        self.twin = ArmTwin()
+        self.twin = ArmTwin() if arm_twin else None
 
     def seconds(self) -> dict[str, float]:
         out = super().seconds()
-        out["physics"] += self.twin.physics_seconds
+        out["physics"] += self.twin.physics_seconds if self.twin else 0.0
         return out
 
     def execute(self, action: Action, before, lift: bool = True) -> Execution:
@@ -166,7 +172,7 @@ class HandBackend(Backend):
         return Execution("ok", lifted, self.perceive(before))
 
     def _perceive_if_moved(self, before):
-        moved = self.station.held is not None or self.twin.running
+        moved = self.station.held is not None or bool(self.twin and self.twin.running)
         return self.perceive(before) if moved or self.noisy else None
 
 

@@ -4,8 +4,9 @@ The hand (world/hand.py) has no wrist. Where the arm's wrist, coming down to its
 point, would strike a box (a tower on the source rising past the palm, a tall stack beside
 the grasp: world/hand.wrist_strikes), the hand's action is run by a twin UR10 station in
 full physics instead: the twin takes the hand station's poses, executes the arm's own
-motion planned from the same beliefs, and the hand station takes the twin's poses at the
-end of the lift (for the camera) and at the end. So whatever the arm knocks over falls in
+motion planned from the same beliefs (from above the grasp to above the release: the
+free-space legs to and from home touch nothing), and the hand station takes the twin's
+poses at the end of the lift (for the camera) and at the end. So whatever the arm knocks over falls in
 the data as well. Rare in random play, so the hand keeps its speed.
 """
 
@@ -55,8 +56,11 @@ class ArmTwin:
         Raises InfeasibleAction where the arm cannot reach a waypoint (nothing moved) and
         RuntimeError where its simulation fails."""
         arm = self._arm(hand)
-        arm.mirror(dict(hand.types), hand.object_poses())
-        motion = self._planner.plan(action, beliefs, lift_hold=at_lift is not None)
+        # Only the legs near the boxes: from above the grasp to above the release.
+        motion = self._planner.plan(action, beliefs, lift_hold=at_lift is not None,
+                                    travel=False)
+        arm.mirror(dict(hand.types), hand.object_poses(),
+                   q_arm=motion.trajectory.value(0.0).ravel()[:6])
 
         def lifted():
             copy_poses(arm, hand)
