@@ -54,6 +54,27 @@ def test_each_word_names_its_geometry():
         row, {**spaced, "c": [0.7, 0.20, 0.025]}, types)
 
 
+def test_structures_build_on_what_the_ones_before_designed():
+    objects = START.object_states()
+    specs = goals.parse(["row o0 o2", "tower o1 o0", "tower o3 o2", "bridge o4 o1 o3"])
+    goals.check(specs, objects)  # the supports stand 7.5 cm apart, tops level, by then
+    assert goals.build_actions(specs, objects) == [
+        Action("o2", "center", "o0", "right"), Action("o1", "center", "o0", "center"),
+        Action("o3", "center", "o2", "center"), Action("o4", "center", "o1", "right")]
+    end = {n: o.position for n, o in goals.designed(specs[3], goals.designed(
+        specs[2], goals.designed(specs[1], goals.designed(specs[0], objects)))).items()}
+    assert end["o2"] == pytest.approx([0.60, -0.175, 0.025])  # 7.5 cm along y from o0
+    assert end["o1"] == pytest.approx([0.60, -0.25, 0.075])
+    assert end["o4"] == pytest.approx([0.60, -0.175, 0.125])  # across both towers' tops
+    types = {o.name: o.type for o in START.objects}
+    for structure in specs:
+        assert goals.holds(structure, end, types) is None, structure
+    with pytest.raises(goals.SpecError, match="supports' tops are not level"):
+        goals.check(goals.parse(["row o0 o2", "tower o1 o0", "bridge o4 o1 o2"]), objects)
+    with pytest.raises(goals.SpecError, match="o2 named twice"):  # moved by both
+        goals.check(goals.parse(["row o0 o2", "on o2 o3"]), objects)
+
+
 @pytest.mark.parametrize("start, spec, why", [
     (START, "tower o0 o1 o0", "o0 named twice"),
     (START, "bridge o0 o2 o5", "o0 is a cube; a bridge needs a long block"),
@@ -107,6 +128,14 @@ def test_a_task_samples_a_structure_k_actions_away():
     (row,) = goals.sample_structures(rng, objects, "row", 2)
     assert all(objects[n].type == "cube" for n in row.objects)
     assert goals.sample_structures(rng, objects, "row", 5) == "too_few_objects"  # 5 cubes
+    for task, k, words in (("bridge", 2, ["row", "bridge"]),
+                           ("bridge", 5, ["row", "tower", "tower", "bridge", "on"]),
+                           ("mixed", 3, ["tower", "row", "bridge"])):
+        structures = goals.sample_structures(rng, objects, task, k)
+        assert [s.word for s in structures] == words, task
+        goals.check(structures, objects)
+        assert len(goals.build_actions(structures, objects)) == k, (task, k)
+    assert goals.sample_structures(rng, objects, "bridge", 6) == "too_few_objects"  # 6 cubes
 
 
 @pytest.mark.slow

@@ -92,7 +92,9 @@ def _register_problems(subparsers) -> None:
                    "reach it again (drops chaotic goals; the oracle then solves every one)")
     p.add_argument("--task", choices=TASKS, default=None,
                    help="goals built by design, k actions away (evaluation/goals.py): a tower "
-                   "of k + 1 boxes, a row of k + 1 cubes, two towers of k + 2 boxes; "
+                   "of k + 1 boxes, a row of k + 1 cubes, two towers of k + 2 boxes, a "
+                   "bridge (a row of two cubes, towers of k // 2 on them, a long block "
+                   "across, a cube on it for an odd k), mixed: a tower beside a bridge; "
                    "default: k random actions")
     add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)

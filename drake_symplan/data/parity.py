@@ -107,12 +107,16 @@ def measure_parity(pairs: int, seed: int = 0, objects: tuple[int, int] = (2, 4),
     """Runs `pairs` random pairs (or the given (scene, action) list); the parity report.
     `structured`: the scenes are stacks, bridges and touching pairs (sample_structured_scene),
     where sources carry something, rather than boxes apart (sample_scene); `played`: the
-    states random play reaches (`played_states`). `arm_twin=False`: the hand without its
+    states random play reaches (`played_states`, played by the hand without its twin).
+    `arm_twin=False`: the hand measured without its
     arm twin (skills/arm_twin.py), as it was before it."""
     hand, arm = make_backend("hand", arm_twin=arm_twin), make_backend("arm")
     rng = np.random.default_rng(seed)
     if scenes_actions is None and played:
-        scenes_actions = [(s, None) for s in played_states(hand, pairs, rng, objects)]
+        # Played by the hand without its twin whatever is measured: one seed, one set of
+        # states and actions, so runs with and without the twin compare pair by pair.
+        player = make_backend("hand", arm_twin=False)
+        scenes_actions = [(s, None) for s in played_states(player, pairs, rng, objects)]
     if scenes_actions is None:
         sample = sample_structured_scene if structured else sample_scene
         scenes_actions = [(sample(rng, int(rng.integers(objects[0], objects[1] + 1))), None)
