@@ -1,13 +1,16 @@
 """The arm standing in for the hand where the hand would not tell the truth about it.
 
-The hand (world/hand.py) has no wrist. Where the arm's wrist, coming down to its grasp
-point, would strike a box (a tower on the source rising past the palm, a tall stack beside
-the grasp: world/hand.wrist_strikes), the hand's action is run by a twin UR10 station in
-full physics instead: the twin takes the hand station's poses, executes the arm's own
-motion planned from the same beliefs (from above the grasp to above the release: the
-free-space legs to and from home touch nothing), and the hand station takes the twin's
-poses at the end of the lift (for the camera) and at the end. So whatever the arm knocks over falls in
-the data as well. Rare in random play, so the hand keeps its speed.
+The hand (world/hand.py) has no wrist and no fingers. Where the arm's wrist, coming down
+to its grasp point, would strike a box (a tower on the source rising past the palm, a tall
+stack beside the grasp: world/hand.wrist_strikes), or where its fingers would close on the
+source and a rider at once (a load with no clear point to grasp: skills/carry.py), the
+hand's weld would not behave as the arm does, and the action is run by a twin UR10 station in
+full physics instead: the twin takes the hand station's poses and velocities (a scene
+may still be settling), executes the arm's own
+motion planned from the same beliefs, home to home, and the hand station takes the twin's
+poses at the end of the lift (for the camera) and at the end (starting the arm above the
+grasp instead saved no measurable time). So whatever the arm knocks over falls in
+the data as well.
 """
 
 from __future__ import annotations
@@ -56,11 +59,8 @@ class ArmTwin:
         Raises InfeasibleAction where the arm cannot reach a waypoint (nothing moved) and
         RuntimeError where its simulation fails."""
         arm = self._arm(hand)
-        # Only the legs near the boxes: from above the grasp to above the release.
-        motion = self._planner.plan(action, beliefs, lift_hold=at_lift is not None,
-                                    travel=False)
-        arm.mirror(dict(hand.types), hand.object_poses(),
-                   q_arm=motion.trajectory.value(0.0).ravel()[:6])
+        arm.mirror(dict(hand.types), hand.object_poses(), hand.object_velocities())
+        motion = self._planner.plan(action, beliefs, lift_hold=at_lift is not None)
 
         def lifted():
             copy_poses(arm, hand)

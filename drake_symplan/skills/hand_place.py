@@ -33,6 +33,7 @@ from drake_symplan.actions import Action
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.arm_twin import ArmTwin
+from drake_symplan.skills.carry import riders
 from drake_symplan.skills.pick_place import action_geometry, arm_geometry
 from drake_symplan.world.hand import grasp_catches, hand_q_of_pose, wrist_strikes
 from drake_symplan.world.settling import settle_until_rest
@@ -59,6 +60,7 @@ class HandMotion:
     t_above: float = 0.0  # end of the lateral carry, above the release point
     kinematic: bool = False  # nothing rides on the held box: skip simulating the carry
     struck: list[str] = dc.field(default_factory=list)  # what the arm's wrist would strike
+    pinched: bool = False  # the arm's fingers would close on the source and a rider at once
     by_arm: bool = False  # the arm twin ran the action (hand_pick_place)
 
 
@@ -77,9 +79,11 @@ def plan_hand(
     poses = station.object_poses()
     half = {n: np.array(HALF_EXTENTS[station.types[n]]) for n in poses}
     held = grasp_catches(poses, half, g.grasp)
-    struck = wrist_strikes(poses, half, arm_geometry(action, beliefs)[0].grasp)
+    arm, careful = arm_geometry(action, beliefs)
+    struck = wrist_strikes(poses, half, arm.grasp)
+    pinched = not careful and bool(riders(action.source, beliefs))
     if held is None:
-        return HandMotion(None, struck=struck)
+        return HandMotion(None, struck=struck, pinched=pinched)
     X_WT0 = RigidTransform(RotationMatrix.MakeZRotation(g.yaw_grasp), g.grasp)
     X_TB = X_WT0.inverse().multiply(poses[held])
 
@@ -105,7 +109,7 @@ def plan_hand(
         times, q.T, zero_end_point_derivatives=True)
     kinematic = allow_kinematic and not _carries_others(station, held)
     return HandMotion(held, trajectory, float(times[1]), float(times[-1]), float(times[-2]),
-                      kinematic, struck)
+                      kinematic, struck, pinched)
 
 
 def _carries_others(station: Station, held: str) -> bool:
@@ -153,7 +157,7 @@ def hand_pick_place(
     if station.config.robot != "hand":
         raise ValueError("hand_pick_place needs a station built with StationConfig(robot='hand')")
     motion = plan_hand(station, action, beliefs, allow_kinematic)
-    if motion.struck and twin is not None:
+    if (motion.struck or motion.pinched) and twin is not None:
         lifted = twin.run(station, action, beliefs, at_lift)
         station.hold(station.robot_positions())
         settle_until_rest(station, HAND_SETTLE_MIN, HAND_SETTLE_MAX)

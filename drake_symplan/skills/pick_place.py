@@ -157,12 +157,9 @@ class PickPlaceMotions:
         return q
 
     def plan(self, action: Action, objects: dict[str, ObjectState],
-             q_start: np.ndarray = HOME_Q, lift_hold: bool = True,
-             travel: bool = True) -> Motion:
+             q_start: np.ndarray = HOME_Q, lift_hold: bool = True) -> Motion:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
-        still LIFT_HOLD after the lift, for a camera to see the lifted scene; `travel=False`
-        leaves out the free-space legs, from `q_start` to above the grasp and from above
-        the release home (the motion starts and ends there)."""
+        still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
         g, careful = arm_geometry(action, objects)
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
@@ -183,7 +180,7 @@ class PickPlaceMotions:
         retreat = self._solve("retreat", g.release + up, g.yaw_release, at_release)
         opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(grip)
         lifting = [
-            *([Phase(opened(q_start, pre))] if travel else []),
+            Phase(opened(q_start, pre)),
             Phase(opened(pre, mid, at_grasp), tcp_acceleration=TCP_ACCELERATION),
             Phase(opened(at_grasp), dwell=FINGER_SECONDS, finger=grip),
             Phase(closed(at_grasp, carry[0]), tcp_acceleration=loaded),
@@ -195,7 +192,7 @@ class PickPlaceMotions:
             Phase(closed(carry[-1], at_release), tcp_acceleration=loaded),
             Phase(closed(at_release), dwell=RELEASE_HOLD, finger=grip),
             Phase(closed(at_release), dwell=opening, finger=FINGER_OPEN),
-            Phase(opened(at_release, retreat, *([HOME_Q] if travel else []))),
+            Phase(opened(at_release, retreat, HOME_Q)),
         ]
         trajectory, ends = self.timer.trajectory(lifting + placing)
         return Motion(trajectory, ends[len(lifting) - 1], ends[-1])

@@ -240,13 +240,15 @@ class Station:
                    for o in scene.objects}, q_arm)
 
     def mirror(self, types: dict[str, str], poses: dict[str, RigidTransform],
+               velocities: dict[str, SpatialVelocity] | None = None,
                q_arm: np.ndarray = HOME_Q) -> None:
-        """Like `reset`, with the objects at the poses of another station's (as simulated,
-        so not validated as a scene file is): the arm twin's start (skills/arm_twin.py)."""
-        self._put(types, poses, q_arm)
+        """Like `reset`, with the objects at the poses (and velocities) of another station's
+        (as simulated, so not validated as a scene file is): the arm twin's start
+        (skills/arm_twin.py)."""
+        self._put(types, poses, q_arm, velocities or {})
 
     def _put(self, types: dict[str, str], poses: dict[str, RigidTransform],
-             q_arm: np.ndarray) -> None:
+             q_arm: np.ndarray, velocities: dict | None = None) -> None:
         counts = {t: sum(v == t for v in types.values()) for t in OBJECT_TYPES}
         for t in OBJECT_TYPES:
             if counts[t] > len(self.pool[t]):
@@ -275,6 +277,8 @@ class Station:
                     park += 1
         for name, X in poses.items():
             self.set_object_pose(name, X)
+        for name, V in (velocities or {}).items():
+            plant.SetFreeBodySpatialVelocity(ctx, self.assigned[name], V)
         if self.arm is not None:
             q = np.concatenate([q_arm, [FINGER_OPEN, FINGER_OPEN]])
             plant.SetPositions(ctx, self.arm, q)
@@ -375,6 +379,10 @@ class Station:
 
     def object_poses(self) -> dict[str, RigidTransform]:
         return {n: self.plant.EvalBodyPoseInWorld(self.plant_context, b)
+                for n, b in self.assigned.items()}
+
+    def object_velocities(self) -> dict[str, SpatialVelocity]:
+        return {n: self.plant.EvalBodySpatialVelocityInWorld(self.plant_context, b)
                 for n, b in self.assigned.items()}
 
     def object_states(self) -> dict[str, ObjectState]:
