@@ -102,6 +102,20 @@ def test_the_wrist_strikes_what_rises_past_the_palm_near_the_tool_axis():
     assert wrist_strikes(beside, half, tcp + np.array([0.0, 0.0, 0.05])) == []  # under it
 
 
+def test_the_open_fingers_strike_a_neighbour_across_the_finger_axis_only():
+    from drake_symplan.boxes import HALF_EXTENTS
+    from drake_symplan.world.hand import finger_strikes
+
+    half = {n: np.array(HALF_EXTENTS["cube"]) for n in ("src", "x", "y")}
+    # the source at the TCP; one cube 6 cm away across the finger axis (world x at yaw 0),
+    # under a pad (4.25-5.75 cm out); one 6 cm away along y, beside the pads
+    poses = _poses({"src": [0.7, 0.0, 0.025], "x": [0.76, 0.0, 0.025], "y": [0.7, 0.06, 0.025]})
+    tcp = np.array([0.7, 0.0, 0.025])
+    assert finger_strikes(poses, half, tcp, 0.0, skip="src") == ["x"]
+    assert finger_strikes(poses, half, tcp, np.pi / 2, skip="src") == ["y"]  # turned
+    assert finger_strikes(poses, half, tcp + np.array([0.0, 0.0, 0.07]), 0.0, "src") == []
+
+
 def test_a_tall_tower_at_the_far_end_of_a_block_falls_on_both_back_ends(runner):
     """The arm's wrist knocks a three-cube tower 9 cm along the block; the hand has no wrist
     and kept it (6 of 9) until the arm twin ran what the wrist would strike."""

@@ -39,6 +39,11 @@ def register(subparsers) -> None:
     collect.add_argument("--noise-dropout", type=float, default=0.0,
                          help="fraction of depth pixels lost")
     add_camera_noise_argument(collect)
+    collect.add_argument("--hand-twin", choices=("on", "off"), default="on",
+                         help="on: the hand runs on a twin arm what the arm's wrist or fingers "
+                              "would touch otherwise (the data tells the truth about the arm, "
+                              "at about half the speed); off: the hand alone, as sets made "
+                              "before 2026-11-27 (to extend one)")
     collect.add_argument("--time-step", type=positive_float, default=0.01,
                          help="physics step (s); 0.005 extends a collection made before 10 ms "
                               "became the step")
@@ -107,7 +112,7 @@ def cmd_collect(args: argparse.Namespace) -> dict:
         long_fraction=args.long_fraction, chunk_size=args.chunk_size,
         noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout,
         time_step=args.time_step, camera_noise=args.camera_noise, explorer=args.explorer,
-        active=active)
+        active=active, hand_twin=args.hand_twin == "on")
     if args.explorer == "active":
         from drake_symplan.explorers.rounds import collect_active
 

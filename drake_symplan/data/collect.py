@@ -70,6 +70,9 @@ class CollectConfig:
     noise_dropout: float = 0.0
     time_step: float = TIME_STEP  # s of physics per step (world/station.py)
     camera_noise: str = "none"  # the cameras' sensor model (world/depth_sensor.CAMERA_NOISE)
+    # The hand runs on the arm twin what the arm's wrist or fingers would touch otherwise
+    # (skills/arm_twin.py); sets made before it (2026-11-27) are the hand's alone.
+    hand_twin: bool = True
     # How actions are chosen: "random", or "active" with its settings (explorers/active.py,
     # ActiveConfig as a dict); the data layer records them, the explorers layer acts on them.
     explorer: str = "random"
@@ -84,6 +87,7 @@ class CollectConfig:
             raise ValueError(f"time_step must be a positive number of seconds, got "
                              f"{self.time_step}")
         camera_noise(self.camera_noise)  # ValueError naming the choices
+        self.hand_twin = self.hand_twin and self.backend == "hand"  # the arm has no twin
         if not 2 <= self.min_objects <= self.max_objects <= 8:
             raise ValueError(f"objects must satisfy 2 <= min <= max <= 8, got "
                              f"{self.min_objects}-{self.max_objects}")
@@ -100,10 +104,18 @@ class CollectConfig:
                              self.long_fraction)
 
 
-def collection_backend(name: str, time_step: float, sensor: str = "none"):
+def collection_backend(name: str, time_step: float, sensor: str = "none",
+                       hand_twin: bool = True):
     """The back-end a collection's workers run: `name` at `time_step`, its cameras'
-    sensor model `sensor` (CollectConfig.camera_noise)."""
-    return make_backend(name, time_step=time_step, camera_noise=sensor)
+    sensor model `sensor` (CollectConfig.camera_noise), the hand with or without its arm
+    twin (CollectConfig.hand_twin)."""
+    twin = {"arm_twin": hand_twin} if name == "hand" else {}
+    return make_backend(name, time_step=time_step, camera_noise=sensor, **twin)
+
+
+def backend_args(config: CollectConfig) -> tuple:
+    """`collection_backend`'s arguments for a collection."""
+    return config.backend, config.time_step, config.camera_noise, config.hand_twin
 
 
 def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
@@ -173,7 +185,7 @@ _worker: dict = {}
 def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
     config = CollectConfig(**config_dict)
     _worker.update(config=config, progress=progress, parent=parent_pid,
-                   backend=collection_backend(config.backend, config.time_step, config.camera_noise))
+                   backend=collection_backend(*backend_args(config)))
     progress.put(0)  # started: its station is built
 
 
@@ -236,7 +248,7 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
             started, jobs_by_node = _run_ray(ray, out_dir, config, todo,
                                              min(workers, len(todo)), bar, explorer)
         elif workers == 1:
-            backend = collection_backend(config.backend, config.time_step, config.camera_noise)
+            backend = collection_backend(*backend_args(config))
             started = time.perf_counter()
             for c in todo:
                 storage.write_shard(out_dir, c, *chunk_shard(backend, config, c, explorer(c),
@@ -272,7 +284,7 @@ def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int
         stored = manifest.get("config")
         if isinstance(stored, dict):  # settings added since: what such a set was made with
             stored = {"time_step": LEGACY_TIME_STEP, "explorer": "random", "active": {},
-                      "camera_noise": "none", **stored}
+                      "camera_noise": "none", "hand_twin": False, **stored}
         if stored != identity:
             if not _extends(stored, identity):
                 raise ValueError(
@@ -361,8 +373,7 @@ def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers
         advance(c, config.chunk_count(c))
         written.add(c)
 
-    return run_jobs(ray, collection_backend,
-                    (config.backend, config.time_step, config.camera_noise), chunk_shard,
+    return run_jobs(ray, collection_backend, backend_args(config), chunk_shard,
                     [(c, config, c, explorer(c)) for c in todo], workers, write, advance)
 
 

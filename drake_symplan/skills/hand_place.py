@@ -35,7 +35,12 @@ from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.arm_twin import ArmTwin
 from drake_symplan.skills.carry import riders
 from drake_symplan.skills.pick_place import action_geometry, arm_geometry
-from drake_symplan.world.hand import grasp_catches, hand_q_of_pose, wrist_strikes
+from drake_symplan.world.hand import (
+    finger_strikes,
+    grasp_catches,
+    hand_q_of_pose,
+    wrist_strikes,
+)
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import Station
 
@@ -59,7 +64,7 @@ class HandMotion:
     t_release: float = 0.0
     t_above: float = 0.0  # end of the lateral carry, above the release point
     kinematic: bool = False  # nothing rides on the held box: skip simulating the carry
-    struck: list[str] = dc.field(default_factory=list)  # what the arm's wrist would strike
+    struck: list[str] = dc.field(default_factory=list)  # what the arm's wrist, fingers would strike
     pinched: bool = False  # the arm's fingers would close on the source and a rider at once
     by_arm: bool = False  # the arm twin ran the action (hand_pick_place)
 
@@ -81,6 +86,8 @@ def plan_hand(
     held = grasp_catches(poses, half, g.grasp)
     arm, careful = arm_geometry(action, beliefs)
     struck = wrist_strikes(poses, half, arm.grasp)
+    struck += [n for n in finger_strikes(poses, half, arm.grasp, arm.yaw_grasp, held)
+               if n not in struck]
     pinched = not careful and bool(riders(action.source, beliefs))
     if held is None:
         return HandMotion(None, struck=struck, pinched=pinched)

@@ -100,6 +100,56 @@ def wrist_strikes(
     return struck
 
 
+# The arm's open fingers (models/ur10/ur10.urdf): 1.5 x 2 cm pads whose inner faces stand
+# 8.5 cm apart across the finger axis, reaching from 1.5 cm below the TCP upwards.
+FINGER_CENTRE = 0.05  # m from the TCP along the finger axis
+FINGER_HALF = np.array([0.0075, 0.01])  # m: half thickness (finger axis), half width
+FINGER_BELOW_TCP = 0.015  # m
+FINGER_MARGIN = 0.003  # m
+
+
+def finger_strikes(
+    poses: dict[str, RigidTransform],
+    half_extents: dict[str, np.ndarray],
+    tcp: np.ndarray,
+    yaw: float,
+    skip: str | None = None,
+) -> list[str]:
+    """The boxes (but `skip`, the one the fingers close on) that the arm's open fingers,
+    coming straight down to the TCP point `tcp` with the finger axis at `yaw`, would land
+    on or push: those reaching above the pads' lowest point under either pad."""
+    axis = np.array([np.cos(yaw), np.sin(yaw)])
+    R_f = np.array([axis, [-axis[1], axis[0]]])  # rows: the finger frame's axes in world xy
+    struck = []
+    for name, X in poses.items():
+        if name == skip:
+            continue
+        h = np.asarray(half_extents[name], float)
+        corners = np.array([X.multiply(np.array([sx, sy, sz]) * h) for sx in (-1, 1)
+                            for sy in (-1, 1) for sz in (-1, 1)])
+        if corners[:, 2].max() <= tcp[2] - FINGER_BELOW_TCP:
+            continue
+        R_b = X.rotation().matrix()[:2, :2].T  # rows: the box's x, y axes in world xy
+        for side in (-1.0, 1.0):
+            centre = np.asarray(tcp[:2], float) + side * FINGER_CENTRE * axis
+            if _rectangles_overlap(centre, R_f, FINGER_HALF + FINGER_MARGIN,
+                                   X.translation()[:2], R_b, h[:2]):
+                struck.append(name)
+                break
+    return struck
+
+
+def _rectangles_overlap(c1, R1, h1, c2, R2, h2) -> bool:
+    """Separating-axis test of two rectangles (centre, rows = unit axes, half extents)."""
+    d = np.asarray(c2, float) - np.asarray(c1, float)
+    for u in (*R1, *R2):
+        r1 = np.abs(R1 @ u) @ h1
+        r2 = np.abs(R2 @ u) @ h2
+        if abs(d @ u) > r1 + r2:
+            return False
+    return True
+
+
 class Hand:
     """Handles to the hand's model instance, joints, weld constraints and command source."""
 
