@@ -97,7 +97,9 @@ class LearningCurve(StageRunner):
         workers = ["--ray", *([self.ray] if self.ray else [])] if self.ray is not None \
             else ["--workers", self.jobs]
         options = [*s.active, "--device", self.device] if explorer == "active" else []
-        argv = ["collect", "--backend", "hand", "--transitions", size, "--out", data,
+        # The published curve was measured on the hand without its arm twin.
+        argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--transitions", size,
+                "--out", data,
                 "--seed", seed, "--objects", s.objects, "--chunk-size", s.chunk_size,
                 *(["--explorer", "active", *options] if explorer == "active" else []),
                 "--no-progress", "--json", *workers]

@@ -107,8 +107,10 @@ class Reproduction(StageRunner):
         s = self.scale
 
         def collect(name, data, n, seed):
-            argv = ["collect", "--backend", "hand", "--transitions", n, "--out", data,
-                    "--seed", seed, "--objects", s.objects, "--no-progress", "--json",
+            # The published figures were measured on the hand without its arm twin.
+            argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--transitions", n,
+                    "--out", data, "--seed", seed, "--objects", s.objects, "--no-progress",
+                    "--json",
                     *self._sensor(), *(self._ray() or ["--workers", self.jobs])]
             return Stage(name, argv, data / "collected.json", stdout=data / "collected.json")
 
