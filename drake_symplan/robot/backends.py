@@ -5,8 +5,8 @@ The agent executes plans with it and data collection explores with it.
 - `arm`: the UR10 executes the IK-planned pick/place in full physics (skills/pick_place).
 - `hand`: the collision-free simulated hand (world/hand.py, skills/hand_place.py) holds the
   grasped box with a weld constraint while carrying, then physics settles the scene; the
-  grasp and release geometry is the arm's, and where the arm's wrist would strike a box
-  the arm itself runs the action (skills/arm_twin.py).
+  grasp and release geometry is the arm's, and where the arm's wrist or fingers would
+  touch what the hand does not, the arm itself runs the action (skills/arm_twin.py).
 
 Both see the world only through the same perception: `reset` puts a scene on the table,
 `perceive` returns a `PerceivedScene`, and `execute(action, before)` plans from the
@@ -135,7 +135,7 @@ class Backend:
 
 class HandBackend(Backend):
     """The fast back-end: weld-constraint hand; carries are kinematic or rigid (hand_place),
-    and what the arm's wrist would strike, the arm's (`twin`)."""
+    and what the arm's wrist or fingers would touch otherwise, the arm's (`twin`)."""
 
     name = "hand"
     robot = "hand"

@@ -15,9 +15,11 @@ physics (what it raises rides along, what leaned on the box falls), and the load
 moves rigidly to the release pose. Either way, a release pose that is not clear of the
 rest of the scene is reached by a descent in full physics from above it, as the arm's.
 
-Where the arm's wrist would strike a box on its way down to the grasp (world/hand.py's
-`wrist_strikes`, at the arm's own grasp point), the hand would keep what the arm knocks
-over; given an `ArmTwin`, the action is run by the arm instead (skills/arm_twin.py).
+Where the arm, at its own grasp point, would touch what the hand does not (its wrist
+striking a box on the way down, its open fingers landing on a neighbour: world/hand.py's
+`wrist_strikes`, `finger_strikes`; its fingers pinching the source and a rider together),
+the hand would keep what the arm knocks over or drops; given an `ArmTwin`, the action is
+run by the arm instead (skills/arm_twin.py).
 """
 
 from __future__ import annotations
@@ -33,7 +35,6 @@ from drake_symplan.actions import Action
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.arm_twin import ArmTwin
-from drake_symplan.skills.carry import riders
 from drake_symplan.skills.pick_place import action_geometry, arm_geometry
 from drake_symplan.world.hand import (
     finger_strikes,
@@ -64,7 +65,7 @@ class HandMotion:
     t_release: float = 0.0
     t_above: float = 0.0  # end of the lateral carry, above the release point
     kinematic: bool = False  # nothing rides on the held box: skip simulating the carry
-    struck: list[str] = dc.field(default_factory=list)  # what the arm's wrist, fingers would strike
+    struck: list[str] = dc.field(default_factory=list)  # what the arm's wrist or fingers would hit
     pinched: bool = False  # the arm's fingers would close on the source and a rider at once
     by_arm: bool = False  # the arm twin ran the action (hand_pick_place)
 
@@ -84,11 +85,11 @@ def plan_hand(
     poses = station.object_poses()
     half = {n: np.array(HALF_EXTENTS[station.types[n]]) for n in poses}
     held = grasp_catches(poses, half, g.grasp)
-    arm, careful = arm_geometry(action, beliefs)
+    arm, carry = arm_geometry(action, beliefs)
     struck = wrist_strikes(poses, half, arm.grasp)
     struck += [n for n in finger_strikes(poses, half, arm.grasp, arm.yaw_grasp, held)
                if n not in struck]
-    pinched = not careful and bool(riders(action.source, beliefs))
+    pinched = carry == "pinched"
     if held is None:
         return HandMotion(None, struck=struck, pinched=pinched)
     X_WT0 = RigidTransform(RotationMatrix.MakeZRotation(g.yaw_grasp), g.grasp)
@@ -158,8 +159,9 @@ def hand_pick_place(
     `at_lift` is called once the lift has ended (the held box is up), e.g. to perceive.
     With nothing caught nothing moves, and `at_lift` is called on the unchanged scene.
     `allow_kinematic=False` simulates every carry in full physics (no kinematic carry of
-    a free box, no rigid carry of a loaded one). With a `twin`, an action whose wrist
-    would strike a box is the twin arm's (InfeasibleAction where the arm cannot reach).
+    a free box, no rigid carry of a loaded one). With a `twin`, an action where the arm
+    would strike or pinch something (`HandMotion.struck`, `pinched`) is the twin arm's
+    (InfeasibleAction where the arm cannot reach).
     """
     if station.config.robot != "hand":
         raise ValueError("hand_pick_place needs a station built with StationConfig(robot='hand')")

@@ -130,16 +130,17 @@ def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGe
     return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
 
 
-def arm_geometry(action: Action, objects: dict[str, ObjectState]) -> tuple[ActionGeometry, bool]:
-    """Where the arm's TCP goes for `action` by the believed `objects`: the action's points,
-    or the careful carry's where the source carries a load (skills/carry.py); and whether
-    it carries carefully."""
+def arm_geometry(action: Action, objects: dict[str, ObjectState]) -> tuple[ActionGeometry, str]:
+    """Where the arm's TCP goes for `action` by the believed `objects`, and how it carries:
+    "plain" (nothing rides on the source: the action's points), "careful" (the careful
+    carry's points, skills/carry.py) or "pinched" (a load with no point clear of it, which
+    the fingers close on together with the source)."""
     g = action_geometry(action, objects)
     if not riders(action.source, objects):
-        return g, False
+        return g, "plain"
     grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
                                              g.yaw_release - g.yaw_grasp)
-    return dc.replace(g, grasp=grasp, release=release), careful
+    return dc.replace(g, grasp=grasp, release=release), "careful" if careful else "pinched"
 
 
 class PickPlaceMotions:
@@ -160,7 +161,8 @@ class PickPlaceMotions:
              q_start: np.ndarray = HOME_Q, lift_hold: bool = True) -> Motion:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
         still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
-        g, careful = arm_geometry(action, objects)
+        g, carry = arm_geometry(action, objects)
+        careful = carry == "careful"
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
         opening = CAREFUL_OPEN_SECONDS if careful else FINGER_SECONDS

@@ -78,24 +78,26 @@ WRIST_ZONES = (  # (height above the TCP from which, radius about the tool axis)
 WRIST_MARGIN = 0.01  # m added to each zone's radius
 
 
+def _top(X: RigidTransform, half: np.ndarray) -> float:
+    """The highest point of a box of half extents `half` at pose X (tilted or not)."""
+    return float(X.translation()[2] + np.abs(X.rotation().matrix()[2]) @ half)
+
+
 def wrist_strikes(
     poses: dict[str, RigidTransform],
     half_extents: dict[str, np.ndarray],
     tcp: np.ndarray,
-    zones: tuple = WRIST_ZONES,
 ) -> list[str]:
     """The boxes that the arm's wrist, coming straight down to the TCP point `tcp`, would
     strike: those reaching above a zone's height within its radius of the tool axis."""
     struck = []
     for name, X in poses.items():
         h = np.asarray(half_extents[name], float)
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)
-                            for sz in (-1, 1)]) * h
-        top = float(max(X.multiply(c)[2] for c in corners))
         local = X.inverse().multiply(np.array([tcp[0], tcp[1], X.translation()[2]]))
         reach = float(np.linalg.norm(np.maximum(np.abs(local[:2]) - h[:2], 0.0)))
+        top = _top(X, h)
         if any(top > tcp[2] + above and reach < radius + WRIST_MARGIN
-               for above, radius in zones):
+               for above, radius in WRIST_ZONES):
             struck.append(name)
     return struck
 
@@ -125,9 +127,7 @@ def finger_strikes(
         if name == skip:
             continue
         h = np.asarray(half_extents[name], float)
-        corners = np.array([X.multiply(np.array([sx, sy, sz]) * h) for sx in (-1, 1)
-                            for sy in (-1, 1) for sz in (-1, 1)])
-        if corners[:, 2].max() <= tcp[2] - FINGER_BELOW_TCP:
+        if _top(X, h) <= tcp[2] - FINGER_BELOW_TCP:
             continue
         R_b = X.rotation().matrix()[:2, :2].T  # rows: the box's x, y axes in world xy
         for side in (-1.0, 1.0):
