@@ -61,6 +61,18 @@ def test_two_cubes_on_a_block_ride_along_on_the_arm(runner):
         assert out["status"] == "ok" and out["moved"] and out["kept"], grasp
 
 
+def test_a_block_placed_on_its_own_rider_shifts_the_stack_on_both_back_ends(runner):
+    # pick(base) place(r0, left): the stack moves 7.5 cm to -y and is lowered to the
+    # table, on the arm (careful carry) and on the hand (which follows its points)
+    scene = suite_scene("rider_0")
+    for backend in ("hand", "arm"):
+        out = runner.run(backend, scene, "rider_0", Action("base", "center", "r0", "left"))
+        assert out["status"] == "ok" and out["moved"] and out["kept"], backend
+        station = runner.arm if backend == "arm" else runner.hand
+        base = station.object_poses()["base"].translation()
+        assert base == pytest.approx([0.70, -0.225, 0.025], abs=0.006), backend
+
+
 def test_a_rider_hanging_more_than_half_off_the_end_falls_on_both_back_ends(runner):
     scene = suite_scene("hanging")  # the cube's centre 6 mm beyond the block's end
     for backend in ("hand", "arm"):

@@ -46,6 +46,7 @@ HARD: dict[str, list[tuple[str, str, float, int]]] = {
     "tower3": [("base", "cube", 0.0, 0), ("r0", "cube", 0.0, 1), ("r1", "cube", 0.0, 2)],
 }
 SCENES = {**SUITE, **HARD}
+ONTO = {"target": "target", "rider": "r0"}  # what the suite's actions place the base on
 
 
 def suite_scene(name: str, yaw_deg: float = 0.0) -> Scene:
@@ -123,12 +124,16 @@ class Runner:
         return row
 
 
-def bench_scene(runner: Runner, name: str, yaw_deg: float) -> dict:
+def bench_scene(runner: Runner, name: str, yaw_deg: float, onto: str = "target") -> dict:
+    """The nine actions pick(base) place(`onto`) of scene `name` yawed by `yaw_deg` on both
+    back-ends: onto the target block, or onto the base's first rider, `r0` (the stack
+    shifted by the two offsets: what random play does to a stack every other time)."""
     scene = suite_scene(name, yaw_deg)
+    target = ONTO[onto]
     rows = []
     for grasp in OFFSETS:
         for release in OFFSETS:
-            action = Action("base", grasp, "target", release)
+            action = Action("base", grasp, target, release)
             row = {"action": f"{grasp}/{release}"}
             for backend in ("hand", "arm"):
                 row[backend] = runner.run(backend, scene, name, action)
@@ -136,7 +141,7 @@ def bench_scene(runner: Runner, name: str, yaw_deg: float) -> dict:
     n = len(rows)
     agree = sum(r["hand"]["kept"] == r["arm"]["kept"] for r in rows)
     return {
-        "scene": name, "yaw_deg": round(yaw_deg, 2), "actions": n,
+        "scene": name, "yaw_deg": round(yaw_deg, 2), "onto": onto, "actions": n,
         "moved": {b: sum(r[b]["moved"] for r in rows) for b in ("hand", "arm")},
         "kept": {b: sum(r[b]["kept"] for r in rows) for b in ("hand", "arm")},
         "agreement": round(agree / n, 4),

@@ -2,7 +2,8 @@
 
 Same geometry as the arm (`action_geometry`: grasp point = source + grasp offset along
 world y at the source's centre height, release point above target + release offset, the
-same carry height and a carry no faster than the arm's), but no IK and no finger contact:
+same carry height and a carry no faster than the arm's; where the beliefs put boxes on the
+source, the careful carry's points, `arm_geometry`), but no IK and no finger contact:
 the simulator decides which box the fingers would close on (`grasp_catches`), welds it to
 the hand, lifts, carries and lowers it along the TCP's path, releases it and lets physics
 settle the scene. A box stacked on the held one rides along by friction, as with the arm.
@@ -80,12 +81,14 @@ def plan_hand(
     station: Station, action: Action, beliefs: dict[str, ObjectState],
     allow_kinematic: bool = True,
 ) -> HandMotion:
-    """Decides what the grasp catches (ground truth) and the hand's path from the beliefs."""
-    g = action_geometry(action, beliefs)
+    """Decides what the grasp catches (ground truth) and the hand's path from the beliefs:
+    the action's points, or the careful carry's where the arm carries carefully (it grasps
+    clear of the riders and lowers the load onto what lies under it)."""
+    arm, carry = arm_geometry(action, beliefs)
+    g = arm if carry == "careful" else action_geometry(action, beliefs)
     poses = station.object_poses()
     half = {n: np.array(HALF_EXTENTS[station.types[n]]) for n in poses}
     held = grasp_catches(poses, half, g.grasp)
-    arm, carry = arm_geometry(action, beliefs)
     struck = wrist_strikes(poses, half, arm.grasp)
     struck += [n for n in finger_strikes(poses, half, arm.grasp, arm.yaw_grasp, held)
                if n not in struck]
