@@ -136,6 +136,19 @@ def readout_scenes(
     SymbolDataset; the whole scenes' symbols). Reading the whole scene, not the relevant
     objects alone, gives an object the symbols a planner reads in a perceived scene:
     relations come from attention over every object in view."""
+    def bits(state, mask, contacts):
+        if state.shape[2] != model.state_dim:
+            raise ValueError(f"the data has {state.shape[2]} features per object, "
+                             f"the model expects {model.state_dim}")
+        return read_symbols_batched(model, state, mask, margin, batch_size)
+
+    return scenes_symbols(data_dir, bits)
+
+
+def scenes_symbols(data_dir: str | Path, bits) -> tuple[SymbolDataset, SceneSymbols]:
+    """`readout_scenes` with the symbols of each whole scene from `bits(state [T, M, D],
+    mask [T, M], contacts [T, M, M]) -> (unary, unary_uncertain, relational,
+    relational_uncertain)`: a trained model's, or symbolic/reference.py's."""
     arrays = load_transitions(data_dir)
     extra = {k: load_extra(data_dir, k, pad_value=-1 if k == "scene_slots" else None)
              for k in SCENE_KEYS}
@@ -144,13 +157,10 @@ def readout_scenes(
         raise ValueError(f"data set {data_dir} stores no whole scenes (lacks {missing}); "
                          "collect it with the current code")
     mask = extra["scene_mask"].astype(bool)
-    if extra["scene_state"].shape[2] != model.state_dim:
-        raise ValueError(f"the data has {extra['scene_state'].shape[2]} features per object, "
-                         f"the model expects {model.state_dim}")
     read = {}
-    for prefix, key in (("", "scene_state"), ("next_", "scene_next_state")):
-        unary, unary_unc, rel, rel_unc = read_symbols_batched(
-            model, extra[key], mask, margin, batch_size)
+    for prefix, key, contacts in (("", "scene_state", "scene_contacts"),
+                                  ("next_", "scene_next_state", "scene_next_contacts")):
+        unary, unary_unc, rel, rel_unc = bits(extra[key], mask, extra[contacts].astype(bool))
         read.update({f"{prefix}unary": unary, f"{prefix}relational": rel,
                      f"{prefix}unary_uncertain": unary_unc,
                      f"{prefix}relational_uncertain": rel_unc})
