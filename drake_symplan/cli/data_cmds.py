@@ -40,10 +40,11 @@ def register(subparsers) -> None:
                          help="fraction of depth pixels lost")
     add_camera_noise_argument(collect)
     collect.add_argument("--hand-twin", choices=("on", "off"), default="on",
-                         help="on: the hand runs on a twin arm what the arm's wrist or fingers "
-                              "would touch otherwise (the data tells the truth about the arm, "
-                              "at about half the speed); off: the hand alone, as sets made "
-                              "before 2026-11-27 (to extend one)")
+                         help="on: the hand carries as the arm does where they differ (the "
+                              "careful carry's points; a twin arm for what the arm's wrist or "
+                              "fingers would touch): the data tells the truth about the arm, at "
+                              "about half the speed; off: the hand alone, as sets made before "
+                              "2026-11-27 (to extend one)")
     collect.add_argument("--time-step", type=positive_float, default=0.01,
                          help="physics step (s); 0.005 extends a collection made before 10 ms "
                               "became the step")

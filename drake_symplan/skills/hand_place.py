@@ -79,13 +79,13 @@ def carry_duration(distance: float, steps: int) -> float:
 
 def plan_hand(
     station: Station, action: Action, beliefs: dict[str, ObjectState],
-    allow_kinematic: bool = True,
+    allow_kinematic: bool = True, as_arm: bool = True,
 ) -> HandMotion:
     """Decides what the grasp catches (ground truth) and the hand's path from the beliefs:
-    the action's points, or the careful carry's where the arm carries carefully (it grasps
-    clear of the riders and lowers the load onto what lies under it)."""
+    the action's points, or with `as_arm` the careful carry's where the arm carries
+    carefully (it grasps clear of the riders and lowers the load onto what lies under it)."""
     arm, carry = arm_geometry(action, beliefs)
-    g = arm if carry == "careful" else action_geometry(action, beliefs)
+    g = arm if as_arm and carry == "careful" else action_geometry(action, beliefs)
     poses = station.object_poses()
     half = {n: np.array(HALF_EXTENTS[station.types[n]]) for n in poses}
     held = grasp_catches(poses, half, g.grasp)
@@ -162,13 +162,15 @@ def hand_pick_place(
     `at_lift` is called once the lift has ended (the held box is up), e.g. to perceive.
     With nothing caught nothing moves, and `at_lift` is called on the unchanged scene.
     `allow_kinematic=False` simulates every carry in full physics (no kinematic carry of
-    a free box, no rigid carry of a loaded one). With a `twin`, an action where the arm
-    would strike or pinch something (`HandMotion.struck`, `pinched`) is the twin arm's
-    (InfeasibleAction where the arm cannot reach).
+    a free box, no rigid carry of a loaded one). With a `twin` the hand carries as the arm
+    does: at the careful carry's points where the arm carries carefully, and an action
+    where the arm would strike or pinch something (`HandMotion.struck`, `pinched`) is the
+    twin arm's (InfeasibleAction where the arm cannot reach); without one, as before the
+    twin existed (the published data sets).
     """
     if station.config.robot != "hand":
         raise ValueError("hand_pick_place needs a station built with StationConfig(robot='hand')")
-    motion = plan_hand(station, action, beliefs, allow_kinematic)
+    motion = plan_hand(station, action, beliefs, allow_kinematic, as_arm=twin is not None)
     if (motion.struck or motion.pinched) and twin is not None:
         lifted = twin.run(station, action, beliefs, at_lift)
         station.hold(station.robot_positions())
