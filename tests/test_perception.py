@@ -33,6 +33,13 @@ CASES = {
                             ("b", "cube", (0.6, -0.15, 0.025))], {("a", "b")}),
     "long across two cubes": ([("a", "cube", (0.8, -0.1, 0.025)), ("b", "cube", (0.8, 0.1, 0.025)),
                                ("c", "long", (0.8, 0.0, 0.075))], {("a", "c"), ("b", "c")}),
+    # seen only from the side, each tower's bottom cube is not the other tower's neighbour
+    "long across two towers": ([("a", "cube", (0.65, -0.0375, 0.025)),
+                                ("b", "cube", (0.65, -0.0375, 0.075)),
+                                ("c", "cube", (0.65, 0.0375, 0.025)),
+                                ("d", "cube", (0.65, 0.0375, 0.075)),
+                                ("e", "long", (0.65, 0.0, 0.125))],
+                               {("a", "b"), ("c", "d"), ("b", "e"), ("d", "e")}),
 }
 
 
@@ -55,8 +62,14 @@ def realsense_station():
 DRAWS = 7
 
 
-@pytest.mark.parametrize("sensor", ["none", "realsense"])
-@pytest.mark.parametrize("case", list(CASES))
+# Under the RealSense-like sensor the towers' side faces, 2.5 cm apart under the block,
+# run together into one cluster (fitted as a long block): not yet perceived there.
+NOISE_FREE_ONLY = {"long across two towers"}
+
+
+@pytest.mark.parametrize("sensor,case", [(sensor, case) for sensor in ("none", "realsense")
+                                         for case in CASES
+                                         if sensor == "none" or case not in NOISE_FREE_ONLY])
 def test_known_scene(request, sensor, case):
     station = request.getfixturevalue("camera_station" if sensor == "none"
                                       else "realsense_station")

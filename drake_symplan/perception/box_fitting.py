@@ -32,6 +32,8 @@ SUPPORT_SEARCH = 0.03  # m: look for support points this far around a box's foot
 EXPLAINED_MARGIN = 0.006  # m: points this close to a fitted box are its own
 FOOTPRINT_OVERLAP = 0.005  # m: footprints must overlap by this to support
 MIN_SIDE_POINTS = 40  # points in a cluster to fit a box to its side faces
+UNDER_MARGIN = 0.01  # m: a support's points lie under the box it holds, within this
+MIN_UNDER_POINTS = 20  # ... at least this many (not a neighbour's face in the search band)
 CLUSTER_DILATION = 2  # cells: side points are grown by this, so a face's pieces join
 OWN_YAW_EXTENT = 0.02  # m: a cluster this wide has a yaw of its own (else the box above's)
 LONG_CLUSTER = 0.08  # m: a cluster longer than this is a long block
@@ -121,6 +123,8 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         pts = cand[labels[idx[:, 0], idx[:, 1]] == lab]
         if len(pts) < MIN_SIDE_POINTS:
             continue
+        if top is not None and _under(pts, above) < MIN_UNDER_POINTS:
+            continue  # the face of a box beside the support (the next tower under a bridge)
         # The visible side faces (one face, or an L of two) give the box's own yaw; the
         # box above may have been turned relative to it.
         angle, *_ = min_area_rectangle(pts[:, :2] - pts[:, :2].mean(axis=0))
@@ -156,6 +160,14 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         box.from_side = True
         out.append(box)
     return out
+
+
+def _under(pts: np.ndarray, box: FittedBox) -> int:
+    """How many of `pts` lie under the footprint of the upright `box` (UNDER_MARGIN): within
+    its extents along its two axes nearest the horizontal (a standing block's too)."""
+    flat = np.argsort(np.abs(box.R[2, :]))[:2]
+    local = (pts - box.center) @ box.R[:, flat]
+    return int(np.sum(np.all(np.abs(local) <= box.half_extents[flat] + UNDER_MARGIN, axis=1)))
 
 
 def upright_blocks(boxes: list[FittedBox]) -> list[FittedBox]:
