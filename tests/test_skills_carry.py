@@ -41,6 +41,31 @@ def test_careful_grasp_is_clear_of_the_riders_and_lands_the_base_where_the_actio
     assert (release - grasp)[:2] == pytest.approx((g.release - g.grasp)[:2], abs=1e-6)
 
 
+def test_a_stack_is_not_released_with_its_centre_past_the_targets_end():
+    # grasp left, release right: the base's centre would land 15 cm along a target whose
+    # end is at 12.5 cm; the careful carry releases it with the centre of mass (the base's
+    # and the rider's, both at its centre) 1.5 cm inside the end, 4 cm nearer
+    for yaw in (0.0, 8.22):
+        objects = beliefs(suite_scene("rider_0", yaw))
+        action = Action("base", "left", "target", "right")
+        g = action_geometry(action, objects)
+        grasp, release, careful = careful_points(action, objects, g.grasp, g.release, 0.0)
+        target = objects["target"]
+        landing = release[:2] + objects["base"].position[:2] - grasp[:2]
+        c, s = np.cos(-target.yaw), np.sin(-target.yaw)
+        d = landing - target.position[:2]
+        across, along = c * d[0] - s * d[1], s * d[0] + c * d[1]  # in the target's frame
+        assert careful and along == pytest.approx(0.125 - 0.015, abs=1e-6), yaw
+        # turned, the 15 cm along world y are 2.1 cm across the 5 cm block: 1 cm at most
+        assert abs(across) == pytest.approx(0.0 if yaw == 0 else 0.025 - 0.015, abs=1e-6)
+        # centred on the block, the same action lands where it says
+    objects = beliefs(suite_scene("rider_0"))
+    centred = Action("base", "center", "target", "right")
+    g = action_geometry(centred, objects)
+    grasp, release, _ = careful_points(centred, objects, g.grasp, g.release, 0.0)
+    assert (release - grasp)[:2] == pytest.approx((g.release - g.grasp)[:2], abs=1e-6)
+
+
 def test_a_grasp_beside_a_loaded_block_stays_above_the_riders():
     objects = beliefs(suite_scene("rider_0", 90.0))
     action = Action("base", "left", "target", "center")  # offsets along world y: a miss
@@ -71,6 +96,19 @@ def test_a_block_placed_on_its_own_rider_shifts_the_stack_on_both_back_ends(runn
         station = runner.arm if backend == "arm" else runner.hand
         base = station.object_poses()["base"].translation()
         assert base == pytest.approx([0.70, -0.225, 0.025], abs=0.006), backend
+
+
+def test_a_stack_released_past_the_targets_end_is_set_down_on_it_on_both_back_ends(runner):
+    # grasp left, release right would leave the base's centre 2.5 cm past the target's end
+    # (it tipped, and the rider's fate was chance); the careful carry sets it down 4 cm
+    # nearer, its centre 11 cm along the target, and the rider stays
+    scene = suite_scene("rider_0")
+    for backend in ("hand", "arm"):
+        out = runner.run(backend, scene, "rider_0", Action("base", "left", "target", "right"))
+        assert out["status"] == "ok" and out["moved"] and out["kept"], backend
+        station = runner.arm if backend == "arm" else runner.hand
+        base = station.object_poses()["base"].translation()
+        assert base == pytest.approx([0.70, 0.18 + 0.11, 0.075], abs=0.006), backend
 
 
 def test_a_rider_hanging_more_than_half_off_the_end_falls_on_both_back_ends(runner):

@@ -14,6 +14,10 @@ the source:
   the fingers above the riders;
 - a load released where nothing the beliefs hold lies under the source (beside the
   target) is lowered to just above what does lie there (the table), not dropped;
+- a load whose centre of mass would come to rest beyond the one box it lands on (a block
+  released with its centre past the target's end) is released that much nearer, with its
+  centre of mass STABLE_MARGIN inside that box's top: a careful robot does not let go of a
+  stack where it topples;
 - the fingers squeeze harder (CAREFUL_FINGER), the carry accelerates more gently
   (CAREFUL_TCP_ACCELERATION, skills/timing.py) and the fingers let go at once
   (CAREFUL_OPEN_SECONDS).
@@ -38,6 +42,7 @@ REST_TOL = 0.015  # m: a box whose bottom is this near the source's top rests on
 FOOTPRINT_TOL = 0.01  # m outside the footprint that still counts as over it
 MASS = {"cube": 0.1, "long": 0.4}  # kg, models/objects
 RELEASE_GAP = 0.004  # m between the released source's bottom and what lies under it
+STABLE_MARGIN = 0.015  # m: a released load's centre of mass lies this far inside its support
 CAREFUL_FINGER = -0.02  # finger command while carrying a load: 37.5 N on a 5 cm box
 CAREFUL_OPEN_SECONDS = 0.05  # s: the fingers let go of a load at once (a tipping load)
 CAREFUL_TCP_ACCELERATION = 2.0  # m/s^2 at the TCP while lifting, carrying, lowering a load
@@ -96,22 +101,32 @@ def _clear_point(src: ObjectState, load: list[ObjectState], want: float) -> floa
     return float(ok[np.argmin(np.abs(ok - want) + 1e-9 * ok)])
 
 
-def _support_top(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarray,
-                 yaw: float, half: tuple) -> float:
-    """The highest believed top under a footprint (centre xy, yaw, half extents), or the
-    table's (0) where none of the objects not in `skip` lies under it."""
+def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarray,
+              yaw: float, half: tuple) -> tuple[float, list[str]]:
+    """The highest believed top under a footprint (centre xy, yaw, half extents) and the
+    boxes (not in `skip`) whose top that is, or the table's (0, []) where none lies under it."""
     u = np.linspace(-1.0, 1.0, 5)
     grid = np.array([(a * half[0], b * half[1]) for a in u for b in u])
     points = [centre[:2] + _turn(g, yaw) for g in grid]
-    top = 0.0
+    tops = {}
     for name, o in objects.items():
         if name in skip:
             continue
         h = HALF_EXTENTS[o.type]
-        inside = [np.all(np.abs(_local(o, p)) <= np.array(h[:2])) for p in points]
-        if any(inside):
-            top = max(top, float(o.position[2] + h[2]))
-    return top
+        if any(np.all(np.abs(_local(o, p)) <= np.array(h[:2])) for p in points):
+            tops[name] = float(o.position[2] + h[2])
+    if not tops:
+        return 0.0, []
+    top = max(tops.values())
+    return top, [n for n, t in tops.items() if t >= top - REST_TOL]
+
+
+def _onto_support(support: ObjectState, com: np.ndarray) -> np.ndarray:
+    """The xy shift that brings a load's centre of mass `com` (world xy) STABLE_MARGIN
+    inside the top of the one box it is released on (zero where it is already)."""
+    local = _local(support, com)
+    limit = np.maximum(np.array(HALF_EXTENTS[support.type][:2]) - STABLE_MARGIN, 0.0)
+    return _turn(np.clip(local, -limit, limit) - local, support.yaw)
 
 
 def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
@@ -137,9 +152,16 @@ def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.nd
     shift = np.zeros(2)
     if y is not None:
         shift = src.position[:2] + _turn(np.array([0.0, y]), src.yaw) - grasp[:2]
+    yaw = src.yaw + yaw_turn  # the source's yaw once released
     landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
-    under = _support_top(objects, {action.source, *(o.name for o in load)}, landing,
-                         src.yaw + yaw_turn, HALF_EXTENTS[src.type])
+    skip = {action.source, *(o.name for o in load)}
     placed = release + np.array([*_turn(shift, yaw_turn), 0.0])
+    under, below = _supports(objects, skip, landing, yaw, HALF_EXTENTS[src.type])
+    if len(below) == 1:  # one box under the source: keep the load's centre of mass over it
+        com = masses @ np.array([_local(src, o.position) for o in [src, *load]]) / masses.sum()
+        move = _onto_support(objects[below[0]], landing + _turn(com, yaw))
+        if np.any(move):
+            placed[:2] += move
+            under, _ = _supports(objects, skip, landing + move, yaw, HALF_EXTENTS[src.type])
     placed[2] = min(release[2], under + half[2] + RELEASE_GAP)
     return grasp + np.array([*shift, 0.0]), placed, y is not None
