@@ -86,15 +86,19 @@ def test_two_cubes_on_a_block_ride_along_on_the_arm(runner):
         assert out["status"] == "ok" and out["moved"] and out["kept"], grasp
 
 
+def _kept_base(runner, backend, action):
+    """Runs `action` on the `rider_0` scene; the base's position, its rider kept."""
+    out = runner.run(backend, suite_scene("rider_0"), "rider_0", action)
+    assert out["status"] == "ok" and out["moved"] and out["kept"], backend
+    station = runner.arm if backend == "arm" else runner.hand
+    return station.object_poses()["base"].translation()
+
+
 def test_a_block_placed_on_its_own_rider_shifts_the_stack_on_both_back_ends(runner):
     # pick(base) place(r0, left): the stack moves 7.5 cm to -y and is lowered to the
     # table, on the arm (careful carry) and on the hand (which follows its points)
-    scene = suite_scene("rider_0")
     for backend in ("hand", "arm"):
-        out = runner.run(backend, scene, "rider_0", Action("base", "center", "r0", "left"))
-        assert out["status"] == "ok" and out["moved"] and out["kept"], backend
-        station = runner.arm if backend == "arm" else runner.hand
-        base = station.object_poses()["base"].translation()
+        base = _kept_base(runner, backend, Action("base", "center", "r0", "left"))
         assert base == pytest.approx([0.70, -0.225, 0.025], abs=0.006), backend
 
 
@@ -102,12 +106,8 @@ def test_a_stack_released_past_the_targets_end_is_set_down_on_it_on_both_back_en
     # grasp left, release right would leave the base's centre 2.5 cm past the target's end
     # (it tipped, and the rider's fate was chance); the careful carry sets it down 4 cm
     # nearer, its centre 11 cm along the target, and the rider stays
-    scene = suite_scene("rider_0")
     for backend in ("hand", "arm"):
-        out = runner.run(backend, scene, "rider_0", Action("base", "left", "target", "right"))
-        assert out["status"] == "ok" and out["moved"] and out["kept"], backend
-        station = runner.arm if backend == "arm" else runner.hand
-        base = station.object_poses()["base"].translation()
+        base = _kept_base(runner, backend, Action("base", "left", "target", "right"))
         assert base == pytest.approx([0.70, 0.18 + 0.11, 0.075], abs=0.006), backend
 
 
