@@ -58,7 +58,7 @@ def test_a_stack_is_not_released_with_its_centre_past_the_targets_end():
         assert careful and along == pytest.approx(0.125 - 0.015, abs=1e-6), yaw
         # turned, the 15 cm along world y are 2.1 cm across the 5 cm block: 1 cm at most
         assert abs(across) == pytest.approx(0.0 if yaw == 0 else 0.025 - 0.015, abs=1e-6)
-        # centred on the block, the same action lands where it says
+    # centred on the block, the same action lands where it says
     objects = beliefs(suite_scene("rider_0"))
     centred = Action("base", "center", "target", "right")
     g = action_geometry(centred, objects)

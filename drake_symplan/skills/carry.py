@@ -150,8 +150,8 @@ def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.nd
         lifted[2] = max(grasp[2], top + PALM_MARGIN + PAD_BELOW_TCP)
         return lifted, release, True
     masses = np.array([MASS[o.type] for o in [src, *load]])
-    ys = np.array([_local(src, o.position)[1] for o in [src, *load]])
-    y = _clear_point(src, load, float(masses @ ys / masses.sum()))
+    com = masses @ np.array([_local(src, o.position) for o in [src, *load]]) / masses.sum()
+    y = _clear_point(src, load, float(com[1]))  # the load's centre of mass, source frame
     # the pads centred across the source at y; the release point moves with the grasp
     shift = np.zeros(2)
     if y is not None:
@@ -162,7 +162,6 @@ def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.nd
     placed = release + np.array([*_turn(shift, yaw_turn), 0.0])
     under, below = _supports(objects, skip, landing, yaw, HALF_EXTENTS[src.type])
     if len(below) == 1:  # one box under the source: keep the load's centre of mass over it
-        com = masses @ np.array([_local(src, o.position) for o in [src, *load]]) / masses.sum()
         move = _onto_support(objects[below[0]], landing + _turn(com, yaw))
         if np.any(move):
             placed[:2] += move
