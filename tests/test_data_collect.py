@@ -160,6 +160,22 @@ def test_a_collection_made_at_5_ms_extends_only_at_5_ms(tmp_path):
     assert todo == [0, 1, 2] and done == 0 and manifest["config"]["time_step"] == 0.005
 
 
+def test_a_collection_made_before_resting_stacks_extends_only_with_their_physics(tmp_path):
+    import dataclasses as dc
+
+    from drake_symplan.data import storage
+    from drake_symplan.data.collect import CollectConfig, _prepare
+
+    old = dc.asdict(CollectConfig(transitions=4, chunk_size=2))
+    del old["box_dissipation"]  # manifests from before it was recorded: 20 s/m
+    storage.write_manifest(tmp_path, {"config": old, "seed": 0, "status": "done"})
+    with pytest.raises(ValueError, match="different configuration"):
+        _prepare(tmp_path, CollectConfig(transitions=6, chunk_size=2))  # 100 s/m
+    manifest, todo, _ = _prepare(
+        tmp_path, CollectConfig(transitions=6, chunk_size=2, box_dissipation=20.0))
+    assert todo == [0, 1, 2] and manifest["config"]["box_dissipation"] == 20.0
+
+
 @pytest.mark.slow
 def test_hand_and_arm_agree_on_a_fixed_set():
     from drake_symplan.data.parity import measure_parity

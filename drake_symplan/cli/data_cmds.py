@@ -48,6 +48,9 @@ def register(subparsers) -> None:
     collect.add_argument("--time-step", type=positive_float, default=0.01,
                          help="physics step (s); 0.005 extends a collection made before 10 ms "
                               "became the step")
+    collect.add_argument("--box-dissipation", type=positive_float, default=100.0,
+                         help="the boxes' contact dissipation (s/m); 20 extends a collection "
+                              "made before 2026-11-27's stacks that rest")
     explore = collect.add_argument_group(
         "exploration", "how actions are chosen (explorers/active.py); random stays the "
         "default, and held-out sets stay random")
@@ -113,7 +116,7 @@ def cmd_collect(args: argparse.Namespace) -> dict:
         long_fraction=args.long_fraction, chunk_size=args.chunk_size,
         noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout,
         time_step=args.time_step, camera_noise=args.camera_noise, explorer=args.explorer,
-        active=active, hand_twin=args.hand_twin == "on")
+        active=active, hand_twin=args.hand_twin == "on", box_dissipation=args.box_dissipation)
     if args.explorer == "active":
         from drake_symplan.explorers.rounds import collect_active
 

@@ -17,7 +17,9 @@ from pydrake.geometry import (
     Meshcat,
     MeshcatVisualizer,
     MeshcatVisualizerParams,
+    ProximityProperties,
     Role,
+    RoleAssign,
 )
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.math import SpatialVelocity
@@ -65,6 +67,10 @@ ROBOTS = ("ur10", "hand")  # StationConfig.robot
 # 0.2-0.3 cm from their aim (median; 0.1-0.17 at 5 ms), hand-arm parity kept
 # (docs/speed.md).
 TIME_STEP = 1e-2  # s
+# Hunt-Crossley dissipation of the boxes' contact (s/m). At 20 a box resting on a box
+# rocks in a discrete-time limit cycle at 10 ms and walks: a tower of two cubes drifts
+# 1.8 cm in 4 s and one of four falls (docs/world.md); at 100 every stack rests.
+BOX_DISSIPATION = 100.0
 
 # Home: TCP at (0.35, 0, 0.30) pointing down, behind the workspace (x >= 0.45): the
 # cameras see every object unoccluded, and every pick starts close by.
@@ -78,6 +84,7 @@ class StationConfig:
     time_step: float = TIME_STEP
     contact_model: str = "hydroelastic_with_fallback"
     discrete_contact_approximation: str = "similar"
+    box_dissipation: float = BOX_DISSIPATION  # s/m, replaces the box models' own value
     pool_cubes: int = 8
     pool_longs: int = 8
     arm_kp: list[float] = dc.field(default_factory=lambda: [4000, 4000, 2000, 500, 500, 300])
@@ -110,6 +117,15 @@ def AddUr10(plant, parser: Parser):
     return arm
 
 
+def _set_dissipation(plant, scene_graph, body, dissipation: float) -> None:
+    """Sets the Hunt-Crossley dissipation of `body`'s collision geometries."""
+    inspector = scene_graph.model_inspector()
+    for geometry in plant.GetCollisionGeometriesForBody(body):
+        properties = ProximityProperties(inspector.GetProximityProperties(geometry))
+        properties.UpdateProperty("material", "hunt_crossley_dissipation", dissipation)
+        scene_graph.AssignRole(plant.get_source_id(), geometry, properties, RoleAssign.kReplace)
+
+
 def _scene_digest(scene: Scene) -> int:
     """A stable number of a scene's objects (names, types, poses to 0.1 mm)."""
     text = ";".join(f"{o.name},{o.type},{np.round(o.position, 4).tolist()},{o.yaw:.4f}"
@@ -134,7 +150,7 @@ class Station:
         plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
             time_step=cfg.time_step, contact_model=cfg.contact_model,
             discrete_contact_approximation=cfg.discrete_contact_approximation), builder)
-        self._add_models(plant)
+        self._add_models(plant, scene_graph)
         plant.Finalize()
         self._add_command_source(builder, plant)
         self.meshcat = meshcat
@@ -162,7 +178,7 @@ class Station:
             for bodies in self.pool.values() for b in bodies
         }
 
-    def _add_models(self, plant) -> None:
+    def _add_models(self, plant, scene_graph) -> None:
         """Adds the robot (self.arm or self.hand), the table and the box pool (self.pool)."""
         cfg = self.config
         parser = Parser(plant)
@@ -181,7 +197,9 @@ class Station:
                 parser.SetAutoRenaming(True)
                 (inst,) = parser.AddModels(url=MODEL_FILES[kind])
                 plant.RenameModelInstance(inst, f"{kind}_{i}")
-                self.pool[kind].append(plant.GetBodyByName("body", inst))
+                body = plant.GetBodyByName("body", inst)
+                _set_dissipation(plant, scene_graph, body, cfg.box_dissipation)
+                self.pool[kind].append(body)
         if self.arm is not None:
             for name, kp, kd in zip(ARM_JOINTS, cfg.arm_kp, cfg.arm_kd, strict=True):
                 plant.GetJointActuatorByName(name + "_motor").set_controller_gains(
