@@ -167,13 +167,13 @@ def test_a_collection_made_before_resting_stacks_extends_only_with_their_physics
     from drake_symplan.data.collect import CollectConfig, _prepare
 
     old = dc.asdict(CollectConfig(transitions=4, chunk_size=2))
-    del old["box_dissipation"]  # manifests from before it was recorded: 20 s/m
+    del old["box_modulus"]  # manifests from before it was recorded: 1e7 Pa
     storage.write_manifest(tmp_path, {"config": old, "seed": 0, "status": "done"})
     with pytest.raises(ValueError, match="different configuration"):
-        _prepare(tmp_path, CollectConfig(transitions=6, chunk_size=2))  # 100 s/m
+        _prepare(tmp_path, CollectConfig(transitions=6, chunk_size=2))  # 1e6 Pa
     manifest, todo, _ = _prepare(
-        tmp_path, CollectConfig(transitions=6, chunk_size=2, box_dissipation=20.0))
-    assert todo == [0, 1, 2] and manifest["config"]["box_dissipation"] == 20.0
+        tmp_path, CollectConfig(transitions=6, chunk_size=2, box_modulus=1e7))
+    assert todo == [0, 1, 2] and manifest["config"]["box_modulus"] == 1e7
 
 
 @pytest.mark.slow

@@ -66,6 +66,22 @@ def test_a_stack_is_not_released_with_its_centre_past_the_targets_end():
     assert (release - grasp)[:2] == pytest.approx((g.release - g.grasp)[:2], abs=1e-6)
 
 
+def test_a_load_near_the_edge_of_the_cube_it_lands_on_is_set_down_inside_the_margin():
+    # a cube (0.1 kg) at 7.5 cm along a block (0.4 kg): the load's centre of mass is 1.5 cm
+    # from the block's centre; released centred on a cube it would lie 1 cm inside the
+    # cube's edge, nearer than the 1.5 cm margin: the block lands 5 mm back
+    objects = beliefs(Scene([
+        ObjectSpec("cube", "cube", [0.7, 0.0, 0.025]),
+        ObjectSpec("block", "long", [0.6, 0.2, 0.025]),
+        ObjectSpec("rider", "cube", [0.6, 0.275, 0.075]),
+    ]))
+    action = Action("block", "center", "cube", "center")
+    g = action_geometry(action, objects)
+    grasp, release, careful = careful_points(action, objects, g.grasp, g.release, 0.0)
+    landing = release[:2] + objects["block"].position[:2] - grasp[:2]
+    assert careful and landing == pytest.approx([0.7, -0.005], abs=1e-6)
+
+
 def test_a_grasp_beside_a_loaded_block_stays_above_the_riders():
     objects = beliefs(suite_scene("rider_0", 90.0))
     action = Action("base", "left", "target", "center")  # offsets along world y: a miss

@@ -48,9 +48,9 @@ def register(subparsers) -> None:
     collect.add_argument("--time-step", type=positive_float, default=0.01,
                          help="physics step (s); 0.005 extends a collection made before 10 ms "
                               "became the step")
-    collect.add_argument("--box-dissipation", type=positive_float, default=100.0,
-                         help="the boxes' contact dissipation (s/m); 20 extends a collection "
-                              "made before 2026-11-27's stacks that rest")
+    collect.add_argument("--box-modulus", type=positive_float, default=1e6,
+                         help="the boxes' hydroelastic modulus (Pa); 1e7 extends a "
+                              "collection made before stacks rested (2026-11-27)")
     explore = collect.add_argument_group(
         "exploration", "how actions are chosen (explorers/active.py); random stays the "
         "default, and held-out sets stay random")
@@ -116,7 +116,7 @@ def cmd_collect(args: argparse.Namespace) -> dict:
         long_fraction=args.long_fraction, chunk_size=args.chunk_size,
         noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout,
         time_step=args.time_step, camera_noise=args.camera_noise, explorer=args.explorer,
-        active=active, hand_twin=args.hand_twin == "on", box_dissipation=args.box_dissipation)
+        active=active, hand_twin=args.hand_twin == "on", box_modulus=args.box_modulus)
     if args.explorer == "active":
         from drake_symplan.explorers.rounds import collect_active
 

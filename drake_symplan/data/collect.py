@@ -47,12 +47,12 @@ from drake_symplan.data.stats import dataset_stats
 from drake_symplan.robot.backends import BACKENDS, make_backend
 from drake_symplan.world.cameras import DepthNoise
 from drake_symplan.world.depth_sensor import camera_noise
-from drake_symplan.world.station import BOX_DISSIPATION, TIME_STEP
+from drake_symplan.world.station import BOX_MODULUS, TIME_STEP
 
 EPISODE_STRIDE = 100_000  # episode ids of chunk c are c * EPISODE_STRIDE + k
 MAX_EPISODES_PER_CHUNK = 20_000
 LEGACY_TIME_STEP = 5e-3  # s: collections whose manifest names no time step ran at 5 ms
-LEGACY_BOX_DISSIPATION = 20.0  # s/m: and those that name no dissipation at 20
+LEGACY_BOX_MODULUS = 1e7  # Pa: and those that name no box modulus with boxes of 1e7
 
 
 @dc.dataclass
@@ -70,7 +70,7 @@ class CollectConfig:
     noise_sigma: float = 0.0  # depth noise (m) along camera rays
     noise_dropout: float = 0.0
     time_step: float = TIME_STEP  # s of physics per step (world/station.py)
-    box_dissipation: float = BOX_DISSIPATION  # s/m, the boxes' contact (world/station.py)
+    box_modulus: float = BOX_MODULUS  # Pa, the boxes' contact (world/station.py)
     camera_noise: str = "none"  # the cameras' sensor model (world/depth_sensor.CAMERA_NOISE)
     # The hand runs on the arm twin what the arm's wrist or fingers would touch otherwise
     # (skills/arm_twin.py); sets made before it (2026-11-27) are the hand's alone.
@@ -88,9 +88,9 @@ class CollectConfig:
         if not 0 < self.time_step < math.inf:
             raise ValueError(f"time_step must be a positive number of seconds, got "
                              f"{self.time_step}")
-        if not 0 < self.box_dissipation < math.inf:
-            raise ValueError(f"box_dissipation must be a positive number (s/m), got "
-                             f"{self.box_dissipation}")
+        if not 0 < self.box_modulus < math.inf:
+            raise ValueError(f"box_modulus must be a positive number (Pa), got "
+                             f"{self.box_modulus}")
         camera_noise(self.camera_noise)  # ValueError naming the choices
         self.hand_twin = self.hand_twin and self.backend == "hand"  # the arm has no twin
         if not 2 <= self.min_objects <= self.max_objects <= 8:
@@ -110,19 +110,19 @@ class CollectConfig:
 
 
 def collection_backend(name: str, time_step: float, sensor: str = "none",
-                       hand_twin: bool = True, box_dissipation: float = BOX_DISSIPATION):
+                       hand_twin: bool = True, box_modulus: float = BOX_MODULUS):
     """The back-end a collection's workers run: `name` at `time_step` with the boxes'
-    `box_dissipation`, its cameras' sensor model `sensor` (CollectConfig.camera_noise), the
+    `box_modulus`, its cameras' sensor model `sensor` (CollectConfig.camera_noise), the
     hand with or without its arm twin (CollectConfig.hand_twin)."""
     twin = {"arm_twin": hand_twin} if name == "hand" else {}
     return make_backend(name, time_step=time_step, camera_noise=sensor,
-                        box_dissipation=box_dissipation, **twin)
+                        box_modulus=box_modulus, **twin)
 
 
 def backend_args(config: CollectConfig) -> tuple:
     """`collection_backend`'s arguments for a collection."""
     return (config.backend, config.time_step, config.camera_noise, config.hand_twin,
-            config.box_dissipation)
+            config.box_modulus)
 
 
 def code_version(packages=("drake_symplan", "drake", "numpy")) -> dict:
@@ -292,7 +292,7 @@ def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int
         if isinstance(stored, dict):  # settings added since: what such a set was made with
             stored = {"time_step": LEGACY_TIME_STEP, "explorer": "random", "active": {},
                       "camera_noise": "none", "hand_twin": False,
-                      "box_dissipation": LEGACY_BOX_DISSIPATION, **stored}
+                      "box_modulus": LEGACY_BOX_MODULUS, **stored}
         if stored != identity:
             if not _extends(stored, identity):
                 raise ValueError(

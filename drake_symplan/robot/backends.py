@@ -70,14 +70,14 @@ class Backend:
 
     def __init__(self, noise: DepthNoise | None = None, rng: np.random.Generator | None = None,
                  time_step: float | None = None, meshcat=None, camera_noise: str = "none",
-                 camera_seed: int = 0, box_dissipation: float | None = None):
+                 camera_seed: int = 0, box_modulus: float | None = None):
         config = StationConfig(cameras=default_cameras(), robot=self.robot,
                                discrete_contact_approximation=CONTACT_APPROXIMATION,
                                camera_noise=camera_noise, camera_seed=camera_seed)
         if time_step is not None:
             config.time_step = time_step
-        if box_dissipation is not None:
-            config.box_dissipation = box_dissipation
+        if box_modulus is not None:
+            config.box_modulus = box_modulus
         self.station = Station(config, meshcat=meshcat)
         self.perceiver = Perceiver()
         self.noise = noise if noise is not None and noise.active else None

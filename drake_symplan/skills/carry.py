@@ -14,10 +14,11 @@ the source:
   the fingers above the riders;
 - a load released where nothing the beliefs hold lies under the source (beside the
   target) is lowered to just above what does lie there (the table), not dropped;
-- a load whose centre of mass would come to rest beyond the one box it lands on (a block
-  released with its centre past the target's end) is released nearer, with its centre of
-  mass STABLE_MARGIN inside that box's top: a careful robot does not let go of a stack
-  where it topples;
+- a load whose centre of mass would come to rest beyond the one box it lands on, or
+  nearer its edge than STABLE_MARGIN (a block released with its centre past the target's
+  end, one with a cube at its end released centred on a cube), is released nearer, with
+  its centre of mass STABLE_MARGIN inside that box's top: a careful robot does not let go
+  of a stack where it topples;
 - the fingers squeeze harder (CAREFUL_FINGER), the carry accelerates more gently
   (CAREFUL_TCP_ACCELERATION, skills/timing.py) and the fingers let go at once
   (CAREFUL_OPEN_SECONDS).
@@ -123,13 +124,13 @@ def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarra
 
 def _onto_support(support: ObjectState, com: np.ndarray) -> np.ndarray:
     """The xy shift that brings a load's centre of mass `com` (world xy), where it lies
-    beyond the top of the one box it is released on, STABLE_MARGIN inside it (zero where
-    it lies over it already: a load that stands does not move)."""
+    beyond the top of the one box it is released on or within STABLE_MARGIN of its edge,
+    STABLE_MARGIN inside it (zero where it lies that far inside already)."""
     local = _local(support, com)
     half = np.array(HALF_EXTENTS[support.type][:2])
-    if np.all(np.abs(local) <= half):
-        return np.zeros(2)
     limit = np.maximum(half - STABLE_MARGIN, 0.0)
+    if np.all(np.abs(local) <= limit):
+        return np.zeros(2)
     return _turn(np.clip(local, -limit, limit) - local, support.yaw)
 
 

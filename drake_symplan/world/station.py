@@ -67,10 +67,11 @@ ROBOTS = ("ur10", "hand")  # StationConfig.robot
 # 0.2-0.3 cm from their aim (median; 0.1-0.17 at 5 ms), hand-arm parity kept
 # (docs/speed.md).
 TIME_STEP = 1e-2  # s
-# Hunt-Crossley dissipation of the boxes' contact (s/m). At 20 a box resting on a box
-# rocks in a discrete-time limit cycle at 10 ms and walks: a tower of two cubes drifts
-# 1.8 cm in 4 s and one of four falls (docs/world.md); at 100 every stack rests.
-BOX_DISSIPATION = 100.0
+# The boxes' hydroelastic modulus (Pa). At 1e7 a box resting on a box rocks in a
+# discrete-time limit cycle at 10 ms and walks: a tower of two cubes drifts 1.8 cm in 4 s
+# and one of four falls; at 1e6 every stack rests and single actions end as before
+# (docs/world.md).
+BOX_MODULUS = 1e6
 
 # Home: TCP at (0.35, 0, 0.30) pointing down, behind the workspace (x >= 0.45): the
 # cameras see every object unoccluded, and every pick starts close by.
@@ -84,7 +85,7 @@ class StationConfig:
     time_step: float = TIME_STEP
     contact_model: str = "hydroelastic_with_fallback"
     discrete_contact_approximation: str = "similar"
-    box_dissipation: float = BOX_DISSIPATION  # s/m, replaces the box models' own value
+    box_modulus: float = BOX_MODULUS  # Pa, replaces the box models' own value
     pool_cubes: int = 8
     pool_longs: int = 8
     arm_kp: list[float] = dc.field(default_factory=lambda: [4000, 4000, 2000, 500, 500, 300])
@@ -117,12 +118,12 @@ def AddUr10(plant, parser: Parser):
     return arm
 
 
-def _set_dissipation(plant, scene_graph, body, dissipation: float) -> None:
-    """Sets the Hunt-Crossley dissipation of `body`'s collision geometries."""
+def _set_modulus(plant, scene_graph, body, modulus: float) -> None:
+    """Sets the hydroelastic modulus of `body`'s collision geometries."""
     inspector = scene_graph.model_inspector()
     for geometry in plant.GetCollisionGeometriesForBody(body):
         properties = ProximityProperties(inspector.GetProximityProperties(geometry))
-        properties.UpdateProperty("material", "hunt_crossley_dissipation", dissipation)
+        properties.UpdateProperty("hydroelastic", "hydroelastic_modulus", modulus)
         scene_graph.AssignRole(plant.get_source_id(), geometry, properties, RoleAssign.kReplace)
 
 
@@ -198,7 +199,7 @@ class Station:
                 (inst,) = parser.AddModels(url=MODEL_FILES[kind])
                 plant.RenameModelInstance(inst, f"{kind}_{i}")
                 body = plant.GetBodyByName("body", inst)
-                _set_dissipation(plant, scene_graph, body, cfg.box_dissipation)
+                _set_modulus(plant, scene_graph, body, cfg.box_modulus)
                 self.pool[kind].append(body)
         if self.arm is not None:
             for name, kp, kd in zip(ARM_JOINTS, cfg.arm_kp, cfg.arm_kd, strict=True):
