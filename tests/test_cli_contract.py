@@ -63,7 +63,7 @@ def test_invalid_config_yaml_is_one_line_naming_the_file(tmp_path, capsys):
 @pytest.mark.parametrize("flag, value, must", [
     *[("--workers", v, "a positive integer") for v in ("0", "-3", "two")],
     *[("--time-step", v, "a positive number") for v in ("0", "-0.01", "nan", "inf", "fast")],
-    ("--box-modulus", "-1e6", "a positive number")])
+    *[("--box-modulus", v, "a positive number") for v in ("0", "inf", "soft")]])
 def test_collect_refuses_numbers_out_of_range(flag, value, must, tmp_path, capsys):
     out_dir = tmp_path / "data"
     code, out, err = run(["collect", "--transitions", "10", flag, value, "--out", out_dir],
