@@ -97,8 +97,10 @@ class LearningCurve(StageRunner):
         workers = ["--ray", *([self.ray] if self.ray else [])] if self.ray is not None \
             else ["--workers", self.jobs]
         options = [*s.active, "--device", self.device] if explorer == "active" else []
-        # The published curve was measured on the hand without its arm twin.
-        argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--transitions", size,
+        # The published curve was measured on the hand without its arm twin, with boxes
+        # of modulus 1e7 (before stacks rested).
+        argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--box-modulus", "1e7",
+                "--transitions", size,
                 "--out", data,
                 "--seed", seed, "--objects", s.objects, "--chunk-size", s.chunk_size,
                 *(["--explorer", "active", *options] if explorer == "active" else []),

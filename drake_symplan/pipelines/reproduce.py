@@ -107,8 +107,10 @@ class Reproduction(StageRunner):
         s = self.scale
 
         def collect(name, data, n, seed):
-            # The published figures were measured on the hand without its arm twin.
-            argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--transitions", n,
+            # The published figures were measured on the hand without its arm twin, with
+            # boxes of modulus 1e7 (before stacks rested).
+            argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--box-modulus", "1e7",
+                    "--transitions", n,
                     "--out", data, "--seed", seed, "--objects", s.objects, "--no-progress",
                     "--json",
                     *self._sensor(), *(self._ray() or ["--workers", self.jobs])]
