@@ -62,7 +62,8 @@ class Execution:
 class Backend:
     """A station with cameras, a perceiver and a way to execute the action; `meshcat`
     shows the station live (and lets `recording` write it); `camera_noise` and
-    `camera_seed`: the cameras' sensor model (StationConfig)."""
+    `camera_seed`: the cameras' sensor model; `time_step` and `box_modulus`, where given,
+    the physics' (StationConfig)."""
 
     name = ""
     robot = ""
