@@ -16,6 +16,7 @@ from drake_symplan.perception.fitted_box import (
     plane_basis,
 )
 from drake_symplan.perception.segmentation import HeightMap, Surface
+from drake_symplan.perception.surface_parts import split_surface
 
 # Hidden or seen (`_hidden_fractions`).
 SEEN_TOL = 0.01  # m: a point is contradicted where the map is empty or this much lower
@@ -74,8 +75,9 @@ def boxes_from_surface(surface: Surface, hm: HeightMap, occupied: Sequence[Fitte
     space a hidden part cannot take; `prior`: the boxes before the action, which decide
     between layouts that look the same from above."""
     boxes = []
-    for strip in _strips(surface):
-        boxes.extend(_strip_boxes(strip, hm, occupied, prior))
+    for part in split_surface(surface):
+        for strip in _strips(part):
+            boxes.extend(_strip_boxes(strip, hm, occupied, prior))
     return boxes
 
 

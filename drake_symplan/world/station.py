@@ -34,7 +34,8 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_symplan.boxes import OBJECT_TYPES, tilt_of
+from drake_symplan.boxes import HALF_EXTENTS, OBJECT_TYPES, tilt_of
+from drake_symplan.boxes import contact_graph as box_contact_graph
 from drake_symplan.datasets import ObjectState
 from drake_symplan.world.cameras import (
     AddDepthCameras,
@@ -420,7 +421,16 @@ class Station:
             for gid in self.plant.GetCollisionGeometriesForBody(body):
                 body_of[gid] = name
         pairs = set()
-        for d in query.ComputeSignedDistancePairwiseClosestPoints(tolerance):
+        try:
+            closest = query.ComputeSignedDistancePairwiseClosestPoints(tolerance)
+        except RuntimeError:
+            # FCL's GJK gives up on some boxes touching face to face exactly (it reports
+            # the origin outside the polytope by 1e-14); the boxes' own geometry answers.
+            return box_contact_graph(
+                {n: (X.translation(), X.rotation().matrix(),
+                     np.array(HALF_EXTENTS[self.types[n]]))
+                 for n, X in self.object_poses().items()}, tolerance)
+        for d in closest:
             a, b = body_of.get(d.id_A), body_of.get(d.id_B)
             if a and b and a != b:
                 pairs.add(tuple(sorted((a, b))))
