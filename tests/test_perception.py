@@ -46,6 +46,12 @@ CASES = {
     "two blocks at an angle": ([("a", "long", (0.70, -0.10, 0.025), 0.0),
                                 ("b", "long", (0.70, 0.0567, 0.025), -1.396)],
                                {("a", "b")}),
+    # A block across a cube's top and another block's end: the block under its end is
+    # seen, the cube under its middle only from the side, and it is a support too.
+    "block on a cube and a block": ([("a", "long", (0.60, 0.10, 0.075), np.pi / 2),
+                                     ("b", "long", (0.70, 0.10, 0.025), 0.0),
+                                     ("c", "cube", (0.58, 0.10, 0.025), 0.0)],
+                                    {("a", "b"), ("a", "c")}),
 }
 
 

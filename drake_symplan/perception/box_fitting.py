@@ -27,10 +27,9 @@ DUPLICATE_DEPTH = 0.005  # m: a centre this deep inside a better box is the same
 # Supports seen from the side (`hidden_supports`, `_fit_side_clusters`).
 LEANING_TILT = np.radians(5.0)  # a box tilted more than this leans on something
 ON_TABLE = 0.02  # m: a bottom lower than this rests on the table
-STACK_TOL = 0.012  # m: a bottom this close to a top rests on it; columns align this well
+STACK_TOL = 0.012  # m: cubes this close to a column's axis and height are in it
 SUPPORT_SEARCH = 0.03  # m: look for support points this far around a box's footprint
 EXPLAINED_MARGIN = 0.006  # m: points this close to a fitted box are its own
-FOOTPRINT_OVERLAP = 0.005  # m: footprints must overlap by this to support
 MIN_SIDE_POINTS = 40  # points in a cluster to fit a box to its side faces
 UNDER_MARGIN = 0.01  # m: a support's points lie under the box it holds, within this
 MIN_UNDER_POINTS = 20  # ... at least this many (not a neighbour's face in the search band)
@@ -85,10 +84,9 @@ def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBo
         if bottom < ON_TABLE and not tilted:
             continue
         footprint = box.corners()[:, :2]
-        if not tilted and any(abs(other.top_z() - bottom) < STACK_TOL
-                              and _xy_overlap(footprint, other)
-                              for other in boxes + found if other is not box):
-            continue
+        # A support already seen under it does not end the search: a block may rest on
+        # two (one seen, a cube under its middle seen only from the side); what the seen
+        # one explains is left out below.
         lo, hi = footprint.min(axis=0) - SUPPORT_SEARCH, footprint.max(axis=0) + SUPPORT_SEARCH
         sel = ((points[:, 2] < box.center[2]) & np.all(points[:, :2] >= lo, axis=1)
                & np.all(points[:, :2] <= hi, axis=1))
@@ -100,12 +98,6 @@ def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBo
         found.extend(new)
         queue.extend(new)
     return found
-
-
-def _xy_overlap(footprint: np.ndarray, other: FittedBox) -> bool:
-    o = other.corners()[:, :2]
-    return bool(np.all(footprint.max(axis=0) > o.min(axis=0) + FOOTPRINT_OVERLAP)
-                and np.all(o.max(axis=0) > footprint.min(axis=0) + FOOTPRINT_OVERLAP))
 
 
 def _fit_side_clusters(cand: np.ndarray, top: float | None,
