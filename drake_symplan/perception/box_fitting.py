@@ -36,6 +36,7 @@ MIN_UNDER_POINTS = 20  # ... at least this many (not a neighbour's face in the s
 CLUSTER_DILATION = 2  # cells: side points are grown by this, so a face's pieces join
 OWN_YAW_EXTENT = 0.02  # m: a cluster this wide has a yaw of its own (else the box above's)
 LONG_CLUSTER = 0.08  # m: a cluster longer than this is a long block
+CLUSTER_CORE = 98  # percentile: a cluster's length for its type, between the 2nd and 98th
 BOTH_FACES = 0.8  # fraction of a box's size seen along an axis: both faces are seen
 ONE_FACE_UNSURE = 0.3  # ... less than this: the box's centre there is uncertain
 
@@ -124,7 +125,10 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
         uv = pts[:, :2] @ axes.T
         ext = np.ptp(uv, axis=0)
-        kind = "long" if ext.max() > LONG_CLUSTER else "cube"
+        # The type from the extent without its tails: a noisy sensor's stray points (a
+        # leaning block's own underside, flying pixels) stretched a cube's 5 cm past 8.
+        core = np.subtract(*np.percentile(uv, [100 - CLUSTER_CORE, CLUSTER_CORE], axis=0))
+        kind = "long" if core.max() > LONG_CLUSTER else "cube"
         dims = np.array([SIDE, LONG if kind == "long" else SIDE])
         if kind == "long" and ext[0] > ext[1]:
             axes_k = axes[::-1]
