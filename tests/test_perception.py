@@ -167,6 +167,17 @@ def test_association_when_the_grasp_missed():
     assert mapping == {"p0": "q1", "p1": "q0"}
 
 
+def test_association_when_a_missed_grasp_pushed_two_cubes():
+    """The fingers came down beside two touching cubes and pushed both about 5 cm
+    (bench_perception under realsense): each moved, not one left and one moved 10 cm."""
+    before = _scene([("p0", "cube", (0.614, -0.035, 0.025)), ("p1", "cube", (0.615, 0.015, 0.025))],
+                    {("p0", "p1")})
+    after = _scene([("q0", "cube", (0.614, -0.080, 0.025)), ("q1", "cube", (0.614, -0.035, 0.025))],
+                   {("q0", "q1")})
+    mapping = associate(before, after, Action("p0", "right", "p1", "right"))
+    assert mapping == {"p0": "q0", "p1": "q1"}
+
+
 def test_contact_graph_when_fcl_gives_up(camera_station, monkeypatch):
     """FCL's distance query can fail on boxes touching face to face exactly (seen in
     bench_perception); the ground-truth contacts then come from the boxes' geometry."""
