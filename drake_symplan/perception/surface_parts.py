@@ -22,7 +22,7 @@ BLOCK_FIT = 0.93
 # much: the block's own edge cells lie in the first cell outside the (inset) footprint.
 RING = (1, 3)
 RING_WEIGHT = 0.5
-ANGLE_STEP = np.radians(2.0)  # coarse search over a block's heading, then refined
+ANGLE_STEP = np.radians(2.0)  # a block's candidate headings, to this step; then refined
 ANGLE_REFINE = np.radians(np.arange(-1.5, 1.51, 0.5))
 SLIVER = SIDE / 2  # m: a piece left this narrow is the block's edge, not a box
 MAX_PARTS = 8  # a scene holds at most eight boxes
