@@ -26,6 +26,8 @@ ANGLE_STEP = np.radians(2.0)  # a block's candidate headings, to this step; then
 ANGLE_REFINE = np.radians(np.arange(-1.5, 1.51, 0.5))
 SLIVER = SIDE / 2  # m: a piece left this narrow is the block's edge, not a box
 MAX_PARTS = 8  # a scene holds at most eight boxes
+CLOSING_PAD = 2  # cells: empty border a 3x3 closing needs to see no edge
+BLOCK_PAD = int(np.ceil(LONG / CELL))  # cells: room for a block's footprint around a surface
 
 
 def split_surface(surface: Surface) -> list[Surface]:
@@ -35,18 +37,20 @@ def split_surface(surface: Surface) -> list[Surface]:
     while todo and len(parts) + len(todo) < MAX_PARTS:
         s = todo.pop()
         grid = _Grid(s)
-        if grid.fill() >= RECTANGLE_FILL:
-            parts.append(s)
-            continue
-        block = grid.best_block()
+        # Most surfaces are a cube's top: too small for a block, read as they are.
+        block = grid.best_block() if grid.holds_block() and grid.fill() < RECTANGLE_FILL \
+            else None
         if block is None:
             parts.append(s)
             continue
-        pieces = grid.pieces(~block)
-        for piece in [p for p in pieces if grid.sliver(p)]:
-            block |= piece  # a strip along the block's edge its footprint just missed
+        rest = []
+        for piece in grid.pieces(~block):
+            if grid.sliver(piece):
+                block |= piece  # a strip along the block's edge its footprint just missed
+            else:
+                rest.append(piece)
         parts.append(_part(s, block))
-        todo.extend(_part(s, piece) for piece in pieces if not grid.sliver(piece))
+        todo.extend(_part(s, piece) for piece in rest)
     return parts + todo
 
 
@@ -62,14 +66,19 @@ class _Grid:
         b1, b2 = plane_basis(s.normal)
         rel = s.points - s.centroid
         self.uv = np.column_stack([rel @ b1, rel @ b2])
-        pad = int(np.ceil(LONG / CELL))
-        self.lo = self.uv.min(axis=0) - pad * CELL
-        self.idx = np.floor((self.uv - self.lo) / CELL).astype(int)
-        shape = self.idx.max(axis=0) + pad + 1
-        occupied = np.zeros(shape, bool)
+        # Cells counted from BLOCK_PAD cells before the points, as on a block search's
+        # padded grid (the same points fall in the same cells), kept with CLOSING_PAD
+        # empty ones around them.
+        lo = self.uv.min(axis=0) - BLOCK_PAD * CELL
+        self.idx = np.floor((self.uv - lo) / CELL).astype(int) - (BLOCK_PAD - CLOSING_PAD)
+        occupied = np.zeros(self.idx.max(axis=0) + CLOSING_PAD + 1, bool)
         occupied[self.idx[:, 0], self.idx[:, 1]] = True
         # Cells the cameras left between seen ones (a pixel's footprint is near a cell).
         self.mask = ndimage.binary_closing(occupied, iterations=1) | occupied
+
+    def holds_block(self) -> bool:
+        """Is the surface large enough for a whole block's footprint to fit?"""
+        return self.mask.sum() * CELL ** 2 >= BLOCK_FIT * LONG * SIDE
 
     def fill(self) -> float:
         _, lo, hi, _ = min_area_rectangle(self.uv)
@@ -79,20 +88,21 @@ class _Grid:
     def best_block(self) -> np.ndarray | None:
         """Which points lie under the best-fitting whole block's footprint, or None where
         none has BLOCK_FIT of its cells on the surface."""
-        if self.mask.sum() * CELL ** 2 < BLOCK_FIT * LONG * SIDE:
-            return None
-        best = max(self._placements(self._headings()), key=lambda t: t[0])
-        best = max(self._placements(best[2] + ANGLE_REFINE), key=lambda t: t[0])
+        # Room around the surface for a footprint centred anywhere on it.
+        pad = BLOCK_PAD - CLOSING_PAD
+        cells = np.pad(self.mask, pad).astype(float)
+        best = max(_placements(cells, self._headings()), key=lambda t: t[0])
+        best = max(_placements(cells, best[2] + ANGLE_REFINE), key=lambda t: t[0])
         _, covered, angle, at = best
         if covered < BLOCK_FIT:
             return None
         kernel = _footprint(angle)
-        placed = np.zeros_like(self.mask)
+        placed = np.zeros(cells.shape, bool)
         kx, ky = kernel.shape
         x0, y0 = at[0] - kx // 2, at[1] - ky // 2
         placed[x0:x0 + kx, y0:y0 + ky] = kernel
         # Edge points of the block fall in the cells just around its footprint.
-        placed = ndimage.binary_dilation(placed, iterations=1) & self.mask
+        placed = ndimage.binary_dilation(placed, iterations=1)[pad:-pad, pad:-pad] & self.mask
         return placed[self.idx[:, 0], self.idx[:, 1]]
 
     def _headings(self) -> np.ndarray:
@@ -106,22 +116,6 @@ class _Grid:
         angles = np.arctan2(edges[:, 1], edges[:, 0])
         angles = np.concatenate([angles, angles + np.pi / 2]) % np.pi
         return np.unique(np.round(angles / ANGLE_STEP)) * ANGLE_STEP
-
-    def _placements(self, angles):
-        """(score, share of the footprint on the surface, angle, grid cell) of the best
-        placement at each angle. The score counts the surface's cells under the footprint
-        less half those in a ring just outside it: a block turned off its true heading
-        covers as much but leaves its own corners in the ring."""
-        cells = self.mask.astype(float)
-        for a in angles:
-            inside = _footprint(a)
-            ring = (ndimage.binary_dilation(inside, iterations=RING[1])
-                    & ~ndimage.binary_dilation(inside, iterations=RING[0]))
-            on = signal.fftconvolve(cells, inside[::-1, ::-1].astype(float), mode="same")
-            near = signal.fftconvolve(cells, ring[::-1, ::-1].astype(float), mode="same")
-            score = on - RING_WEIGHT * near
-            at = np.unravel_index(int(np.argmax(score)), score.shape)
-            yield score[at], on[at] / inside.sum(), float(a), at
 
     def sliver(self, point_mask: np.ndarray) -> bool:
         """Are the points in `point_mask` too narrow for any box's top?"""
@@ -138,6 +132,22 @@ class _Grid:
         point_label = labels[self.idx[:, 0], self.idx[:, 1]]
         return [point_mask & (point_label == lab) for lab in range(1, n + 1)
                 if sizes[lab - 1] >= MIN_REGION_CELLS]
+
+
+def _placements(cells: np.ndarray, angles):
+    """(score, share of the footprint on the surface, angle, grid cell) of the best
+    placement at each angle on the grid `cells`. The score counts the surface's cells under
+    the footprint less half those in a ring just outside it: a block turned off its true
+    heading covers as much but leaves its own corners in the ring."""
+    for a in angles:
+        inside = _footprint(a)
+        ring = (ndimage.binary_dilation(inside, iterations=RING[1])
+                & ~ndimage.binary_dilation(inside, iterations=RING[0]))
+        on = signal.fftconvolve(cells, inside[::-1, ::-1].astype(float), mode="same")
+        near = signal.fftconvolve(cells, ring[::-1, ::-1].astype(float), mode="same")
+        score = on - RING_WEIGHT * near
+        at = np.unravel_index(int(np.argmax(score)), score.shape)
+        yield score[at], on[at] / inside.sum(), float(a), at
 
 
 def _footprint(angle: float) -> np.ndarray:
