@@ -7,6 +7,7 @@ from drake_symplan.actions import Action
 from drake_symplan.evaluation.perception import compare
 from drake_symplan.features import FEATURE_DIM, object_features
 from drake_symplan.perception.association import associate
+from drake_symplan.perception.box_fitting import _fit_side_clusters, box_from_top
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene, Perceiver
 from drake_symplan.world.cameras import DepthNoise
 from drake_symplan.world.scenes import ObjectSpec, Scene
@@ -191,6 +192,20 @@ def test_association_when_a_stack_is_put_on_its_own_rider():
         o.yaw = np.radians(yaws[o.name])
     mapping = associate(before, after, Action("o2", "center", "o0", "center"))
     assert mapping == {"o2": "a", "o1": "b", "o0": "c"}
+
+
+@pytest.mark.parametrize("length, kind", [(0.25, "long"), (0.05, "cube")])
+def test_a_box_seen_only_from_the_side_has_its_type(length, kind):
+    """The side face (4 mm points) of a box hidden under a block above it: a 25 cm face is
+    a long block, a 5 cm one a cube (the type once read from a negative extent: always
+    a cube, which lost long blocks under others)."""
+    above = box_from_top(np.array([0.725, 0.30, 0.10]), np.array([0.0, 0.0, 1.0]),
+                         np.array([1.0, 0.0, 0.0]), "long", False, 100)
+    x, z = np.meshgrid(np.arange(0.60, 0.60 + length, 0.004), np.arange(0.006, 0.046, 0.004))
+    face = np.column_stack([x.ravel(), np.full(x.size, 0.275), z.ravel()])
+    (box,) = _fit_side_clusters(face, None, above)
+    assert box.type == kind
+    assert np.allclose(box.center, [0.60 + length / 2, 0.25, 0.025], atol=0.003)
 
 
 def test_contact_graph_when_fcl_gives_up(camera_station, monkeypatch):

@@ -127,7 +127,7 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         ext = np.ptp(uv, axis=0)
         # The type from the extent without its tails: a noisy sensor's stray points (a
         # leaning block's own underside, flying pixels) stretched a cube's 5 cm past 8.
-        core = np.subtract(*np.percentile(uv, [100 - CLUSTER_CORE, CLUSTER_CORE], axis=0))
+        core = np.subtract(*np.percentile(uv, [CLUSTER_CORE, 100 - CLUSTER_CORE], axis=0))
         kind = "long" if core.max() > LONG_CLUSTER else "cube"
         dims = np.array([SIDE, LONG if kind == "long" else SIDE])
         if kind == "long" and ext[0] > ext[1]:
