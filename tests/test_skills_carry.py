@@ -191,3 +191,15 @@ def test_a_tall_tower_at_the_far_end_of_a_block_falls_on_both_back_ends(runner):
         out = runner.run(backend, scene, "tall_p9", action)
         assert out["status"] == "ok" and out["moved"] and not out["kept"], backend
         assert out.get("by_arm", True), backend
+
+
+def test_a_block_across_the_reach_at_a_folded_yaw_is_picked_with_the_wrist_half_turned(runner):
+    # The scene yawed 89 deg: the base lies along world x and the careful grasp is 5.5 cm
+    # beyond its centre (x = 0.92 m), which the joint box reaches with the gripper turned
+    # -91 deg but not +89 deg (grasp_yaw's fold). A long block perceived at 89 instead of
+    # 90 deg was an unreachable pre-grasp; the same grasp with the wrist turned by pi is not.
+    scene = suite_scene("rider_0", 89.0)
+    action = Action("base", "center", "target", "center")
+    assert runner.planner.plan(action, scene.object_states()) is not None
+    out = runner.run("arm", scene, "rider_0", action)
+    assert out["status"] == "ok" and out["moved"] and out["kept"]

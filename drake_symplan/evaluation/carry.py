@@ -4,8 +4,9 @@ Five scenes, each a base box with riders beside a target long block: a cube on a
 block at -9, 0 and +9 cm along its length, a two-cube tower, two cubes on a long block,
 each also yawed as a whole. `kept` judges from the simulator's poses whether every rider
 still rests on the base (ground truth: for benchmarks and tests, never a learning input);
-`Runner` runs one action on the `hand` or the `arm` from a fresh scene. tools/bench_carry.py
-runs the suite.
+`Runner` runs one action on the `hand` or the `arm` from a fresh scene, planned from the
+scene itself or, with a sensor named, from the scene as the depth cameras perceive it.
+tools/bench_carry.py runs the suite.
 """
 
 from __future__ import annotations
@@ -14,12 +15,16 @@ import math
 import time
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from drake_symplan.actions import OFFSETS, Action
 from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.datasets import ObjectState
+from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.skills.arm_twin import ArmTwin
 from drake_symplan.skills.hand_place import hand_pick_place
 from drake_symplan.skills.pick_place import InfeasibleAction, PickPlaceMotions, pick_place
+from drake_symplan.world.cameras import default_cameras
 from drake_symplan.world.scenes import ObjectSpec, Scene, validate_scene
 from drake_symplan.world.station import Station, StationConfig
 
@@ -87,27 +92,57 @@ def kept(poses: dict, name: str, types: dict[str, str]) -> bool:
     return all(rests_on(poses, r, b, types) for r, b in supports(name).items())
 
 
-class Runner:
-    """One station per back-end; runs an action from a fresh scene, returns its verdict."""
+def named_beliefs(perceived: dict[str, ObjectState], scene: Scene) -> dict[str, ObjectState]:
+    """The perceived boxes under the scene's names (nearest, one to one): the benchmark
+    names what the cameras saw after the scene it built; a box not seen is left out."""
+    seen, truth = list(perceived.values()), scene.object_states()
+    names = list(truth)
+    cost = np.array([[np.linalg.norm(p.position - truth[n].position) for n in names]
+                     for p in seen]).reshape(len(seen), len(names))
+    rows, cols = linear_sum_assignment(cost)
+    return {names[c]: ObjectState(names[c], seen[r].type, seen[r].position, seen[r].yaw,
+                                  seen[r].tilt) for r, c in zip(rows, cols, strict=True)}
 
-    def __init__(self):
-        self.arm, self.hand = Station(), Station(StationConfig(robot="hand"))
+
+class Runner:
+    """One station per back-end; runs an action from a fresh scene, returns its verdict.
+    `belief`: "truth" plans from the scene as built; a sensor of
+    world/depth_sensor.CAMERA_NOISE ("none", "realsense", "heavy") plans from the scene as
+    the cameras perceive it after it settles (`belief_error_mm` in each row)."""
+
+    def __init__(self, belief: str = "truth", camera_seed: int = 0):
+        self.belief = belief
+        sensed = {} if belief == "truth" else {
+            "cameras": default_cameras(), "camera_noise": belief, "camera_seed": camera_seed}
+        self.arm = Station(StationConfig(**sensed))
+        self.hand = Station(StationConfig(robot="hand", **sensed))
         self.planner = PickPlaceMotions()
         self.twin = ArmTwin()
+        self.perceiver = Perceiver()
+
+    def beliefs(self, station: Station, scene: Scene) -> dict[str, ObjectState]:
+        if self.belief == "truth":
+            return scene.object_states()
+        return named_beliefs(self.perceiver.perceive(station).object_states(), scene)
 
     def run(self, backend: str, scene: Scene, name: str, action: Action) -> dict:
         station = self.arm if backend == "arm" else self.hand
         station.reset(scene)
         station.settle(0.1)
         start = {n: X.translation()[2] for n, X in station.object_poses().items()}
+        beliefs = self.beliefs(station, scene)
+        truth = station.object_states()
+        error = max((float(np.linalg.norm(b.position - truth[n].position))
+                     for n, b in beliefs.items()), default=0.0)
         t = time.process_time()
-        if backend == "arm":
-            status = pick_place(station, self.planner, action, scene.object_states()).status
+        if "base" not in beliefs or action.target not in beliefs:
+            status, by_arm = "perception", False
+        elif backend == "arm":
+            status = pick_place(station, self.planner, action, beliefs).status
         else:
             status, by_arm = "ok", False
             try:
-                by_arm = hand_pick_place(station, action, scene.object_states(),
-                                         twin=self.twin)[0].by_arm
+                by_arm = hand_pick_place(station, action, beliefs, twin=self.twin)[0].by_arm
             except InfeasibleAction:
                 status = "infeasible"
             except RuntimeError:
@@ -118,7 +153,8 @@ class Runner:
         moved = bool(np.linalg.norm(base[:2] - scene.object("base").position[:2]) > 0.05
                      or abs(base[2] - start["base"]) > 0.02)
         row = {"status": status, "kept": kept(poses, name, station.types), "moved": moved,
-               "cpu_s": round(cpu, 3)}
+               "cpu_s": round(cpu, 3), "seen": len(beliefs),
+               "belief_error_mm": round(1000 * error, 2)}
         if backend == "hand":
             row["by_arm"] = by_arm
         return row

@@ -162,6 +162,21 @@ class PickPlaceMotions:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
         still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
         g, carry = arm_geometry(action, objects)
+        try:
+            return self._motion(g, carry, q_start, lift_hold)
+        except InfeasibleAction as first:
+            # The fingers are symmetric under a half turn: the same grasp and release with
+            # the wrist turned by pi. Near a box's folded yaw (a long block at +-90 deg, a
+            # cube at +-45) a few degrees of belief pick the turn the joint box cannot reach.
+            half_turn = dc.replace(g, yaw_grasp=g.yaw_grasp + np.pi,
+                                   yaw_release=g.yaw_release + np.pi)
+            try:
+                return self._motion(half_turn, carry, q_start, lift_hold)
+            except InfeasibleAction:
+                raise first from None
+
+    def _motion(self, g: ActionGeometry, carry: str, q_start: np.ndarray,
+                lift_hold: bool) -> Motion:
         careful = carry == "careful"
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
