@@ -27,7 +27,7 @@ from drake_symplan.agent.inspection import (
     symbol_view,
 )
 from drake_symplan.symbolic.states import SymbolicState
-from drake_symplan.symbolic.structs import LiftedOperator, Reposition, parse_step
+from drake_symplan.symbolic.structs import Atom, LiftedOperator, Reposition, parse_step
 from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
 
 REPO = Path(__file__).resolve().parents[1]
@@ -90,6 +90,13 @@ def test_plan_steps_are_grounded_and_the_panel_holds_them():
                       "readable": "pick a at its centre, release on b's left",
                       "source": "a", "target": "b", "operator": op.name, "reliability": 0.8, "preconditions": ["p0(b)"],
                       "add": ["r0(a, b)"], "delete": ["touching0(a)"]}]
+    # with the plan's initial atoms and the bundle's operators: the action's other branch
+    missed = LiftedOperator(4, "center", "left", 2, (("p0", 1),), (("touching1", 0),),
+                            (("touching0", 0),), 10, applicable=50, succeeded=10)
+    steps = plan_view([parse_step(f"({op.name} a b)", {op.name: op})],
+                      {Atom("p0", "b")}, [op, missed])
+    assert steps[0]["other_outcomes"] == [{"operator": missed.name, "reliability": 0.2,
+                                           "add": ["touching1(a)"], "delete": ["touching0(a)"]}]
     scene, reading = scene_and_reading()
     view = symbol_view(scene, reading)
     result = {"start": view, "goal": {**view, "atoms": ["r0(a, b)"]}, "plan": steps,
@@ -98,6 +105,7 @@ def test_plan_steps_are_grounded_and_the_panel_holds_them():
                          panel_html("title <1>", inspection_sections(result)))
     assert page.index('id="symplan-panel"') < page.index("</body>")
     assert "title &lt;1&gt;" in page and "p0=1 p1=0" in page
+    assert "or: 20% add touching1(a); del touching0(a)" in page
     assert "pick a at its centre, release on b&#x27;s left" in page
     assert "pre: p0(b)" in page and "add: r0(a, b)" in page and "del: touching0(a)" in page
 

@@ -10,6 +10,7 @@ from drake_symplan.symbolic.structs import (
     Step,
     Task,
     apply,
+    other_outcomes,
     parse_step,
     reaches,
 )
@@ -81,3 +82,23 @@ def test_atoms_and_operators_survive_pickling():
     again = pickle.loads(pickle.dumps(STACK))
     assert again.pre == STACK.pre and isinstance(again.pre[0], Atom)
     assert again.pre[0].key == ("r0", 0, 1)
+
+
+def test_other_outcomes_are_the_branches_of_the_same_action_where_the_step_applies():
+    # Four more operators of pick(center) place(right) besides STACK (80 %): one with
+    # another effect (15 %), one with STACK's effect under other preconditions (a branch
+    # already taken), one whose preconditions do not hold, one of other offsets.
+    touches = LiftedOperator(20, "center", "right", 2, [("not_r0", 0, 1)],
+                             [("touching2", 0)], [], 40, applicable=20, succeeded=3)
+    same = LiftedOperator(21, "center", "right", 2, [], [("r0", 0, 1)], [("not_r0", 0, 1)],
+                          30, applicable=10, succeeded=5)
+    unmet = LiftedOperator(22, "center", "right", 2, [("p0", 0)], [("p1", 0)], [], 30,
+                           applicable=10, succeeded=9)
+    other = LiftedOperator(23, "left", "right", 2, [], [("p1", 0)], [], 30,
+                           applicable=10, succeeded=9)
+    ops = [STACK, touches, same, unmet, other]
+    plan = [Step(STACK, ("a", "b")), Reposition(Action("a", "center", "b", "left")),
+            Step(STACK, ("a", "b"))]
+    out = other_outcomes(plan, {Atom("not_r0", "a", "b")}, ops)
+    assert [[s.operator for s in row] for row in out] == [[touches], [], []]
+    assert out[0][0].add == {("touching2", "a")} and out[0][0].operator.reliability == 0.15

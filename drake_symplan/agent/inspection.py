@@ -35,7 +35,7 @@ from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.solve import Agent
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, other_outcomes
 
 PREFIX = "/symplan"
 CLOUD_Z_MIN = 0.003  # m: points at the table's height and below are not drawn
@@ -48,6 +48,7 @@ RELATION_COLOURS = ("#111111", "#d62728", "#7b2fbe", "#1a7f37", "#0b3d91", "#c21
 STEP_COLOURS = ("#ff7f0e", "#17becf", "#bcbd22", "#e377c2", "#2ca02c", "#9467bd")
 GRASP = {"center": "at its centre", "left": "at its left end", "right": "at its right end"}
 RELEASE = {"center": "centre", "left": "left", "right": "right"}
+OUTCOMES_SHOWN = 3  # a step's other outcomes in the text and the panel (the JSON has all)
 
 
 def readable_step(step: PlanStep) -> str:
@@ -114,9 +115,11 @@ def symbol_view(named_scene, reading) -> dict:
             "contacts": [list(p) for p in sorted(reading.contacts)], "legend": legend}
 
 
-def plan_view(steps: list[PlanStep]) -> list[dict]:
+def plan_view(steps: list[PlanStep], init=None, operators=()) -> list[dict]:
     """Each plan step: its readable form, roles, operator, reliability and the grounded
-    preconditions and effects (none for a move no operator names)."""
+    preconditions and effects (none for a move no operator names); with the plan's
+    initial atoms `init` and the bundle's `operators`, each step's `other_outcomes` too
+    (symbolic.structs.other_outcomes: where the action's outcome branches)."""
     def texts(atoms):
         return [a.text() for a in sorted(atoms)]
 
@@ -129,8 +132,21 @@ def plan_view(steps: list[PlanStep]) -> list[dict]:
                 "preconditions": texts(step.pre), "add": texts(step.add),
                 "delete": texts(step.delete)}
 
-    return [{"step": str(step), "readable": readable_step(step), "source": step.action.source,
+    rows = [{"step": str(step), "readable": readable_step(step), "source": step.action.source,
              "target": step.action.target, **view(step)} for step in steps]
+    if init is not None:
+        for row, others in zip(rows, other_outcomes(steps, init, operators), strict=True):
+            row["other_outcomes"] = [{"operator": o.operator.name,
+                                      "reliability": round(o.operator.reliability, 3),
+                                      "add": texts(o.add), "delete": texts(o.delete)}
+                                     for o in others]
+    return rows
+
+
+def outcome_text(o: dict) -> str:
+    """One other outcome of a step, for people: '4% add r1(o1, o3); del -'."""
+    return (f"{o['reliability']:.0%} add {', '.join(o['add']) or '-'}; "
+            f"del {', '.join(o['delete']) or '-'}")
 
 
 # --- Meshcat ------------------------------------------------------------------------
@@ -320,7 +336,9 @@ def _step_html(s: dict) -> str:
     return (f"{text}<br><code>{_html.escape(s['operator'])}</code> reliability "
             f"{s['reliability']:.0%}<br>pre: {_html.escape(', '.join(s['preconditions']))}"
             f"<br>add: {_html.escape(', '.join(s['add']) or '-')}<br>del: "
-            f"{_html.escape(', '.join(s['delete']) or '-')}")
+            f"{_html.escape(', '.join(s['delete']) or '-')}"
+            + "".join(f"<br>or: {_html.escape(outcome_text(o))}"
+                      for o in s.get("other_outcomes", [])[:OUTCOMES_SHOWN]))
 
 
 def annotate_html(page: str, panel: str) -> str:
@@ -369,7 +387,8 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
             Observation(start.scene, start_reading, Boxes.of(start.scene)),
             Observation(goal.scene, goal_reading, Boxes.of(goal.scene)))
         result["plan_status"], result["plan_level"] = found.status, found.level
-        result["plan"] = plan_view(found.steps)
+        result["plan"] = plan_view(found.steps, abstraction.believed(start_reading),
+                                   abstraction.bundle.operators)
         result["candidates"] = [c.to_json() for c in found.candidates]
     if meshcat is not None:
         draw_view(meshcat, start.scene, result["start"])

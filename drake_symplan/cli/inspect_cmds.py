@@ -147,7 +147,7 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
 
 def summary_lines(result: dict, sections=None) -> list[str]:
     """The inspection as text: legend, objects, relations, goal atoms, plan steps."""
-    from drake_symplan.agent.inspection import subgoal_texts
+    from drake_symplan.agent.inspection import OUTCOMES_SHOWN, outcome_text, subgoal_texts
 
     start = result["start"]
     lines = ["legend (unary bit pattern p0.. -> box colour): " + ", ".join(
@@ -170,6 +170,8 @@ def summary_lines(result: dict, sections=None) -> list[str]:
                       f"{s['reliability']:.0%}]",
                       f"     pre: {', '.join(s['preconditions'])}",
                       f"     add: {', '.join(s['add']) or '-'}; del: {', '.join(s['delete']) or '-'}"]
+            lines += [f"     or {outcome_text(o)}   [{o['operator']}]"
+                      for o in s.get("other_outcomes", [])[:OUTCOMES_SHOWN]]
         lines += [f"subgoal: {text}" for text in subgoal_texts(result)]
         lines += [f"rejected {c['source']}: {' '.join(c['steps']) or 'no steps'}: {c['why']}"
                   for c in result.get("candidates", []) if not c["accepted"]]

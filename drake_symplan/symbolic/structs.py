@@ -350,6 +350,36 @@ def parse_step(text: str, operators: Mapping[str, LiftedOperator]) -> PlanStep:
     return Step(op, args)
 
 
+def other_outcomes(steps: Sequence[PlanStep], init, operators: Iterable[LiftedOperator]
+                   ) -> list[list[Step]]:
+    """Per plan step, what else the training data saw after the same action where the
+    step applies: the other learned operators with its offsets that apply to its objects
+    (its first n_params ones) in the state the plan reaches there, one per effect (other
+    than the step's), most reliable first.
+    Where an action's symbolic outcome branches, these are the branches; the planner
+    took the step's own. None are known after a move no operator names."""
+    operators = list(operators)
+    state, out = frozenset(init), []
+    for step in steps:
+        if state is None or isinstance(step, Reposition):
+            out.append([])
+            state = None
+            continue
+        op = step.operator
+        others = [Step(o, step.args[:o.n_params]) for o in operators
+                  if o is not op and (o.grasp, o.release) == (op.grasp, op.release)
+                  and o.n_params <= len(step.args)]
+        branches, seen = [], {(step.add, step.delete)}
+        for s in sorted((s for s in others if s.applicable(state)),
+                        key=lambda s: (-s.operator.reliability, s.operator.index)):
+            if (s.add, s.delete) not in seen:  # one row per effect: its likeliest operator
+                seen.add((s.add, s.delete))
+                branches.append(s)
+        out.append(branches)
+        state = step.apply(state)
+    return out
+
+
 def reaches(steps: Iterable[PlanStep], state, goal) -> bool:
     """Do `steps` apply one after the other from `state` and end where `goal` holds?"""
     state = frozenset(state)
