@@ -53,6 +53,11 @@ CASES = {
                                      ("b", "long", (0.70, 0.10, 0.025), 0.0),
                                      ("c", "cube", (0.58, 0.10, 0.025), 0.0)],
                                     {("a", "b"), ("a", "c")}),
+    # A block on a block, 7.25 cm along it (a goal of the 162): the lower block's end left
+    # clear is seen 7.2-7.4 cm long, longer than a cube, and the rest is hidden.
+    "block on a block, its end clear": ([("a", "long", (0.84, -0.20, 0.025)),
+                                         ("b", "long", (0.84, -0.1275, 0.075))],
+                                        {("a", "b")}),
 }
 
 

@@ -32,7 +32,10 @@ CUBE_SHARE = 10  # a cube in a row of blocks and cubes gets 1/10 of the points a
 _ROUND_OFF = 1e-9  # m: slack for float round-off in comparisons
 WHOLE_BLOCK_SLACK = 0.015  # m: a seen length this short of 25 cm is a whole block
 EDGE_BAND = 0.006  # m: points this close to an extreme lie on that edge (count density)
-PARTIAL_BLOCK = 0.075  # m: a piece longer than a cube and a half may be a hidden block
+# m: a piece longer than this may be a block partly hidden under something higher: a
+# cube's top is seen 5.1-5.6 cm long (realsense), a block's end left 7 cm clear by a
+# block on it 7.2-7.4 cm (was 7.5 cm: that end was a cube, the block a second box)
+PARTIAL_BLOCK = 0.065
 HIDDEN_ENOUGH = 0.9  # fraction of a placement seen or hidden for it to be possible
 HIDDEN_SURE = 0.97  # ... and for it to be certain
 END_PROBE = 0.008  # m: probe this far beyond a visible end to see if the table is there
