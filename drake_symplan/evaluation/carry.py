@@ -15,9 +15,9 @@ import math
 import time
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from drake_symplan.actions import OFFSETS, Action
+from drake_symplan.agent.beliefs import name_by_file
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.perception.perceive import Perceiver
@@ -92,18 +92,6 @@ def kept(poses: dict, name: str, types: dict[str, str]) -> bool:
     return all(rests_on(poses, r, b, types) for r, b in supports(name).items())
 
 
-def named_beliefs(perceived: dict[str, ObjectState], scene: Scene) -> dict[str, ObjectState]:
-    """The perceived boxes under the scene's names (nearest, one to one): the benchmark
-    names what the cameras saw after the scene it built; a box not seen is left out."""
-    seen, truth = list(perceived.values()), scene.object_states()
-    names = list(truth)
-    cost = np.array([[np.linalg.norm(p.position - truth[n].position) for n in names]
-                     for p in seen]).reshape(len(seen), len(names))
-    rows, cols = linear_sum_assignment(cost)
-    return {names[c]: ObjectState(names[c], seen[r].type, seen[r].position, seen[r].yaw,
-                                  seen[r].tilt) for r, c in zip(rows, cols, strict=True)}
-
-
 class Runner:
     """One station per back-end; runs an action from a fresh scene, returns its verdict.
     `belief`: "truth" plans from the scene as built; a sensor of
@@ -123,7 +111,8 @@ class Runner:
     def beliefs(self, station: Station, scene: Scene) -> dict[str, ObjectState]:
         if self.belief == "truth":
             return scene.object_states()
-        return named_beliefs(self.perceiver.perceive(station).object_states(), scene)
+        # the scene file's names, as the agent gives them (a box not seen is left out)
+        return name_by_file(self.perceiver.perceive(station), scene).scene.object_states()
 
     def run(self, backend: str, scene: Scene, name: str, action: Action) -> dict:
         station = self.arm if backend == "arm" else self.hand
