@@ -50,6 +50,31 @@ TOKEN = """
 TOKEN_PROBLEM = "(define (problem t) (:domain token) (:init (free)) (:goal (and (a) (b))))"
 
 
+GRIPPER = """
+(define (domain gripper) (:requirements :strips)
+  (:predicates (room ?r) (ball ?b) (gripper ?g) (at-robby ?r) (at ?b ?r) (free ?g) (carry ?o ?g))
+  (:action move :parameters (?from ?to) :precondition (and (room ?from) (room ?to) (at-robby ?from))
+    :effect (and (at-robby ?to) (not (at-robby ?from))))
+  (:action pick :parameters (?o ?r ?g)
+    :precondition (and (ball ?o) (room ?r) (gripper ?g) (at ?o ?r) (at-robby ?r) (free ?g))
+    :effect (and (carry ?o ?g) (not (at ?o ?r)) (not (free ?g))))
+  (:action drop :parameters (?o ?r ?g)
+    :precondition (and (ball ?o) (room ?r) (gripper ?g) (carry ?o ?g) (at-robby ?r))
+    :effect (and (at ?o ?r) (free ?g) (not (carry ?o ?g)))))
+"""
+
+
+def gripper_problem(n: int) -> str:
+    """n balls from room a to room b with two grippers: 3n - 1 steps at best, and a
+    plateau that A* with LM-cut needs many seconds to close at n = 20."""
+    balls = [f"b{i}" for i in range(n)]
+    init = " ".join(f"(ball {b}) (at {b} ra)" for b in balls)
+    return (f"(define (problem g{n}) (:domain gripper) (:objects ra rb left right "
+            f"{' '.join(balls)}) (:init (room ra) (room rb) (gripper left) (gripper right) "
+            f"(at-robby ra) (free left) (free right) {init}) "
+            f"(:goal (and {' '.join(f'(at {b} rb)' for b in balls)})))")
+
+
 @pytest.fixture(scope="module")
 def hanoi_files(tmp_path_factory):
     d = tmp_path_factory.mktemp("hanoi")
@@ -110,6 +135,18 @@ def test_timeout_stops_the_planner(backend, hanoi_files):
     assert result.seconds < 5.0
     assert multiprocessing.active_children() == []
     assert _processes_mentioning(str(hanoi_files / "p16.pddl")) == []
+
+
+def test_fast_downward_falls_back_to_a_weighted_search_when_a_star_runs_out(tmp_path):
+    (tmp_path / "domain.pddl").write_text(GRIPPER)
+    (tmp_path / "p.pddl").write_text(gripper_problem(20))
+    files = tmp_path / "domain.pddl", tmp_path / "p.pddl"
+    optimal_only = fast_downward(*files, wall_seconds=6.0, cpu_seconds=2.0, fallback=None)
+    assert optimal_only.status == "timeout", optimal_only
+    found = fast_downward(*files, wall_seconds=6.0, cpu_seconds=2.0)
+    assert found.status == "solved", found
+    assert len(found.plan) >= 59
+    assert check_plan(GRIPPER, gripper_problem(20), found.plan) is None
 
 
 def test_fast_downward_through_its_driver_finds_the_same_plan(hanoi_files, monkeypatch):

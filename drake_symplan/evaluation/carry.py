@@ -49,6 +49,8 @@ HARD: dict[str, list[tuple[str, str, float, int]]] = {
     "tall_p9": [("base", "long", 0.0, 0), ("r0", "cube", 0.09, 1), ("r1", "cube", 0.09, 2),
                 ("r2", "cube", 0.09, 3)],  # a three-cube tower at the far end
     "tower3": [("base", "cube", 0.0, 0), ("r0", "cube", 0.0, 1), ("r1", "cube", 0.0, 2)],
+    "long_on_long": [("base", "long", 0.0, 0), ("r0", "long", 0.0, 1)],  # a block on a block
+    "long_on_cube": [("base", "cube", 0.0, 0), ("r0", "long", 0.0, 1)],  # a block balanced
 }
 SCENES = {**SUITE, **HARD}
 ONTO = {"target": "target", "rider": "r0"}  # what the suite's actions place the base on

@@ -22,7 +22,11 @@ RLIMIT_CPU on each child, what is left of the budget), `wall_seconds` then being
 cap: a busy host gives the planner the same work as a quiet one.
 
 Both default to optimal A* with LM-cut, so on unit-cost tasks their plans have equal
-length.
+length. Fast Downward's search binary (not the driver alone) gives the optimal search
+OPTIMAL_SHARE of the budget and, when it runs out there, a weighted A* with the FF
+heuristic (FD_FALLBACK) the rest: on a long goal (two towers of three from six boxes)
+A* with LM-cut takes more than 10 s where the weighted search plans in under one,
+and on the short goals it finishes first anyway (docs/planning.md).
 """
 
 from __future__ import annotations
@@ -45,6 +49,8 @@ STATUSES = ("solved", "unsolvable", "timeout", "error")
 WALL_FACTOR = 3.0  # the wall-clock cap of a CPU-second budget, as a multiple of it
 DEFAULT_TIMEOUT = 10.0
 FD_SEARCH = "astar(lmcut())"
+FD_FALLBACK = "eager_wastar([ff()], w=2)"  # cost-aware, satisficing: when A* runs out
+OPTIMAL_SHARE = 0.4  # of a call's budget, for FD_SEARCH when FD_FALLBACK follows it
 FD_ENV = "SYMPLAN_FAST_DOWNWARD"  # overrides the driver path
 
 # Fast Downward exit codes (driver/returncodes.py in the wheel).
@@ -129,10 +135,11 @@ def _fd_message(out: str, err: str) -> str:
 
 
 def fast_downward(domain, problem, wall_seconds: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
-                  driver: str | Path | None = None, cpu_seconds: float | None = None
-                  ) -> PlanResult:
+                  driver: str | Path | None = None, cpu_seconds: float | None = None,
+                  fallback: str | None = FD_FALLBACK) -> PlanResult:
     """Fast Downward on PDDL files, in a temporary directory, under a time limit (and a
-    CPU budget, see the module docstring)."""
+    CPU budget, see the module docstring). `fallback`: the search that takes over when
+    `search` runs out of its OPTIMAL_SHARE of the budget (None: `search` has it all)."""
     start = time.perf_counter()
     domain, problem = _check_files(domain, problem)
 
@@ -147,6 +154,7 @@ def fast_downward(domain, problem, wall_seconds: float = DEFAULT_TIMEOUT, search
     with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
         plan_file = Path(tmp) / "sas_plan"
         components = _fd_components(driver)
+        then = None
         if components is None:
             # The wall-clock limit below is the time limit: the driver's own limits are
             # CPU-time rlimits, which kill the translator early when little is left.
@@ -160,13 +168,16 @@ def fast_downward(domain, problem, wall_seconds: float = DEFAULT_TIMEOUT, search
             runs = [([sys.executable, "-S", "-m", "fast_downward.translate", str(domain),
                       str(problem), "--sas-file", "output.sas"], env, None),
                     _search_run(search_exe, search, plan_file, Path(tmp) / "output.sas")]
-        return _fd_runs(runs, tmp, start, wall_seconds, cpu_seconds)
+            then = fallback and _search_run(search_exe, fallback, plan_file,
+                                            Path(tmp) / "output.sas")
+        return _fd_runs(runs, tmp, start, wall_seconds, cpu_seconds, then)
 
 
 def fast_downward_sas(sas: str, wall_seconds: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
-                      cpu_seconds: float | None = None) -> PlanResult:
+                      cpu_seconds: float | None = None, fallback: str | None = FD_FALLBACK
+                      ) -> PlanResult:
     """Fast Downward's search on a task already translated to SAS+ text
-    (planning/grounding.py), under the same limits as `fast_downward`."""
+    (planning/grounding.py), under the same limits and `fallback` as `fast_downward`."""
     start = time.perf_counter()
     search_exe = search_binary()
     if search_exe is None:
@@ -175,8 +186,10 @@ def fast_downward_sas(sas: str, wall_seconds: float = DEFAULT_TIMEOUT, search: s
             "fd")
     with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
         (Path(tmp) / "output.sas").write_text(sas)
-        run = _search_run(search_exe, search, Path(tmp) / "sas_plan", Path(tmp) / "output.sas")
-        return _fd_runs([run], tmp, start, wall_seconds, cpu_seconds)
+        files = Path(tmp) / "sas_plan", Path(tmp) / "output.sas"
+        then = fallback and _search_run(search_exe, fallback, *files)
+        return _fd_runs([_search_run(search_exe, search, *files)], tmp, start, wall_seconds,
+                        cpu_seconds, then)
 
 
 def _search_run(search_exe: Path, search: str, plan_file: Path, sas_file: Path):
@@ -185,18 +198,32 @@ def _search_run(search_exe: Path, search: str, plan_file: Path, sas_file: Path):
             None, sas_file)
 
 
-def _fd_runs(runs, tmp: str, start: float, wall_seconds: float, cpu_seconds: float | None
-             ) -> PlanResult:
+def _fd_runs(runs, tmp: str, start: float, wall_seconds: float, cpu_seconds: float | None,
+             fallback=None) -> PlanResult:
     """Runs FD's phases one after the other in `tmp` (a phase's failure stops them) and
-    reads the outcome by FD's exit codes and its plan files."""
+    reads the outcome by FD's exit codes and its plan files. With a `fallback` search run,
+    the last phase (the search) has OPTIMAL_SHARE of what is left, and the fallback the
+    rest when it runs out."""
     def result(status, plan=(), message=""):
         return PlanResult(status, list(plan), time.perf_counter() - start, message, "fd")
 
     deadline = start + wall_seconds
     used = children_cpu()
+
+    def left() -> float | None:
+        return None if cpu_seconds is None else cpu_seconds - (children_cpu() - used)
+
     for phase, (cmd, env, stdin) in enumerate(runs):
-        left = None if cpu_seconds is None else cpu_seconds - (children_cpu() - used)
-        code, out, err = _run_group(cmd, tmp, env, stdin, deadline, left)
+        if fallback is not None and phase == len(runs) - 1:
+            now, cpu = time.perf_counter(), left()
+            code, out, err = _run_group(cmd, tmp, env, stdin,
+                                        now + OPTIMAL_SHARE * (deadline - now),
+                                        None if cpu is None else OPTIMAL_SHARE * cpu)
+            if _out_of_time(code):
+                code, out, err = _run_group(fallback[0], tmp, fallback[1], fallback[2],
+                                            deadline, left())
+        else:
+            code, out, err = _run_group(cmd, tmp, env, stdin, deadline, left())
         if code is None:
             return result("timeout", message=f"Fast Downward killed after {wall_seconds:g} s")
         if code != 0:
@@ -215,6 +242,12 @@ def _fd_runs(runs, tmp: str, start: float, wall_seconds: float, cpu_seconds: flo
     if code == 0:
         what = "exit code 0 but no plan file"
     return result("error", message=f"Fast Downward: {what}: {_fd_message(out, err)}")
+
+
+def _out_of_time(code: int | None) -> bool:
+    """Did a phase stop at its wall-clock deadline or its time limits?"""
+    return code is None or code in _FD_TIMEOUT or code in (-signal.SIGXCPU,
+                                                             256 - signal.SIGXCPU)
 
 
 def search_binary() -> Path | None:
