@@ -152,6 +152,17 @@ def test_the_continuous_fallback_finds_a_two_step_plan_the_symbols_cannot():
     assert solve(Skeletons(), tower, skeletons=False).steps == found.steps
 
 
+def test_a_skeleton_longer_than_the_boxes_off_their_goal_gives_way_to_a_shorter_search():
+    goal = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    detour = Plan("solved", [Step(STACK["center"], ("a", "b")), Step(STACK["center"], ("a", "c"))])
+    found = solve(Skeletons(detour), goal)  # one box off its goal, a skeleton of two steps
+    assert found.solved and found.level == "continuous"
+    assert [s.action for s in found.steps] == [Action("a", "center", "c", "center")]
+    skeleton, search = found.candidates
+    assert skeleton.accepted and len(skeleton.steps) == 2
+    assert search.accepted and search.why == "1 step where the refined skeleton takes 2"
+
+
 class Slow(Skeletons):
     """Skeletons whose planner takes 0.1 s a call."""
 

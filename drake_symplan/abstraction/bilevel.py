@@ -54,6 +54,7 @@ MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
 SKELETON_SHARE = 0.5
 SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
+OFF_GOAL = 1.0  # the search's heuristic per box off its goal: at least one action puts it there
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
@@ -237,13 +238,17 @@ class Refiner:
                 return found
         return None
 
-    def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget
-               ) -> tuple[Refined | None, Refined]:
+    def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget,
+               max_depth: int | None = None) -> tuple[Refined | None, Refined]:
         """Weighted best-first search over pick/place moves in predicted space: f = steps
-        + weight * (summed distance to the goal) / STEP_SCALE. (the plan that reaches the
-        goal or None, the plan predicted to end nearest it, by the summed distance)."""
+        + weight * h, h = (summed distance to the goal) / STEP_SCALE + OFF_GOAL per box
+        off its goal. (the plan that reaches the goal or None, the plan predicted to end
+        nearest it, by h). `max_depth`: plans at most this long (default the refiner's)."""
+        depth = self.max_depth if max_depth is None else max_depth
+
         def h(boxes):
-            return sum(goal_errors(boxes, goal).values()) / STEP_SCALE
+            errors = goal_errors(boxes, goal).values()
+            return sum(errors) / STEP_SCALE + OFF_GOAL * sum(e > self.limit for e in errors)
 
         tie = itertools.count()
         frontier = [(self.weight * h(start), next(tie), h(start), start, Refined([], []))]
@@ -255,7 +260,7 @@ class Refiner:
                 return done, done
             nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
             key = tuple(np.round(boxes.positions, 2).ravel())
-            if key in seen or len(done.steps) >= self.max_depth:
+            if key in seen or len(done.steps) >= depth:
                 continue
             seen.add(key)
             options = moves(boxes.names, set(boxes.names), boxes.half_length, "move")
@@ -302,6 +307,11 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
         refined, unverified = _refine_skeletons(abstraction, refiner, start, goal, budget,
                                                 search, looked_at, penalties)
         if refined is not None:
+            shorter = _shorter(refiner, refined, start.boxes, target, budget, looked_at)
+            if shorter is not None:
+                return Plan("solved", shorter.steps, time.perf_counter() - t0, "",
+                            search.planner, level=SEARCH, predicted=shorter.predicted,
+                            candidates=looked_at.candidates)
             level = "receding" if refined.subgoal else "bilevel"
             return Plan("solved", refined.steps, time.perf_counter() - t0, "", search.planner,
                         level=level, predicted=refined.predicted,
@@ -364,6 +374,25 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
         if symbolic.spent():
             break
     return None, unverified
+
+
+def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, np.ndarray],
+             budget: Budget, looked_at: _LookedAt) -> Refined | None:
+    """A plan the continuous search finds with fewer steps than the refined skeleton, when
+    that skeleton takes more steps than there are boxes off their goal (a skeleton that
+    builds a tower's top on a box and carries it over, where placing each box once would
+    do: every extra step is a chance for the arm to depart from the prediction), or None."""
+    off = sum(e > refiner.limit for e in goal_errors(start, goal).values())
+    if refined.subgoal or len(refined.steps) <= off:
+        return None
+    looked_at.restart()
+    found, _ = refiner.search(start, goal, budget, max_depth=len(refined.steps) - 1)
+    if found is not None:
+        looked_at(_candidate(SEARCH, [], found, refiner, start, goal))
+        n = len(found.steps)
+        looked_at.candidates[-1].why = (f"{n} step{'s' * (n != 1)} where the refined "
+                                        f"skeleton takes {len(refined.steps)}")
+    return found
 
 
 def _nearer(plan: Refined, start: Boxes, goal: dict[str, np.ndarray]) -> bool:
