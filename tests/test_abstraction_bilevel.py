@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
-from drake_symplan.abstraction.bilevel import PENALTY, Refiner, Search, plan_bilevel
+from drake_symplan.abstraction.bilevel import PENALTY, Refiner, Search, moves, plan_bilevel
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
 from drake_symplan.actions import Action, release_shift
 from drake_symplan.agent.planning_modes import (
@@ -161,6 +161,18 @@ def test_a_skeleton_longer_than_the_boxes_off_their_goal_gives_way_to_a_shorter_
     skeleton, search = found.candidates
     assert skeleton.accepted and len(skeleton.steps) == 2
     assert search.accepted and search.why == "1 step where the refined skeleton takes 2"
+
+
+def test_no_move_places_a_box_on_what_rides_on_it():
+    scene = boxes(a=(0.5, 0.0, 0.025), b=(0.5, 0.01, 0.075), c=(0.5, 0.0, 0.125),
+                  d=(0.7, 0.0, 0.025))
+    assert scene.riding("a") == {"b", "c"} and scene.riding("b") == {"c"}
+    assert scene.riding("c") == scene.riding("d") == set()
+    targets = {m.action.target for m in moves(scene.names, {"a"}, scene.half_length, "move",
+                                              scene.riding)}
+    assert targets == {"d"}
+    assert {m.action.target for m in moves(scene.names, {"a"}, scene.half_length)} == \
+        {"b", "c", "d"}
 
 
 class Slow(Skeletons):

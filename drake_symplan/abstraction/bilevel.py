@@ -133,17 +133,21 @@ def moved(before: Boxes, after: Boxes) -> set[str]:
     return {n for n, p in after.where().items() if np.linalg.norm(p - then[n]) > MOVED}
 
 
-def moves(names, sources, half_length, kind: str = "reposition") -> list[Reposition]:
+def moves(names, sources, half_length, kind: str = "reposition", riding=None
+          ) -> list[Reposition]:
     """Every pick/place of a box in `sources` onto another of `names`, at a grasp point on
     the box (actions.grasp_on_box; `half_length(name)`: the box's half length along the
-    offsets' axis, as the caller measures it), in the order of `names` and OFFSETS."""
+    offsets' axis, as the caller measures it), in the order of `names` and OFFSETS.
+    `riding(name)`: the boxes on a box, which it is not placed onto (no arm puts a box on
+    what it carries; the model, which saw few such actions, predicts them anyway)."""
     out = []
     for src in names:
         if src not in sources:
             continue
         length = half_length(src)
+        carried = riding(src) if riding is not None else set()
         for tgt, grasp, release in itertools.product(names, OFFSETS, OFFSETS):
-            if tgt != src and grasp_on_box(grasp, length):
+            if tgt != src and tgt not in carried and grasp_on_box(grasp, length):
                 out.append(Reposition(Action(src, grasp, tgt, release), kind))
     return out
 
@@ -227,7 +231,7 @@ class Refiner:
         if depth >= self.extra_moves or budget.spent():
             return None
         off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
-        options = moves(boxes.names, off, boxes.half_length, "reposition")
+        options = moves(boxes.names, off, boxes.half_length, "reposition", boxes.riding)
         scored = sorted(zip(self._predict(boxes, options), options, strict=True),
                         key=lambda pair: max(goal_errors(pair[0], goal).values()))
         for after, option in scored[:3]:
@@ -263,7 +267,8 @@ class Refiner:
             if key in seen or len(done.steps) >= depth:
                 continue
             seen.add(key)
-            options = moves(boxes.names, set(boxes.names), boxes.half_length, "move")
+            options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
+                            boxes.riding)
             for after, option in zip(self._predict(boxes, options), options, strict=True):
                 distance = h(after)
                 heapq.heappush(frontier, (len(done.steps) + 1 + self.weight * distance,
@@ -378,15 +383,15 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
 
 def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, np.ndarray],
              budget: Budget, looked_at: _LookedAt) -> Refined | None:
-    """A plan the continuous search finds with fewer steps than the refined skeleton, when
-    that skeleton takes more steps than there are boxes off their goal (a skeleton that
-    builds a tower's top on a box and carries it over, where placing each box once would
-    do: every extra step is a chance for the arm to depart from the prediction), or None."""
+    """A plan of the continuous search with no more steps than there are boxes off their
+    goal, when the refined skeleton takes more (one that builds a tower's top on a box and
+    carries it over, where placing each box once would do: every extra step and every
+    carried load is a chance for the arm to depart from the prediction), or None."""
     off = sum(e > refiner.limit for e in goal_errors(start, goal).values())
     if refined.subgoal or len(refined.steps) <= off:
         return None
     looked_at.restart()
-    found, _ = refiner.search(start, goal, budget, max_depth=len(refined.steps) - 1)
+    found, _ = refiner.search(start, goal, budget, max_depth=off)
     if found is not None:
         looked_at(_candidate(SEARCH, [], found, refiner, start, goal))
         n = len(found.steps)

@@ -79,6 +79,21 @@ class Boxes:
         """Half the length of box `name` along its long axis (local y), by its type."""
         return HALF_EXTENTS[box_of(self.features[self.names.index(name)])[0]][1]
 
+    def riding(self, name: str) -> set[str]:
+        """The boxes on box `name`: those whose centre is over its top face and higher than
+        it, and those on them, and so on."""
+        found, frontier = set(), [name]
+        while frontier:
+            below = self.names.index(frontier.pop())
+            top = self.positions[below][2] + HALF_EXTENTS[box_of(self.features[below])[0]][2]
+            for j, other in enumerate(self.names):
+                if other != name and other not in found and self.positions[j][2] > top \
+                        and _covers(self.features[below], self.positions[below],
+                                    self.positions[j]):
+                    found.add(other)
+                    frontier.append(other)
+        return found
+
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves
         (actions.relevant_objects)."""
