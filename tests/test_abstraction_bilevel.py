@@ -163,16 +163,19 @@ def test_a_skeleton_longer_than_the_boxes_off_their_goal_gives_way_to_a_shorter_
     assert search.accepted and search.why == "1 step where the refined skeleton takes 2"
 
 
-def test_no_move_places_a_box_on_what_rides_on_it():
+def test_a_box_is_placed_only_on_a_box_with_nothing_on_it_and_not_on_what_it_carries():
     scene = boxes(a=(0.5, 0.0, 0.025), b=(0.5, 0.01, 0.075), c=(0.5, 0.0, 0.125),
                   d=(0.7, 0.0, 0.025))
     assert scene.riding("a") == {"b", "c"} and scene.riding("b") == {"c"}
     assert scene.riding("c") == scene.riding("d") == set()
-    targets = {m.action.target for m in moves(scene.names, {"a"}, scene.half_length, "move",
-                                              scene.riding)}
-    assert targets == {"d"}
-    assert {m.action.target for m in moves(scene.names, {"a"}, scene.half_length)} == \
-        {"b", "c", "d"}
+
+    def targets(source, riding=scene.riding):
+        return {m.action.target for m in moves(scene.names, {source}, scene.half_length,
+                                               "move", riding)}
+
+    assert targets("a") == {"d"}  # not b or c, which ride on it
+    assert targets("d") == {"c"}  # the tower's top, not a or b under it
+    assert targets("a", None) == {"b", "c", "d"}
 
 
 class Slow(Skeletons):

@@ -138,16 +138,20 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None
     """Every pick/place of a box in `sources` onto another of `names`, at a grasp point on
     the box (actions.grasp_on_box; `half_length(name)`: the box's half length along the
     offsets' axis, as the caller measures it), in the order of `names` and OFFSETS.
-    `riding(name)`: the boxes on a box, which it is not placed onto (no arm puts a box on
-    what it carries; the model, which saw few such actions, predicts them anyway)."""
+    `riding(name)`: the boxes on a box; with it a box is placed only on a box with nothing
+    on it, and never on what it carries. The arm releases a box at the height of the
+    target's own top, so a box placed on one under a stack is driven into the stack (a
+    tower knocked over, the box flung 40 cm); the model, which saw few such actions,
+    predicts the box on the stack's top."""
     out = []
+    covered = {n for n in names if riding(n)} if riding is not None else set()
     for src in names:
         if src not in sources:
             continue
         length = half_length(src)
         carried = riding(src) if riding is not None else set()
         for tgt, grasp, release in itertools.product(names, OFFSETS, OFFSETS):
-            if tgt != src and tgt not in carried and grasp_on_box(grasp, length):
+            if tgt != src and tgt not in carried | covered and grasp_on_box(grasp, length):
                 out.append(Reposition(Action(src, grasp, tgt, release), kind))
     return out
 
