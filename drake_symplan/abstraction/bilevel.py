@@ -55,6 +55,7 @@ SKELETON_SHARE = 0.5
 SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
 OFF_GOAL = 1.0  # the search's heuristic per box off its goal: at least one action puts it there
+SHORT_SHARE = 0.5  # of the search's budget, for a plan of one step per box off its goal first
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
@@ -326,7 +327,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
                         level=level, predicted=refined.predicted,
                         candidates=looked_at.candidates)
     looked_at.restart()  # a planner call that gave no new skeleton is not counted
-    refined, nearest = refiner.search(start.boxes, target, budget)
+    refined, nearest = _search(refiner, start.boxes, target, budget)
     looked_at(_candidate(SEARCH, [], refined, refiner, start.boxes, target))
     seconds, candidates = time.perf_counter() - t0, looked_at.candidates
 
@@ -383,6 +384,19 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
         if symbolic.spent():
             break
     return None, unverified
+
+
+def _search(refiner: Refiner, start: Boxes, goal: dict[str, np.ndarray], budget: Budget
+            ) -> tuple[Refined | None, Refined]:
+    """The continuous search, first (in SHORT_SHARE of the budget) for a plan of at most
+    one step per box off its goal, then for any: the first plan a weighted search finds
+    may take twice the steps (a half-built tower carried over)."""
+    off = sum(e > refiner.limit for e in goal_errors(start, goal).values())
+    if off < refiner.max_depth:
+        found, _ = refiner.search(start, goal, budget.share(SHORT_SHARE), max_depth=off)
+        if found is not None:
+            return found, found
+    return refiner.search(start, goal, budget)
 
 
 def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, np.ndarray],
