@@ -145,14 +145,15 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None
     tower knocked over, the box flung 40 cm); the model, which saw few such actions,
     predicts the box on the stack's top."""
     out = []
-    covered = {n for n in names if riding(n)} if riding is not None else set()
+    on = {n: riding(n) for n in names} if riding is not None else {}
+    covered = {n for n, above in on.items() if above}
     for src in names:
         if src not in sources:
             continue
         length = half_length(src)
-        carried = riding(src) if riding is not None else set()
+        barred = covered | on.get(src, set())
         for tgt, grasp, release in itertools.product(names, OFFSETS, OFFSETS):
-            if tgt != src and tgt not in carried | covered and grasp_on_box(grasp, length):
+            if tgt != src and tgt not in barred and grasp_on_box(grasp, length):
                 out.append(Reposition(Action(src, grasp, tgt, release), kind))
     return out
 
@@ -247,6 +248,11 @@ class Refiner:
                 return found
         return None
 
+    def off_goal(self, errors: dict[str, float]) -> int:
+        """How many boxes are farther than the limit from their goal (`errors`, by name:
+        continuous.goal_errors)."""
+        return sum(e > self.limit for e in errors.values())
+
     def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget,
                max_depth: int | None = None) -> tuple[Refined | None, Refined]:
         """Weighted best-first search over pick/place moves in predicted space: f = steps
@@ -256,8 +262,8 @@ class Refiner:
         depth = self.max_depth if max_depth is None else max_depth
 
         def h(boxes):
-            errors = goal_errors(boxes, goal).values()
-            return sum(errors) / STEP_SCALE + OFF_GOAL * sum(e > self.limit for e in errors)
+            errors = goal_errors(boxes, goal)
+            return sum(errors.values()) / STEP_SCALE + OFF_GOAL * self.off_goal(errors)
 
         tie = itertools.count()
         frontier = [(self.weight * h(start), next(tie), h(start), start, Refined([], []))]
@@ -391,7 +397,7 @@ def _search(refiner: Refiner, start: Boxes, goal: dict[str, np.ndarray], budget:
     """The continuous search, first (in SHORT_SHARE of the budget) for a plan of at most
     one step per box off its goal, then for any: the first plan a weighted search finds
     may take twice the steps (a half-built tower carried over)."""
-    off = sum(e > refiner.limit for e in goal_errors(start, goal).values())
+    off = refiner.off_goal(goal_errors(start, goal))
     if off < refiner.max_depth:
         found, _ = refiner.search(start, goal, budget.share(SHORT_SHARE), max_depth=off)
         if found is not None:
@@ -405,7 +411,7 @@ def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, n
     goal, when the refined skeleton takes more (one that builds a tower's top on a box and
     carries it over, where placing each box once would do: every extra step and every
     carried load is a chance for the arm to depart from the prediction), or None."""
-    off = sum(e > refiner.limit for e in goal_errors(start, goal).values())
+    off = refiner.off_goal(goal_errors(start, goal))
     if refined.subgoal or len(refined.steps) <= off:
         return None
     looked_at.restart()

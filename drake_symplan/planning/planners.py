@@ -168,8 +168,8 @@ def fast_downward(domain, problem, wall_seconds: float = DEFAULT_TIMEOUT, search
             runs = [([sys.executable, "-S", "-m", "fast_downward.translate", str(domain),
                       str(problem), "--sas-file", "output.sas"], env, None),
                     _search_run(search_exe, search, plan_file, Path(tmp) / "output.sas")]
-            then = fallback and _search_run(search_exe, fallback, plan_file,
-                                            Path(tmp) / "output.sas")
+            then = None if fallback is None else _search_run(search_exe, fallback, plan_file,
+                                                             Path(tmp) / "output.sas")
         return _fd_runs(runs, tmp, start, wall_seconds, cpu_seconds, then)
 
 
@@ -187,7 +187,7 @@ def fast_downward_sas(sas: str, wall_seconds: float = DEFAULT_TIMEOUT, search: s
     with tempfile.TemporaryDirectory(prefix="symplan-fd-") as tmp:
         (Path(tmp) / "output.sas").write_text(sas)
         files = Path(tmp) / "sas_plan", Path(tmp) / "output.sas"
-        then = fallback and _search_run(search_exe, fallback, *files)
+        then = None if fallback is None else _search_run(search_exe, fallback, *files)
         return _fd_runs([_search_run(search_exe, search, *files)], tmp, start, wall_seconds,
                         cpu_seconds, then)
 
