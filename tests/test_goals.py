@@ -99,6 +99,38 @@ def test_an_unnamed_box_on_a_named_one_stays_so_the_spec_is_refused():
         goals.check(goals.parse(["tower o2 o3"]), rider.object_states())
 
 
+STACKED = Scene([*START.objects[:5], ObjectSpec("o5", "cube", [0.60, 0.0, 0.075])])  # on o2
+
+
+def test_a_named_box_in_the_way_is_set_down_beside_the_nearest_free_box_first():
+    objects = STACKED.object_states()
+    specs = goals.parse(["tower o2 o3", "on o5 o0"])
+    goals.check(specs, objects)
+    # o5 rides on o2, which is to move: set down 7.5 cm along y from o2, then built as named
+    assert goals.build_actions(specs, objects) == [
+        Action("o5", "center", "o2", "right"), Action("o2", "center", "o3", "center"),
+        Action("o5", "center", "o0", "center")]
+    parked = goals._placed(objects, Action("o5", "center", "o2", "right"), beside=True)
+    assert parked["o5"].position == pytest.approx([0.60, 0.075, 0.025])
+    # a box that a structure built before stands on cannot be set down out of the way
+    stacked = Scene([*START.objects[:1], ObjectSpec("o1", "cube", [0.60, -0.25, 0.075]),
+                     *START.objects[2:]])  # o1 on o0
+    with pytest.raises(goals.SpecError, match="o2 rests on o0 or o4, which is built on before"):
+        goals.check(goals.parse(["on o2 o1", "on o0 o4"]), stacked.object_states())
+
+
+def test_a_goal_from_a_stacked_start_counts_the_boxes_set_down_in_its_k():
+    import numpy as np
+
+    objects, rng = STACKED.object_states(), np.random.default_rng(3)
+    for k in (3, 4, 5):
+        structures = goals.sample_goal(rng, objects, "tower", k)
+        assert not isinstance(structures, str), k
+        assert len(goals.build_actions(structures, objects)) == k
+    # six boxes, five of them movable at most once, one in the way: six actions at most
+    assert isinstance(goals.sample_goal(rng, objects, "tower", 7), str)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("specs", [["tower o3 o1 o0", "bridge o4 o2 o5"], ["row o0 o1 o3"]])
 def test_the_hand_builds_what_the_specs_name(tmp_path, capsys, specs):

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 from drake_symplan.cli.learning_cmds import eval_subparsers
-from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
+from drake_symplan.cli.main import CommandError, NegativeAnswer, nonnegative_int, positive_int
 from drake_symplan.cli.options import (
     add_camera_noise_argument,
     add_goal_spec_argument,
@@ -96,6 +96,10 @@ def _register_problems(subparsers) -> None:
                    "bridge (a row of two cubes, towers of k // 2 on them, a long block "
                    "across, a cube on it for an odd k), mixed: a tower beside a bridge; "
                    "default: k random actions")
+    p.add_argument("--start-k", type=nonnegative_int, default=0,
+                   help="with --task: the start is the scene this many random actions leave, "
+                   "and k counts every action of the build, boxes set down out of the way "
+                   "included (default 0: scattered boxes)")
     add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)
 
@@ -183,7 +187,7 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
                             reproducible=args.reproducible, camera_noise=args.camera_noise,
-                            task=args.task)
+                            task=args.task, start_k=args.start_k)
     out = {"out": str(args.out), **summary}
     if not args.json:
         print(f"{summary['kept']} problem(s) in {args.out} after {summary['attempts']} "

@@ -12,8 +12,11 @@ The actions are the robot's own (pick/place on another object, offsets along wor
 a structure is built the way the robot could: a tower bottom-up with centred places, a
 bridge by placing L off-centre on A so that it spans B (A and B must stand 6-17 cm apart
 along y with their tops level by then), a row by releasing each cube beside the one before
-it so that it comes down on the table (`OFFSET_METRES["right"]` from it). The goal's author
-executes them in the simulator (evaluation/problems.build_goal); the planner never sees them.
+it so that it comes down on the table (`OFFSET_METRES["right"]` from it). A named box
+resting on one about to be moved or built on is first set down on the table beside a
+free-standing box (`_park`), so a start with stacks takes more actions than boxes placed.
+The goal's author executes them in the simulator (evaluation/problems.build_goal); the
+planner never sees them.
 """
 
 from __future__ import annotations
@@ -22,14 +25,16 @@ import dataclasses as dc
 
 import numpy as np
 
-from drake_symplan.actions import OFFSET_METRES, Action
+from drake_symplan.actions import OFFSET_METRES, Action, along_y, release_shift
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
+from drake_symplan.world.scenes import WORKSPACE_X, WORKSPACE_Y, ObjectSpec, footprints_overlap
 
 ARITY = {"on": (2, 2), "tower": (2, None), "bridge": (3, 3), "row": (2, None)}
 BRIDGE_SPAN = (0.06, 0.17)  # m: supports' distance along y that the long block spans
 ALIGN = 0.02  # m: supports (and row members) within this of each other across y
 LEVEL = 0.01  # m: an object this near the table's height stands on the table
+PARK_GAP = 0.015  # m: a box set down on the table keeps this clear of every other footprint
 
 
 class SpecError(ValueError):
@@ -72,9 +77,7 @@ def moved(s: Structure) -> tuple[str, ...]:
 
 def check(structures: list[Structure], objects: dict[str, ObjectState]) -> None:
     """SpecError, naming why, unless the start scene `objects` (beliefs) can give them, each
-    structure on what the ones before it designed."""
-    from drake_symplan.skills.carry import riders  # Drake: not when the CLI is built
-
+    structure on what the ones before it designed (`build_actions`)."""
     named = [n for s in structures for n in s.objects]
     unknown = sorted(set(named) - set(objects))
     if unknown:
@@ -85,15 +88,7 @@ def check(structures: list[Structure], objects: dict[str, ObjectState]) -> None:
                    | {n for n in movers if movers.count(n) > 1})
     if twice:
         raise SpecError(f"{', '.join(twice)} named twice")
-    state = dict(objects)
-    for s in structures:
-        for name in s.objects:
-            load = [r for r in riders(name, state) if r not in named]
-            if load:
-                raise SpecError(f"{s.text()!r}: {', '.join(load)} rests on {name} and is not "
-                                "named (objects not named stay where they are)")
-        _CHECKS[s.word](s, state)
-        state = designed(s, state)
+    build_actions(structures, objects)
 
 
 def _top(o: ObjectState) -> float:
@@ -124,25 +119,18 @@ def _bridge_side(s: Structure, objects) -> str:
 def designed(s: Structure, objects: dict[str, ObjectState]) -> dict[str, ObjectState]:
     """`objects` once the structure is built as designed: a placed box centred (or, a
     bridge's span, offset) on its support, turned as it, a row's cubes on the table."""
-    out = dict(objects)
+    for action in _structure_actions(s, objects):
+        objects = _placed(objects, action, beside=s.word == "row")
+    return objects
 
-    def put(name, on, dy=0.0):
-        below = out[on]
-        xyz = np.array([*below.position[:2], _top(below) + HALF_EXTENTS[out[name].type][2]])
-        out[name] = dc.replace(out[name], position=xyz + [0.0, dy, 0.0], yaw=below.yaw, tilt=0.0)
 
-    names = s.objects
-    if s.word in ("on", "tower"):
-        for i in reversed(range(len(names) - 1)):
-            put(names[i], names[i + 1])
-    elif s.word == "bridge":
-        put(names[0], names[1], OFFSET_METRES[_bridge_side(s, objects)])
-    else:
-        for first, second in zip(names, names[1:], strict=False):
-            xyz = out[first].position + [0.0, OFFSET_METRES["right"], 0.0]
-            xyz[2] = HALF_EXTENTS[out[second].type][2]
-            out[second] = dc.replace(out[second], position=xyz, yaw=out[first].yaw, tilt=0.0)
-    return out
+def _placed(objects: dict[str, ObjectState], action: Action, beside: bool = False):
+    """`objects` once `action` is done as designed: the source released over the target by
+    its release shift, turned as the target, on its top or (`beside`) on the table."""
+    below, src = objects[action.target], objects[action.source]
+    xyz = below.position + along_y(release_shift(action))
+    xyz[2] = (0.0 if beside else _top(below)) + HALF_EXTENTS[src.type][2]
+    return {**objects, action.source: dc.replace(src, position=xyz, yaw=below.yaw, tilt=0.0)}
 
 
 def _check_row(s: Structure, objects) -> None:
@@ -158,21 +146,78 @@ _CHECKS = {"on": lambda s, objects: None, "tower": lambda s, objects: None,
            "bridge": _check_bridge, "row": _check_row}
 
 
+def _structure_actions(s: Structure, objects: dict[str, ObjectState]) -> list[Action]:
+    """The actions that build `s` alone from `objects`."""
+    names = s.objects
+    if s.word in ("on", "tower"):  # bottom-up, centred
+        return [Action(names[i], "center", names[i + 1], "center")
+                for i in reversed(range(len(names) - 1))]
+    if s.word == "bridge":  # off-centre on A, towards B
+        return [Action(names[0], "center", names[1], _bridge_side(s, objects))]
+    # a row: each released beside the one before, coming down on the table
+    return [Action(names[i + 1], "center", names[i], "right") for i in range(len(names) - 1)]
+
+
 def build_actions(structures: list[Structure], objects: dict[str, ObjectState]) -> list[Action]:
-    """The pick/place actions that build the structures from `objects`, in spec order."""
-    actions = []
+    """The pick/place actions that build the structures from `objects`, in spec order, each
+    box resting on a source (or a target built on) set down on the table first (`_park`);
+    SpecError if a structure cannot stand on what the ones before designed, an unnamed box
+    rests on a named one, or a box in the way belongs to what is built or has nowhere to go."""
+    from drake_symplan.skills.carry import riders  # Drake: not when the CLI is built
+
+    named = {n for s in structures for n in s.objects}
+    planned = objects  # the structures designed as if nothing were in the way: kept free
     for s in structures:
-        names = s.objects
-        if s.word in ("on", "tower"):  # bottom-up, centred
-            actions += [Action(names[i], "center", names[i + 1], "center")
-                        for i in reversed(range(len(names) - 1))]
-        elif s.word == "bridge":  # off-centre on A, towards B
-            actions.append(Action(names[0], "center", names[1], _bridge_side(s, objects)))
-        else:  # a row: each released beside the one before, coming down on the table
-            actions += [Action(names[i + 1], "center", names[i], "right")
-                        for i in range(len(names) - 1)]
-        objects = designed(s, objects)
+        planned = designed(s, planned)
+    reserved = [planned[n] for s in structures for n in moved(s)]
+    actions, built = [], set()
+    for s in structures:
+        for name in s.objects:
+            load = [r for r in riders(name, objects) if r not in named]
+            if load:
+                raise SpecError(f"{s.text()!r}: {', '.join(load)} rests on {name} and is not "
+                                "named (objects not named stay where they are)")
+        _CHECKS[s.word](s, objects)
+        for action in _structure_actions(s, objects):
+            carried = riders(action.source, objects)
+            below = riders(action.target, objects) if s.word != "row" else []
+            loads = [*carried, *(r for r in below if r != action.source and r not in carried)]
+            for name in reversed(loads):  # the top of a stack first
+                if name in built:
+                    raise SpecError(f"{s.text()!r}: {name} rests on {action.source} or "
+                                    f"{action.target}, which is built on before it; name the "
+                                    "structures in another order")
+                park = _park(name, objects, reserved)
+                actions.append(park)
+                objects = _placed(objects, park, beside=True)
+            actions.append(action)
+            objects = _placed(objects, action, beside=s.word == "row")
+            built |= {action.source, action.target}
+        built |= set(s.objects)
     return actions
+
+
+def _park(name: str, objects: dict[str, ObjectState], reserved: list[ObjectState]) -> Action:
+    """The action that sets `name` down on the table beside the nearest box standing there
+    with room beside it (released 7.5 cm along y from it, turned as it), clear of every box
+    and of the `reserved` places the structures will take."""
+    box = objects[name]
+    bottoms = sorted((o for n, o in objects.items() if n != name and o.position[2] < LEVEL
+                      + HALF_EXTENTS[o.type][2]),
+                     key=lambda o: float(np.linalg.norm(o.position[:2] - box.position[:2])))
+    others = [ObjectSpec(o.name, o.type, list(o.position), o.yaw)
+              for o in [*objects.values(), *reserved] if o.name != name]
+    half = HALF_EXTENTS[box.type]
+    for anchor in bottoms:
+        for side in ("right", "left"):
+            xy = anchor.position[:2] + along_y(OFFSET_METRES[side], 2)
+            spot = ObjectSpec(name, box.type, [*xy, half[2]], anchor.yaw)
+            inside = (WORKSPACE_X[0] + half[1] <= xy[0] <= WORKSPACE_X[1] - half[1]
+                      and WORKSPACE_Y[0] + half[1] <= xy[1] <= WORKSPACE_Y[1] - half[1])
+            if inside and not any(footprints_overlap(spot, o, -PARK_GAP) for o in others):
+                return Action(name, "center", anchor.name, side)
+    raise SpecError(f"{name} is in the way and no box on the table has room beside it to "
+                    "set it down")
 
 
 TASKS = ("tower", "row", "towers", "bridge", "mixed")  # `problems make --task`
@@ -198,6 +243,8 @@ def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState],
         return [Structure("tower", tuple(rest[:k - k_bridge + 1])), *bridge]
     if task == "row":
         names = [n for n in names if objects[n].type == "cube"]
+    if task == "towers" and k < 2:
+        return "k_too_small"
     need = k + 2 if task == "towers" else k + 1
     if len(names) < need:
         return "too_few_objects"
@@ -206,6 +253,28 @@ def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState],
         cut = int(rng.integers(2, need - 1))  # each tower of two or more
         return [Structure("tower", tuple(names[:cut])), Structure("tower", tuple(names[cut:]))]
     return [Structure(task, tuple(names))]
+
+
+def sample_goal(rng: np.random.Generator, objects: dict[str, ObjectState], task: str,
+                k: int, tries: int = 100) -> list[Structure] | str:
+    """A random goal of `task` whose build from `objects` takes exactly `k` actions, the
+    boxes set down out of the way counted (a start with stacks needs them), or why none was
+    found in `tries` samples of each structure size (a string)."""
+    why = "k_unreachable"
+    for size in range(k, 0, -1):
+        for _ in range(tries):
+            structures = sample_structures(rng, objects, task, size)
+            if isinstance(structures, str):
+                why = structures
+                break  # the scene cannot give this size
+            try:
+                check(structures, objects)
+            except SpecError:
+                why = "spec_refused"
+                continue
+            if len(build_actions(structures, objects)) == k:
+                return structures
+    return why
 
 
 def _bridge(names: list[str], objects: dict[str, ObjectState], k: int) -> list[Structure] | str:

@@ -79,17 +79,33 @@ def problem_seed(seed: int, attempt: int) -> int:
 
 
 def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float = 0.5,
-                 reproducible: bool = False, task: str | None = None):
+                 reproducible: bool = False, task: str | None = None, start_k: int = 0):
     """(start, goal, info) for one random problem, or the reason it was dropped (a string);
-    with `task` (goals.TASKS) the goal is a structure k actions away, built by design."""
+    with `task` (goals.TASKS) the goal is a structure k actions away, built by design, from
+    the scene `start_k` random actions leave (stacks to take apart) or a scattered one."""
     rng = np.random.default_rng(seed)
     start = sample_scene(rng, n_objects, long_fraction=long_fraction)
-    if task is not None:
+    if task is not None and not start_k:
         return _built_problem(agent, rng, start, task, k, reproducible)
     seen = agent.look(start)
     if seen.lost or seen.extra:
         return "perception_start"
-    first = now = seen.scene
+    if task is not None:
+        start = _stacked_start(agent, rng, seen.scene, start_k)
+        if isinstance(start, str):
+            return start
+        return _built_problem(agent, rng, start, task, k, reproducible, exact=True)
+    first = seen.scene
+    now, actions = _random_actions(agent, rng, first, k)
+    if isinstance(now, str):
+        return now
+    made = settle_goal(agent, start, first, now, actions, reproducible)
+    return made if isinstance(made, str) else (start, *made)
+
+
+def _random_actions(agent, rng, now, k: int):
+    """(scene perceived after `k` random feasible actions from the perceived `now`, their
+    texts), or why not (a string, with None)."""
     actions, infeasible = [], 0
     while len(actions) < k:
         action = random_action(rng, now.names)
@@ -97,20 +113,36 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
         if after == "infeasible":
             infeasible += 1
             if infeasible >= MAX_INFEASIBLE:
-                return "too_many_infeasible"
+                return "too_many_infeasible", None
             continue
         if isinstance(after, str):
-            return after
+            return after, None
         infeasible = 0
         actions.append(str(action))
         now = after
-    made = settle_goal(agent, start, first, now, actions, reproducible)
-    return made if isinstance(made, str) else (start, *made)
+    return now, actions
 
 
-def _built_problem(agent, rng, start, task: str, k: int, reproducible: bool):
-    """(start, goal, info) of a random goal of `task` built from `start`, or why not."""
-    structures = goals.sample_structures(rng, start.object_states(), task, k)
+def _stacked_start(agent, rng, first, start_k: int):
+    """The start scene (as its file reads back) that `start_k` random actions leave, or
+    why not (a string)."""
+    now, _ = _random_actions(agent, rng, first, start_k)
+    if isinstance(now, str):
+        return now
+    try:
+        return as_saved(scene_from_poses(*agent.robot.ground_truth_poses()))
+    except SceneError:
+        return "start_invalid"
+
+
+def _built_problem(agent, rng, start, task: str, k: int, reproducible: bool,
+                   exact: bool = False):
+    """(start, goal, info) of a random goal of `task` built from `start`, or why not; with
+    `exact`, any goal whose build takes k actions (boxes set down out of the way counted),
+    else a structure of k actions."""
+    objects = start.object_states()
+    structures = (goals.sample_goal(rng, objects, task, k) if exact
+                  else goals.sample_structures(rng, objects, task, k))
     if isinstance(structures, str):
         return structures
     try:
@@ -204,10 +236,11 @@ def replay(agent, start, actions: list[Action]):
 def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: str = "arm",
                   max_attempts: int | None = None, agent=None, progress=None,
                   reproducible: bool = False, camera_noise: str = "none",
-                  task: str | None = None) -> dict:
+                  task: str | None = None, start_k: int = 0) -> dict:
     """Writes `count` non-trivial problems with `n_objects` objects to `out_dir`/pNNN.
 
-    `k`: actions per problem, an int or a list taken in turn; `camera_noise`: the sensor
+    `k`: actions per problem, an int or a list taken in turn; `start_k` (with `task`): random
+    actions that make the start (0: scattered boxes); `camera_noise`: the sensor
     model of the cameras that perceive (that of `agent` when one is given). A re-run with
     the same arguments resumes (existing problems are kept; attempts go on from the last
     one). Returns the summary written to `out_dir`/problems.json."""
@@ -226,6 +259,8 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
         settings["reproducible"] = True
     if task is not None:
         settings["task"] = task
+    if start_k:
+        settings["start_k"] = start_k
     stored = summary.get("settings")
     if isinstance(stored, dict):  # sets made before the sensor model was recorded: none
         stored = {"camera_noise": "none", **stored}
@@ -242,7 +277,8 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
         kk = ks[kept % len(ks)]
         pseed = problem_seed(seed, attempt)
         attempt += 1
-        made = make_problem(agent, pseed, n_objects, kk, reproducible=reproducible, task=task)
+        made = make_problem(agent, pseed, n_objects, kk, reproducible=reproducible, task=task,
+                            start_k=start_k)
         if isinstance(made, str):
             rejected[made] += 1
         else:

@@ -102,7 +102,7 @@ def _footprint_corners(o: ObjectSpec) -> np.ndarray:
     return local @ np.array([[c, s], [-s, c]]) + np.array(o.position[:2])
 
 
-def _footprints_overlap(a: ObjectSpec, b: ObjectSpec, tol: float) -> bool:
+def footprints_overlap(a: ObjectSpec, b: ObjectSpec, tol: float) -> bool:
     """Separating-axis test on the two yawed rectangles; touching is not overlapping."""
     ca, cb = _footprint_corners(a), _footprint_corners(b)
     for yaw in (a.yaw, b.yaw):
@@ -145,16 +145,16 @@ def validate_scene(scene: Scene) -> Scene:
         for b in upright[i + 1:]:
             zb, hb = b.position[2], HALF_EXTENTS[b.type][2]
             z_overlap = min(za + ha, zb + hb) - max(za - ha, zb - hb)
-            if z_overlap > _SUPPORT_TOL and _footprints_overlap(a, b, _OVERLAP_TOL):
+            if z_overlap > _SUPPORT_TOL and footprints_overlap(a, b, _OVERLAP_TOL):
                 raise SceneError(f"objects {a.name!r} and {b.name!r} overlap")
         bottom = za - ha
         if abs(bottom) <= _SUPPORT_TOL:
             continue
         supported = any(
             abs(bottom - (b.position[2] + HALF_EXTENTS[b.type][2])) <= _SUPPORT_TOL
-            and _footprints_overlap(a, b, _OVERLAP_TOL)
+            and footprints_overlap(a, b, _OVERLAP_TOL)
             for b in upright if b is not a
-        ) or any(b.position[2] < za and _footprints_overlap(a, b, _OVERLAP_TOL) for b in tilted)
+        ) or any(b.position[2] < za and footprints_overlap(a, b, _OVERLAP_TOL) for b in tilted)
         if not supported:
             raise SceneError(
                 f"object {a.name!r} (bottom at z = {bottom:.3f}) rests on neither the table "
@@ -285,7 +285,7 @@ def sample_scene(
             x = float(rng.uniform(WORKSPACE_X[0] + hx, WORKSPACE_X[1] - hx))
             y = float(rng.uniform(WORKSPACE_Y[0] + hy, WORKSPACE_Y[1] - hy))
             cand = ObjectSpec(f"o{i}", kind, [x, y, hz], yaw)
-            if not any(_footprints_overlap(cand, o, -min_gap) for o in objects):
+            if not any(footprints_overlap(cand, o, -min_gap) for o in objects):
                 objects.append(cand)
                 break
         else:
