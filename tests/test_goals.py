@@ -124,11 +124,13 @@ def test_a_goal_from_a_stacked_start_counts_the_boxes_set_down_in_its_k():
 
     objects, rng = STACKED.object_states(), np.random.default_rng(3)
     for k in (3, 4, 5):
-        structures = goals.sample_goal(rng, objects, "tower", k)
+        structures = goals.sample_goal(rng, objects, "tower", (k,))
         assert not isinstance(structures, str), k
         assert len(goals.build_actions(structures, objects)) == k
+    assert len(goals.build_actions(goals.sample_goal(rng, objects, "tower", (4, 6)),
+                                   objects)) in (4, 6)
     # six boxes, five of them movable at most once, one in the way: six actions at most
-    assert isinstance(goals.sample_goal(rng, objects, "tower", 7), str)
+    assert isinstance(goals.sample_goal(rng, objects, "tower", (7,)), str)
 
 
 @pytest.mark.slow

@@ -256,12 +256,12 @@ def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState],
 
 
 def sample_goal(rng: np.random.Generator, objects: dict[str, ObjectState], task: str,
-                k: int, tries: int = 100) -> list[Structure] | str:
-    """A random goal of `task` whose build from `objects` takes exactly `k` actions, the
+                ks: tuple[int, ...], tries: int = 100) -> list[Structure] | str:
+    """A random goal of `task` whose build from `objects` takes one of `ks` actions, the
     boxes set down out of the way counted (a start with stacks needs them), or why none was
     found in `tries` samples of each structure size (a string)."""
     why = "k_unreachable"
-    for size in range(k, 0, -1):
+    for size in range(max(ks), 0, -1):
         for _ in range(tries):
             structures = sample_structures(rng, objects, task, size)
             if isinstance(structures, str):
@@ -272,7 +272,7 @@ def sample_goal(rng: np.random.Generator, objects: dict[str, ObjectState], task:
             except SpecError:
                 why = "spec_refused"
                 continue
-            if len(build_actions(structures, objects)) == k:
+            if len(build_actions(structures, objects)) in ks:
                 return structures
     return why
 

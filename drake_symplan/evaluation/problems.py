@@ -82,7 +82,8 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
                  reproducible: bool = False, task: str | None = None, start_k: int = 0):
     """(start, goal, info) for one random problem, or the reason it was dropped (a string);
     with `task` (goals.TASKS) the goal is a structure k actions away, built by design, from
-    the scene `start_k` random actions leave (stacks to take apart) or a scattered one."""
+    a scattered scene, or (`start_k`) from the scene start_k random actions leave, with
+    stacks to take apart, any goal whose build takes one of the k (a tuple) actions."""
     rng = np.random.default_rng(seed)
     start = sample_scene(rng, n_objects, long_fraction=long_fraction)
     if task is not None and not start_k:
@@ -135,14 +136,26 @@ def _stacked_start(agent, rng, first, start_k: int):
         return "start_invalid"
 
 
+def _perceived_objects(agent, start):
+    """The objects perceived in `start` put on the table (what build_goal checks the
+    structures against), or why not (a string)."""
+    seen = agent.look(start)
+    return "perception_start" if seen.lost or seen.extra else seen.scene.object_states()
+
+
 def _built_problem(agent, rng, start, task: str, k: int, reproducible: bool,
                    exact: bool = False):
     """(start, goal, info) of a random goal of `task` built from `start`, or why not; with
-    `exact`, any goal whose build takes k actions (boxes set down out of the way counted),
+    `exact`, any goal whose build takes one of the k (a tuple) actions, boxes set down out
+    of the way counted,
     else a structure of k actions."""
-    objects = start.object_states()
-    structures = (goals.sample_goal(rng, objects, task, k) if exact
-                  else goals.sample_structures(rng, objects, task, k))
+    if exact:  # parks depend on the stacks, sampled on what build_goal will perceive
+        objects = _perceived_objects(agent, start)
+        if isinstance(objects, str):
+            return objects
+        structures = goals.sample_goal(rng, objects, task, k)
+    else:
+        structures = goals.sample_structures(rng, start.object_states(), task, k)
     if isinstance(structures, str):
         return structures
     try:
@@ -240,7 +253,8 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     """Writes `count` non-trivial problems with `n_objects` objects to `out_dir`/pNNN.
 
     `k`: actions per problem, an int or a list taken in turn; `start_k` (with `task`): random
-    actions that make the start (0: scattered boxes); `camera_noise`: the sensor
+    actions that make the start (0: scattered boxes), and then any of the k is kept (the
+    actions a goal's build takes depend on the stacks); `camera_noise`: the sensor
     model of the cameras that perceive (that of `agent` when one is given). A re-run with
     the same arguments resumes (existing problems are kept; attempts go on from the last
     one). Returns the summary written to `out_dir`/problems.json."""
@@ -277,8 +291,8 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
         kk = ks[kept % len(ks)]
         pseed = problem_seed(seed, attempt)
         attempt += 1
-        made = make_problem(agent, pseed, n_objects, kk, reproducible=reproducible, task=task,
-                            start_k=start_k)
+        made = make_problem(agent, pseed, n_objects, tuple(ks) if start_k else kk,
+                            reproducible=reproducible, task=task, start_k=start_k)
         if isinstance(made, str):
             rejected[made] += 1
         else:
@@ -287,7 +301,7 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
             folder.mkdir(exist_ok=True)
             save_scene(start, folder / "start.yaml")
             save_scene(goal, folder / "goal.yaml")
-            record = {"k": kk, "seed": pseed, "n_objects": n_objects, "backend": backend,
+            record = {"k": len(info["actions"]), "seed": pseed, "n_objects": n_objects, "backend": backend,
                       "camera_noise": camera_noise, "attempt": attempt - 1, **info}
             write_atomic(folder / "problem.json", json.dumps(record, indent=1) + "\n")
             kept += 1
