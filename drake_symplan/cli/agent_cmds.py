@@ -97,9 +97,9 @@ def _register_problems(subparsers) -> None:
                    "across, a cube on it for an odd k), mixed: a tower beside a bridge; "
                    "default: k random actions")
     p.add_argument("--start-k", type=nonnegative_int, default=0,
-                   help="with --task: the start is the scene this many random actions leave, "
-                   "and k counts every action of the build, boxes set down out of the way "
-                   "included (default 0: scattered boxes)")
+                   help="with --task: the start is two towers that this many actions build "
+                   "from scattered boxes, and a goal whose build takes any of the k is kept, "
+                   "the boxes set down to take them apart counted (default 0: scattered)")
     add_json_argument(p)
     p.set_defaults(func=cmd_problems_make)
 

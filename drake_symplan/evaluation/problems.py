@@ -82,20 +82,19 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
                  reproducible: bool = False, task: str | None = None, start_k: int = 0):
     """(start, goal, info) for one random problem, or the reason it was dropped (a string);
     with `task` (goals.TASKS) the goal is a structure k actions away, built by design, from
-    a scattered scene, or (`start_k`) from the scene start_k random actions leave, with
-    stacks to take apart, any goal whose build takes one of the k (a tuple) actions."""
+    a scattered scene, or (`start_k`) from two towers that start_k actions build there, any
+    goal whose build takes one of the k (a tuple) actions, towers taken apart counted."""
     rng = np.random.default_rng(seed)
     start = sample_scene(rng, n_objects, long_fraction=long_fraction)
-    if task is not None and not start_k:
-        return _built_problem(agent, rng, start, task, k, reproducible)
+    if task is not None:
+        if start_k:
+            start = _stacked_start(agent, rng, start, start_k)
+            if isinstance(start, str):
+                return start
+        return _built_problem(agent, rng, start, task, k, reproducible, exact=start_k > 0)
     seen = agent.look(start)
     if seen.lost or seen.extra:
         return "perception_start"
-    if task is not None:
-        start = _stacked_start(agent, rng, seen.scene, start_k)
-        if isinstance(start, str):
-            return start
-        return _built_problem(agent, rng, start, task, k, reproducible, exact=True)
     first = seen.scene
     now, actions = _random_actions(agent, rng, first, k)
     if isinstance(now, str):
@@ -124,16 +123,20 @@ def _random_actions(agent, rng, now, k: int):
     return now, actions
 
 
-def _stacked_start(agent, rng, first, start_k: int):
-    """The start scene (as its file reads back) that `start_k` random actions leave, or
-    why not (a string)."""
-    now, _ = _random_actions(agent, rng, first, start_k)
-    if isinstance(now, str):
-        return now
+def _stacked_start(agent, rng, start, start_k: int):
+    """The start scene (as its file reads back) with two towers that `start_k` designed
+    actions build from the scattered `start` (what a goal then takes apart), or why not
+    (a string, prefixed start_)."""
+    structures = goals.sample_structures(rng, start.object_states(), "towers", start_k)
+    if isinstance(structures, str):
+        return f"start_{structures}"
     try:
-        return as_saved(scene_from_poses(*agent.robot.ground_truth_poses()))
-    except SceneError:
-        return "start_invalid"
+        made = build_goal(agent, start, structures, reproducible=False)
+    except goals.SpecError:
+        return "start_spec_refused"
+    if isinstance(made, str):
+        return "start_" + made.split(" ", 1)[0].removesuffix(":")
+    return made[0]
 
 
 def _perceived_objects(agent, start):
@@ -252,9 +255,9 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
                   task: str | None = None, start_k: int = 0) -> dict:
     """Writes `count` non-trivial problems with `n_objects` objects to `out_dir`/pNNN.
 
-    `k`: actions per problem, an int or a list taken in turn; `start_k` (with `task`): random
-    actions that make the start (0: scattered boxes), and then any of the k is kept (the
-    actions a goal's build takes depend on the stacks); `camera_noise`: the sensor
+    `k`: actions per problem, an int or a list taken in turn; `start_k` (with `task`): the
+    start is two towers built in that many actions (0: scattered boxes), and then any of
+    the k is kept (what a goal's build takes depends on the towers); `camera_noise`: the sensor
     model of the cameras that perceive (that of `agent` when one is given). A re-run with
     the same arguments resumes (existing problems are kept; attempts go on from the last
     one). Returns the summary written to `out_dir`/problems.json."""
