@@ -259,9 +259,9 @@ def sample_goal(rng: np.random.Generator, objects: dict[str, ObjectState], task:
                 ks: tuple[int, ...], tries: int = 100) -> list[Structure] | str:
     """A random goal of `task` whose build from `objects` takes one of `ks` actions, the
     boxes set down out of the way counted (a start with stacks needs them), or why none was
-    found in `tries` samples of each structure size (a string)."""
+    found in `tries` samples of each structure size, sizes in random order (a string)."""
     why = "k_unreachable"
-    for size in range(max(ks), 0, -1):
+    for size in rng.permutation(np.arange(1, max(ks) + 1)):
         for _ in range(tries):
             structures = sample_structures(rng, objects, task, size)
             if isinstance(structures, str):
