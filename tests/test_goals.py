@@ -134,9 +134,12 @@ def test_a_goal_from_a_stacked_start_counts_the_boxes_set_down_in_its_k():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("specs", [["tower o3 o1 o0", "bridge o4 o2 o5"], ["row o0 o1 o3"]])
-def test_the_hand_builds_what_the_specs_name(tmp_path, capsys, specs):
-    save_scene(START, tmp_path / "start.yaml")
+@pytest.mark.parametrize("start, specs", [
+    (START, ["tower o3 o1 o0", "bridge o4 o2 o5"]), (START, ["row o0 o1 o3"]),
+    (STACKED, ["tower o2 o3", "on o5 o0"]),  # o5 set down first, then built on o0
+])
+def test_the_hand_builds_what_the_specs_name(tmp_path, capsys, start, specs):
+    save_scene(start, tmp_path / "start.yaml")
     out = tmp_path / "goal.yaml"
     code, _, err = run(["goal", "--start", tmp_path / "start.yaml", *specs, "--out", out,
                         "--backend", "hand", "--json"], capsys)
