@@ -42,6 +42,7 @@ import numpy as np
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes, goal_errors, rollout
+from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, ranked
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
@@ -54,8 +55,8 @@ MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
 SKELETON_SHARE = 0.5
 SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
-OFF_GOAL = 1.0  # the search's heuristic per box off its goal: at least one action puts it there
-SHORT_SHARE = 0.5  # of the search's budget, for a plan of one step per box off its goal first
+MOVE_LEFT = 1.0  # the search's heuristic per move the goal's order asks for (goal_order.py)
+SHORT_SHARE = 0.5  # of the search's budget, first for a plan no longer than the goal's order asks
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
@@ -248,22 +249,27 @@ class Refiner:
                 return found
         return None
 
-    def off_goal(self, errors: dict[str, float]) -> int:
-        """How many boxes are farther than the limit from their goal (`errors`, by name:
-        continuous.goal_errors)."""
-        return sum(e > self.limit for e in errors.values())
+    def moves_left(self, boxes: Boxes, goal: dict[str, np.ndarray],
+                   order: GoalOrder | None = None) -> int:
+        """The moves `boxes` is at least from `goal` by the goal's order
+        (goal_order.GoalOrder, made here unless given)."""
+        order = order or GoalOrder(goal, boxes.kinds())
+        return order.moves_left(boxes.where(), goal_errors(boxes, goal), self.limit)
 
     def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget,
                max_depth: int | None = None) -> tuple[Refined | None, Refined]:
         """Weighted best-first search over pick/place moves in predicted space: f = steps
-        + weight * h, h = (summed distance to the goal) / STEP_SCALE + OFF_GOAL per box
-        off its goal. (the plan that reaches the goal or None, the plan predicted to end
+        + weight * h, h = (summed distance to the goal) / STEP_SCALE + MOVE_LEFT per move
+        the goal's order asks for. (the plan that reaches the goal or None, the plan predicted to end
         nearest it, by h). `max_depth`: plans at most this long (default the refiner's)."""
         depth = self.max_depth if max_depth is None else max_depth
 
+        order = GoalOrder(goal, start.kinds())
+
         def h(boxes):
             errors = goal_errors(boxes, goal)
-            return sum(errors.values()) / STEP_SCALE + OFF_GOAL * self.off_goal(errors)
+            return sum(errors.values()) / STEP_SCALE + MOVE_LEFT * order.moves_left(
+                boxes.where(), errors, self.limit)
 
         tie = itertools.count()
         frontier = [(self.weight * h(start), next(tie), h(start), start, Refined([], []))]
@@ -394,12 +400,12 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
 
 def _search(refiner: Refiner, start: Boxes, goal: dict[str, np.ndarray], budget: Budget
             ) -> tuple[Refined | None, Refined]:
-    """The continuous search, first (in SHORT_SHARE of the budget) for a plan of at most
-    one step per box off its goal, then for any: the first plan a weighted search finds
-    may take twice the steps (a half-built tower carried over)."""
-    off = refiner.off_goal(goal_errors(start, goal))
-    if off < refiner.max_depth:
-        found, _ = refiner.search(start, goal, budget.share(SHORT_SHARE), max_depth=off)
+    """The continuous search, first (in SHORT_SHARE of the budget) for a plan of no more
+    steps than the goal's order asks for (goal_order.py), then for any: the first plan a
+    weighted search finds may take twice the steps (a half-built tower carried over)."""
+    needed = refiner.moves_left(start, goal)
+    if needed < refiner.max_depth:
+        found, _ = refiner.search(start, goal, budget.share(SHORT_SHARE), max_depth=needed)
         if found is not None:
             return found, found
     return refiner.search(start, goal, budget)
@@ -407,15 +413,15 @@ def _search(refiner: Refiner, start: Boxes, goal: dict[str, np.ndarray], budget:
 
 def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, np.ndarray],
              budget: Budget, looked_at: _LookedAt) -> Refined | None:
-    """A plan of the continuous search with no more steps than there are boxes off their
-    goal, when the refined skeleton takes more (one that builds a tower's top on a box and
-    carries it over, where placing each box once would do: every extra step and every
-    carried load is a chance for the arm to depart from the prediction), or None."""
-    off = refiner.off_goal(goal_errors(start, goal))
-    if refined.subgoal or len(refined.steps) <= off:
+    """A plan of the continuous search with no more steps than the goal's order asks for
+    (goal_order.py), when the refined skeleton takes more (one that builds a tower's top on
+    a box and carries it over, where placing each box once would do: every extra step and
+    every carried load is a chance for the arm to depart from the prediction), or None."""
+    needed = refiner.moves_left(start, goal)
+    if refined.subgoal or len(refined.steps) <= needed:
         return None
     looked_at.restart()
-    found, _ = refiner.search(start, goal, budget, max_depth=off)
+    found, _ = refiner.search(start, goal, budget, max_depth=needed)
     if found is not None:
         looked_at(_candidate(SEARCH, [], found, refiner, start, goal))
         n = len(found.steps)

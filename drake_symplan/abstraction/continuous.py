@@ -75,6 +75,10 @@ class Boxes:
             spread = np.sqrt(self.uncertainty() ** 2 + np.asarray(spread) ** 2)
         return Boxes(self.names, features, None, spread if spread is not None else self.spread)
 
+    def kinds(self) -> dict[str, str]:
+        """Each box's type by name."""
+        return {n: box_of(row)[0] for n, row in zip(self.names, self.features, strict=True)}
+
     def half_length(self, name: str) -> float:
         """Half the length of box `name` along its long axis (local y), by its type."""
         return HALF_EXTENTS[box_of(self.features[self.names.index(name)])[0]][1]

@@ -1,0 +1,68 @@
+"""What a goal scene stands on what, and how many moves a scene is at least from it by that
+order: the continuous search's heuristic and its first depth bound (abstraction/bilevel.py).
+
+A box is in place when it stands at its goal position and everything the goal puts under
+it is in place. Each box not in place moves at least once, and twice where it stands at its
+goal on the wrong support (off, then back) or holds the goal place of a box that the goal
+puts under it (a tower's top sitting where the box under it must go). A count, not a
+bound: a pick carries what rides on the source, so one move may put a whole stack in place.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_symplan.boxes import HALF_EXTENTS
+
+STACK_TOL = 0.015  # m: a goal box's bottom this near another's top stands on it
+
+
+def _stands_on(top: np.ndarray, top_kind: str, below: np.ndarray, below_kind: str) -> bool:
+    """Does a box of `top_kind` centred at `top` stand on one of `below_kind` at `below`
+    (bottom on its top, centre within its longest half extent)?"""
+    gap = top[2] - HALF_EXTENTS[top_kind][2] - below[2] - HALF_EXTENTS[below_kind][2]
+    reach = max(HALF_EXTENTS[below_kind][:2])
+    return abs(gap) <= STACK_TOL and float(np.linalg.norm(top[:2] - below[:2])) <= reach
+
+
+class GoalOrder:
+    """The goal's supports: `under[n]`, the boxes box n stands on in the goal, and
+    `beneath[n]`, those and everything under them."""
+
+    def __init__(self, goal: dict[str, np.ndarray], kinds: dict[str, str]):
+        self.goal = {n: np.asarray(p, float) for n, p in goal.items()}
+        self.under = {n: [m for m in self.goal if m != n and _stands_on(
+            self.goal[n], kinds[n], self.goal[m], kinds[m])] for n in self.goal}
+        self.beneath = {n: self._beneath(n) for n in self.goal}
+
+    def _beneath(self, name: str) -> set[str]:
+        found, frontier = set(), list(self.under[name])
+        while frontier:
+            m = frontier.pop()
+            if m not in found:
+                found.add(m)
+                frontier.extend(self.under[m])
+        return found
+
+    def moves_left(self, where: dict[str, np.ndarray], errors: dict[str, float],
+                   limit: float) -> int:
+        """The moves a scene (`where`, with each box's distance to its goal, `errors`) is
+        from the goal by the order (module docstring); boxes within `limit` are at goal."""
+        at = {n for n, e in errors.items() if e <= limit}
+        in_place: dict[str, bool] = {}
+
+        def placed(n: str) -> bool:
+            if n not in in_place:
+                in_place[n] = False  # a cycle of supports (a perceived goal's slip) is none
+                in_place[n] = n in at and all(placed(m) for m in self.under[n])
+            return in_place[n]
+
+        count = 0
+        for n in self.goal:
+            if placed(n):
+                continue
+            count += 1
+            if n in at or any(float(np.linalg.norm(where[n] - self.goal[m])) <= limit
+                              for m in self.beneath[n]):
+                count += 1
+        return count
