@@ -19,8 +19,8 @@ model checks one or two steps well and ten badly (its error after five actions i
 centimetres), so a long plan is checked piecewise: the agent runs the first steps,
 perceives, and plans again from what it sees. When
 no skeleton refines (or the planner finds none) a weighted best-first search over all
-pick/place actions, with the same model and the summed predicted distance to the goal as
-its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap
+pick/place actions, with the same model, the summed predicted distance to the goal and
+the moves the goal's order asks for (goal_order.py) as its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap
 (planning/budget.py), so a problem gets the same answer on a busy host as on a quiet one:
 one budget per plan, of which the skeletons (planner calls and refinement) may use half,
 the continuous search the rest.
