@@ -192,6 +192,27 @@ def test_problems_make_builds_a_tower_task(tmp_path, capsys):
     assert goals.holds(goals.parse([spec])[0], positions, types) is None
 
 
+@pytest.mark.slow
+def test_problems_make_takes_apart_a_start_of_towers(tmp_path, capsys):
+    import json
+
+    code, _, err = run(["problems", "make", "--out", tmp_path, "--objects", "5", "--k", "4",
+                        "5", "--count", "1", "--task", "towers", "--start-k", "2",
+                        "--backend", "hand", "--json"], capsys)
+    assert code == 0, err
+    problem = json.loads((tmp_path / "p000" / "problem.json").read_text())
+    start = load_scene(tmp_path / "p000" / "start.yaml")
+    assert sum(o.position[2] > 0.05 for o in start.objects) == 2  # two towers of two
+    # the build counts the box set down out of the way: four actions for three places
+    assert problem["k"] == len(problem["actions"]) == 4
+    assert sum(" place(" in a and ":right)" in a for a in problem["actions"]) == 1
+    goal = load_scene(tmp_path / "p000" / "goal.yaml")
+    positions = {o.name: o.position for o in goal.objects}
+    types = {o.name: o.type for o in goal.objects}
+    for spec in goals.parse(problem["spec"]):
+        assert goals.holds(spec, positions, types) is None
+
+
 @pytest.mark.parametrize("command, start", [("solve", "--start"), ("inspect", "--scene")])
 def test_solve_and_inspect_take_a_goal_spec_checked_like_goals(tmp_path, capsys, command,
                                                                start):
