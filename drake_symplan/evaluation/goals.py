@@ -75,9 +75,10 @@ def moved(s: Structure) -> tuple[str, ...]:
     return s.objects[:1] if s.word == "bridge" else s.objects[1:]
 
 
-def check(structures: list[Structure], objects: dict[str, ObjectState]) -> None:
-    """SpecError, naming why, unless the start scene `objects` (beliefs) can give them, each
-    structure on what the ones before it designed (`build_actions`)."""
+def check(structures: list[Structure], objects: dict[str, ObjectState]) -> list[Action]:
+    """The actions that build the structures from the start scene `objects` (beliefs),
+    each on what the ones before it designed (`build_actions`); SpecError, naming why,
+    where the start cannot give them."""
     named = [n for s in structures for n in s.objects]
     unknown = sorted(set(named) - set(objects))
     if unknown:
@@ -88,7 +89,7 @@ def check(structures: list[Structure], objects: dict[str, ObjectState]) -> None:
                    | {n for n in movers if movers.count(n) > 1})
     if twice:
         raise SpecError(f"{', '.join(twice)} named twice")
-    build_actions(structures, objects)
+    return build_actions(structures, objects)
 
 
 def _top(o: ObjectState) -> float:
@@ -268,11 +269,11 @@ def sample_goal(rng: np.random.Generator, objects: dict[str, ObjectState], task:
                 why = structures
                 break  # the scene cannot give this size
             try:
-                check(structures, objects)
+                actions = check(structures, objects)
             except SpecError:
                 why = "spec_refused"
                 continue
-            if len(build_actions(structures, objects)) in ks:
+            if len(actions) in ks:
                 return structures
     return why
 

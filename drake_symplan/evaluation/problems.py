@@ -150,8 +150,7 @@ def _built_problem(agent, rng, start, task: str, k: int, reproducible: bool,
                    exact: bool = False):
     """(start, goal, info) of a random goal of `task` built from `start`, or why not; with
     `exact`, any goal whose build takes one of the k (a tuple) actions, boxes set down out
-    of the way counted,
-    else a structure of k actions."""
+    of the way counted, else a structure of k actions."""
     if exact:  # parks depend on the stacks, sampled on what build_goal will perceive
         objects = _perceived_objects(agent, start)
         if isinstance(objects, str):
@@ -206,9 +205,8 @@ def build_goal(agent, start, structures: list, reproducible: bool = True):
     if seen.lost or seen.extra:
         return "perception_start"
     objects = seen.scene.object_states()
-    goals.check(structures, objects)
     now, done = seen.scene, []
-    for action in goals.build_actions(structures, objects):
+    for action in goals.check(structures, objects):
         now = act(agent, now, action)
         if isinstance(now, str):
             return f"{now} at {action}"
