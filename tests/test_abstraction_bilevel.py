@@ -152,6 +152,21 @@ def test_the_continuous_fallback_finds_a_two_step_plan_the_symbols_cannot():
     assert solve(Skeletons(), tower, skeletons=False).steps == found.steps
 
 
+def test_the_search_predicts_the_moves_the_goals_order_asks_for_first():
+    tower = boxes(a=(0.7, 0.0, 0.125), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
+    goal = tower.where()
+    asked = Refiner(list(STACK.values()), Stacking())
+    found, _ = asked.search(START, goal, Budget.of_cpu(10))
+    # b onto c (c is in place), then a onto b: three releases each, the cubes' one grasp
+    assert [s.action for s in found.steps] == [Action("b", "center", "c", "center"),
+                                               Action("a", "center", "b", "center")]
+    assert asked.predictions == 3 + 3
+    every = Refiner(list(STACK.values()), Stacking(), defer=None)
+    again, _ = every.search(START, goal, Budget.of_cpu(10))
+    # every move of every box: 3 x 2 targets x 3 releases at the start, 9 with b on c
+    assert again.steps == found.steps and every.predictions == 18 + 9
+
+
 def test_a_skeleton_longer_than_the_boxes_off_their_goal_gives_way_to_a_shorter_search():
     goal = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
     detour = Plan("solved", [Step(STACK["center"], ("a", "b")), Step(STACK["center"], ("a", "c"))])

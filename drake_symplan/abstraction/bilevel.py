@@ -20,7 +20,8 @@ centimetres), so a long plan is checked piecewise: the agent runs the first step
 perceives, and plans again from what it sees. When
 no skeleton refines (or the planner finds none) a weighted best-first search over all
 pick/place actions, with the same model, the summed predicted distance to the goal and
-the moves the goal's order asks for (goal_order.py) as its heuristic, is the fallback. Budgets are CPU seconds with a wall-clock cap
+the moves the goal's order asks for (goal_order.py) as its heuristic, those moves predicted
+first, is the fallback. Budgets are CPU seconds with a wall-clock cap
 (planning/budget.py), so a problem gets the same answer on a busy host as on a quiet one:
 one budget per plan, of which the skeletons (planner calls and refinement) may use half,
 the continuous search the rest.
@@ -56,7 +57,7 @@ SKELETON_SHARE = 0.5
 SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
 MOVE_LEFT = 1.0  # the search's heuristic per move the goal's order asks for (goal_order.py)
-SHORT_SHARE = 0.5  # of the search's budget, first for a plan no longer than the goal's order asks
+DEFER = 3.0  # the search's f added to the moves the goal's order does not ask for next
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
@@ -123,6 +124,21 @@ class Refined:
     subgoal: bool = False
 
 
+def _asked_first(options: list[Reposition], boxes: Boxes, order: GoalOrder,
+                 goal: dict[str, np.ndarray], limit: float
+                 ) -> tuple[list[Reposition], list[Reposition]]:
+    """`options` split into the moves the goal's order asks for next (GoalOrder.next_moves:
+    FD's preferred operators, in kind) and the rest."""
+    asked = order.next_moves(boxes.where(), goal_errors(boxes, goal), limit,
+                             {n for n in boxes.names if boxes.riding(n)})
+    first, later = [], []
+    for option in options:
+        targets = asked.get(option.action.source, ())
+        ok = option.action.source in asked and (targets is None or option.action.target in targets)
+        (first if ok else later).append(option)
+    return first, later
+
+
 def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> bool:
     """Is every box predicted within `limit` of its goal, its spread counted against it
     (boxes.goal_reached)?"""
@@ -166,14 +182,15 @@ class Refiner:
     (abstraction/continuous.py)."""
 
     def __init__(self, operators, continuous, tolerance: float = GOAL_TOLERANCE,
-                 margin: float = MARGIN, extra_moves: int = 2, max_depth: int = 6,
-                 weight: float = 1.5):
+                 margin: float = MARGIN, extra_moves: int = 2, max_depth: int = 12,
+                 weight: float = 1.5, defer: float | None = DEFER):
         # the planning operators whose offset variants a skeleton's steps choose among
         self.operators = operators if isinstance(operators, PlanningOperators) \
             else PlanningOperators(operators)
         self.continuous = continuous
         self.limit = tolerance - margin
         self.extra_moves, self.max_depth, self.weight = extra_moves, max_depth, weight
+        self.defer = defer
         self.predictions = 0
 
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
@@ -260,7 +277,11 @@ class Refiner:
                max_depth: int | None = None) -> tuple[Refined | None, Refined]:
         """Weighted best-first search over pick/place moves in predicted space: f = steps
         + weight * h, h = (summed distance to the goal) / STEP_SCALE + MOVE_LEFT per move
-        the goal's order asks for. (the plan that reaches the goal or None, the plan predicted to end
+        the goal's order asks for. A node's moves the order asks for next (a box onto its
+        supports in place, what is in the way off: GoalOrder.next_moves) are predicted
+        first; the rest wait in the frontier `defer` dearer (None: all at once), so the
+        ~500 moves of an 8-box scene cost a prediction only where the asked ones lead
+        nowhere. (the plan that reaches the goal or None, the plan predicted to end
         nearest it, by h). `max_depth`: plans at most this long (default the refiner's)."""
         depth = self.max_depth if max_depth is None else max_depth
 
@@ -272,26 +293,35 @@ class Refiner:
                 boxes.where(), errors, self.limit)
 
         tie = itertools.count()
-        frontier = [(self.weight * h(start), next(tie), h(start), start, Refined([], []))]
+        frontier = [(self.weight * h(start), next(tie), h(start), start, Refined([], []), None)]
         nearest = (h(start), Refined([], []))
         seen = set()
         while frontier and not budget.spent():
-            _, _, distance, boxes, done = heapq.heappop(frontier)
-            if reaches_goal(boxes, goal, self.limit):
-                return done, done
-            nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
-            key = tuple(np.round(boxes.positions, 2).ravel())
-            if key in seen or len(done.steps) >= depth:
-                continue
-            seen.add(key)
-            options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
-                            boxes.riding)
+            f, _, distance, boxes, done, deferred = heapq.heappop(frontier)
+            if deferred is None:
+                if reaches_goal(boxes, goal, self.limit):
+                    return done, done
+                nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
+                key = tuple(np.round(boxes.positions, 2).ravel())
+                if key in seen or len(done.steps) >= depth:
+                    continue
+                seen.add(key)
+                options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
+                                boxes.riding)
+                if self.defer is not None:
+                    options, later = _asked_first(options, boxes, order, goal, self.limit)
+                    if later and options:
+                        heapq.heappush(frontier, (f + self.defer, next(tie), distance, boxes,
+                                                  done, later))
+                    options = options or later
+            else:
+                options = deferred
             for after, option in zip(self._predict(boxes, options), options, strict=True):
                 distance = h(after)
                 heapq.heappush(frontier, (len(done.steps) + 1 + self.weight * distance,
                                           next(tie), distance, after,
                                           Refined(done.steps + [option],
-                                                  done.predicted + [after])))
+                                                  done.predicted + [after]), None))
         return None, nearest[1]
 
 
@@ -339,7 +369,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
                         level=level, predicted=refined.predicted,
                         candidates=looked_at.candidates)
     looked_at.restart()  # a planner call that gave no new skeleton is not counted
-    refined, nearest = _search(refiner, start.boxes, target, budget)
+    refined, nearest = refiner.search(start.boxes, target, budget)
     looked_at(_candidate(SEARCH, [], refined, refiner, start.boxes, target))
     seconds, candidates = time.perf_counter() - t0, looked_at.candidates
 
@@ -396,19 +426,6 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
         if symbolic.spent():
             break
     return None, unverified
-
-
-def _search(refiner: Refiner, start: Boxes, goal: dict[str, np.ndarray], budget: Budget
-            ) -> tuple[Refined | None, Refined]:
-    """The continuous search, first (in SHORT_SHARE of the budget) for a plan of no more
-    steps than the goal's order asks for (goal_order.py), then for any: the first plan a
-    weighted search finds may take twice the steps (a half-built tower carried over)."""
-    needed = refiner.moves_left(start, goal)
-    if needed < refiner.max_depth:
-        found, _ = refiner.search(start, goal, budget.share(SHORT_SHARE), max_depth=needed)
-        if found is not None:
-            return found, found
-    return refiner.search(start, goal, budget)
 
 
 def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, np.ndarray],

@@ -15,6 +15,7 @@ import numpy as np
 from drake_symplan.boxes import HALF_EXTENTS
 
 STACK_TOL = 0.015  # m: a goal box's bottom this near another's top stands on it
+REACH = 0.2  # m: a box set down beside another lands at most this far from it
 
 
 def _stands_on(top: np.ndarray, top_kind: str, below: np.ndarray, below_kind: str) -> bool:
@@ -34,6 +35,8 @@ class GoalOrder:
         self.under = {n: [m for m in self.goal if m != n and _stands_on(
             self.goal[n], kinds[n], self.goal[m], kinds[m])] for n in self.goal}
         self.beneath = {n: self._beneath(n) for n in self.goal}
+        # a box whose centre is higher than this stands on another box
+        self.goal_floor = {n: HALF_EXTENTS[kinds[n]][2] + STACK_TOL for n in self.goal}
 
     def _beneath(self, name: str) -> set[str]:
         found, frontier = set(), list(self.under[name])
@@ -44,10 +47,8 @@ class GoalOrder:
                 frontier.extend(self.under[m])
         return found
 
-    def moves_left(self, where: dict[str, np.ndarray], errors: dict[str, float],
-                   limit: float) -> int:
-        """The moves a scene (`where`, with each box's distance to its goal, `errors`) is
-        from the goal by the order (module docstring); boxes within `limit` are at goal."""
+    def in_place(self, errors: dict[str, float], limit: float) -> set[str]:
+        """The boxes in place: within `limit` of their goal (`errors`), on boxes in place."""
         at = {n for n, e in errors.items() if e <= limit}
         in_place: dict[str, bool] = {}
 
@@ -57,12 +58,44 @@ class GoalOrder:
                 in_place[n] = n in at and all(placed(m) for m in self.under[n])
             return in_place[n]
 
+        return {n for n in self.goal if placed(n)}
+
+    def moves_left(self, where: dict[str, np.ndarray], errors: dict[str, float],
+                   limit: float) -> int:
+        """The moves a scene (`where`, with each box's distance to its goal, `errors`) is
+        from the goal by the order (module docstring); boxes within `limit` are at goal."""
+        placed = self.in_place(errors, limit)
         count = 0
         for n in self.goal:
-            if placed(n):
+            if n in placed:
                 continue
             count += 1
-            if n in at or any(float(np.linalg.norm(where[n] - self.goal[m])) <= limit
-                              for m in self.beneath[n]):
+            if errors[n] <= limit or self._holds_place(n, where[n], self.beneath[n], limit):
                 count += 1
         return count
+
+    def _holds_place(self, name: str, at: np.ndarray, others, limit: float) -> bool:
+        return any(float(np.linalg.norm(at - self.goal[m])) <= limit
+                   for m in others if m != name)
+
+    def next_moves(self, where: dict[str, np.ndarray], errors: dict[str, float],
+                   limit: float, covered: set[str]) -> dict[str, set[str] | None]:
+        """The moves the order asks for next, as {box: the boxes it may be placed on, None
+        for any}: a box not in place with nothing on it (not in `covered`) goes onto its
+        goal's supports once they are in place (a box whose goal is on the table, beside a
+        box within REACH of its goal); one whose supports are not in place moves only
+        if it is in the way (it stands on another box, or holds the goal place of a box
+        not in place), anywhere."""
+        placed = self.in_place(errors, limit)
+        out: dict[str, set[str] | None] = {}
+        for n in self.goal:
+            if n in placed or n in covered:
+                continue
+            if all(m in placed for m in self.under[n]):
+                out[n] = set(self.under[n]) or {
+                    m for m in where if m != n and float(np.linalg.norm(
+                        where[m][:2] - self.goal[n][:2])) <= REACH} or None
+            elif where[n][2] > self.goal_floor[n] or self._holds_place(
+                    n, where[n], set(self.goal) - placed, limit):
+                out[n] = None
+        return out
