@@ -459,3 +459,22 @@ def test_a_step_that_missed_its_prediction_makes_its_move_dearer_in_later_plans(
     asked = Penalized()
     solve(asked, TOWER, horizon=1, penalties=dict(planner.penalties))
     assert asked.asked[0] == {("a", "c"): PENALTY}
+
+
+def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
+    planner = object.__new__(BilevelMode)  # the monitor's side alone
+    planner.refiner = Refiner(list(STACK.values()), Stacking(), defer=None)
+    move = Reposition(Action("a", "center", "b", "center"), "move")
+    predicted = Stacking().predict(START, [move.action])[0]
+    planner.observed(move, predicted, observe(Seen(predicted)))  # as predicted
+    assert not planner.refiner.missed
+    planner.observed(move, predicted, observe(Seen(START)))  # a never left
+    assert planner.refiner.missed == {move.action: 1}
+    # a on b, which stands beside c: onto b or onto c's right end, one step each
+    side = boxes(a=(0.5, 0.2, 0.025), b=(0.7, 0.075, 0.025), c=(0.7, 0.0, 0.025))
+    goal = {**side.where(), "a": np.array([0.7, 0.075, 0.075])}
+    found, _ = planner.refiner.search(side, goal, Budget.of_cpu(10))
+    assert [s.action for s in found.steps] == [Action("a", "center", "c", "right")]
+    planner.refiner.missed.clear()
+    found, _ = planner.refiner.search(side, goal, Budget.of_cpu(10))
+    assert [s.action for s in found.steps] == [move.action]

@@ -58,6 +58,7 @@ SEARCH_SHARE = 0.5
 STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
 MOVE_LEFT = 1.0  # the search's heuristic per move the goal's order asks for (goal_order.py)
 DEFER = 3.0  # the search's f added to the moves the goal's order does not ask for next
+MISSED = 3.0  # the search's cost added to a move each time the arm missed it in this solve
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
@@ -125,16 +126,17 @@ class Refined:
 
 
 def _asked_first(options: list[Reposition], boxes: Boxes, order: GoalOrder,
-                 goal: dict[str, np.ndarray], limit: float
+                 goal: dict[str, np.ndarray], limit: float, missed: Counter
                  ) -> tuple[list[Reposition], list[Reposition]]:
     """`options` split into the moves the goal's order asks for next (GoalOrder.next_moves:
-    FD's preferred operators, in kind) and the rest."""
+    FD's preferred operators, in kind) and the rest, with every move in `missed`."""
     asked = order.next_moves(boxes.where(), goal_errors(boxes, goal), limit,
                              {n for n in boxes.names if boxes.riding(n)})
     first, later = [], []
     for option in options:
         targets = asked.get(option.action.source, ())
-        ok = option.action.source in asked and (targets is None or option.action.target in targets)
+        ok = option.action.source in asked and option.action not in missed and (
+            targets is None or option.action.target in targets)
         (first if ok else later).append(option)
     return first, later
 
@@ -191,6 +193,9 @@ class Refiner:
         self.limit = tolerance - margin
         self.extra_moves, self.max_depth, self.weight = extra_moves, max_depth, weight
         self.defer = defer
+        # the moves the arm was seen to miss in this solve, with how often: no longer
+        # asked for, and a move's cost in the search is 1 + MISSED per miss
+        self.missed: Counter = Counter()
         self.predictions = 0
 
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
@@ -275,8 +280,8 @@ class Refiner:
 
     def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget,
                max_depth: int | None = None) -> tuple[Refined | None, Refined]:
-        """Weighted best-first search over pick/place moves in predicted space: f = steps
-        + weight * h, h = (summed distance to the goal) / STEP_SCALE + MOVE_LEFT per move
+        """Weighted best-first search over pick/place moves in predicted space: f = g
+        + weight * h, g the steps (a move the arm missed in this solve dearer: `missed`), h = (summed distance to the goal) / STEP_SCALE + MOVE_LEFT per move
         the goal's order asks for. A node's moves the order asks for next (a box onto its
         supports in place, what is in the way off: GoalOrder.next_moves) are predicted
         first; the rest wait in the frontier `defer` dearer (None: all at once), so the
@@ -293,11 +298,12 @@ class Refiner:
                 boxes.where(), errors, self.limit)
 
         tie = itertools.count()
-        frontier = [(self.weight * h(start), next(tie), h(start), start, Refined([], []), None)]
+        frontier = [(self.weight * h(start), next(tie), 0.0, h(start), start, Refined([], []),
+                     None)]
         nearest = (h(start), Refined([], []))
         seen = set()
         while frontier and not budget.spent():
-            f, _, distance, boxes, done, deferred = heapq.heappop(frontier)
+            f, _, g, distance, boxes, done, deferred = heapq.heappop(frontier)
             if deferred is None:
                 if reaches_goal(boxes, goal, self.limit):
                     return done, done
@@ -309,19 +315,21 @@ class Refiner:
                 options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
                                 boxes.riding)
                 if self.defer is not None:
-                    options, later = _asked_first(options, boxes, order, goal, self.limit)
+                    options, later = _asked_first(options, boxes, order, goal, self.limit,
+                                                  self.missed)
                     if later and options:
-                        heapq.heappush(frontier, (f + self.defer, next(tie), distance, boxes,
-                                                  done, later))
+                        heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
+                                                  boxes, done, later))
                     options = options or later
             else:
                 options = deferred
             for after, option in zip(self._predict(boxes, options), options, strict=True):
                 distance = h(after)
-                heapq.heappush(frontier, (len(done.steps) + 1 + self.weight * distance,
-                                          next(tie), distance, after,
-                                          Refined(done.steps + [option],
-                                                  done.predicted + [after]), None))
+                cost = g + 1 + MISSED * self.missed[option.action]
+                heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,
+                                          distance, after, Refined(done.steps + [option],
+                                                                   done.predicted + [after]),
+                                          None))
         return None, nearest[1]
 
 

@@ -165,6 +165,14 @@ class _ContinuousModelMode(PlanningMode):
         # costs added to the skeletons' moves, by their leading arguments (`observed`)
         self.penalties: Counter = Counter()
 
+    def observed(self, step: PlanStep, predicted: Boxes | None, seen: Observation) -> None:
+        """A move of the continuous search whose boxes were seen off their predicted
+        positions costs more in the solve's later searches (Refiner.missed): the arm
+        does not try the same pick/place again while another way is left."""
+        if isinstance(step, Reposition) and step.kind == "move" and predicted is not None \
+                and off_prediction(predicted, seen):
+            self.refiner.missed[step.action] += 1
+
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         from drake_symplan.abstraction.bilevel import Search, plan_bilevel
 
@@ -222,6 +230,7 @@ class RecedingMode(_ContinuousModelMode):
         from drake_symplan.abstraction.bilevel import PENALTY
 
         if not isinstance(step, Step):
+            super().observed(step, predicted, seen)
             return
         if off_prediction(predicted, seen) if predicted is not None \
                 else self.abs.mismatches(seen.reading, step):
