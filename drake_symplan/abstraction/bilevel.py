@@ -134,9 +134,9 @@ def _asked_first(options: list[Reposition], boxes: Boxes, order: GoalOrder,
                              {n for n in boxes.names if boxes.riding(n)})
     first, later = [], []
     for option in options:
-        targets = asked.get(option.action.source, ())
-        ok = option.action.source in asked and option.action not in missed and (
-            targets is None or option.action.target in targets)
+        a = option.action
+        targets = asked.get(a.source, set())
+        ok = a not in missed and (a.source in asked and targets is None or a.target in targets)
         (first if ok else later).append(option)
     return first, later
 
@@ -281,8 +281,9 @@ class Refiner:
     def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget,
                max_depth: int | None = None) -> tuple[Refined | None, Refined]:
         """Weighted best-first search over pick/place moves in predicted space: f = g
-        + weight * h, g the steps (a move the arm missed in this solve dearer: `missed`), h = (summed distance to the goal) / STEP_SCALE + MOVE_LEFT per move
-        the goal's order asks for. A node's moves the order asks for next (a box onto its
+        + weight * h, g the steps (a move the arm missed in this solve dearer: `missed`),
+        h = (summed distance to the goal) / STEP_SCALE + MOVE_LEFT per move the goal's
+        order asks for. A node's moves the order asks for next (a box onto its
         supports in place, what is in the way off: GoalOrder.next_moves) are predicted
         first; the rest wait in the frontier `defer` dearer (None: all at once), so the
         ~500 moves of an 8-box scene cost a prediction only where the asked ones lead
