@@ -5,7 +5,7 @@ import pytest
 
 from drake_symplan.actions import Action
 from drake_symplan.datasets import ObjectState
-from drake_symplan.skills.pick_place import pick_place
+from drake_symplan.skills.pick_place import action_geometry, gripper_strikes, pick_place
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 
@@ -112,3 +112,32 @@ def test_act_writes_the_scene_after_the_action(tmp_path, capsys):
     assert abs(placed["o1"].position[2] - 0.075) < 0.01  # on o0
     assert np.linalg.norm(np.subtract(placed["o1"].position[:2], placed["o0"].position[:2])) \
         < 0.03
+
+
+# A tower of four cubes 9.6 cm along x (the fingers' axis) from a block on the table: the
+# palm, 15 cm long along that axis, came down on the tower's top when a cube was released
+# on the block (the tower fell; a six-box long goal failed on it).
+TOWER_BESIDE_BLOCK = [(f"t{i}", "cube", (0.618, -0.235, 0.025 + 0.05 * i)) for i in range(4)] + [
+    ("b", "long", (0.714, -0.235, 0.025)), ("c", "cube", (0.9, -0.2, 0.025))]
+
+
+def test_the_gripper_turns_a_cube_a_quarter_to_clear_a_tower_beside_the_target():
+    beliefs = {n: ObjectState(n, t, np.array(p, float)) for n, t, p in TOWER_BESIDE_BLOCK}
+    release = np.array([0.714, -0.235, 0.079])
+    assert gripper_strikes(beliefs, release, 0.0, {"c"}) == ["t2", "t3"]  # above the palm
+    assert gripper_strikes(beliefs, release, np.pi / 2, {"c"}) == []
+    g = action_geometry(Action("c", "center", "b", "center"), beliefs)
+    assert g.yaw_grasp == pytest.approx(0.0)  # nothing beside the grasp: as before
+    assert abs(g.yaw_release) == pytest.approx(np.pi / 2)
+    plain = action_geometry(Action("c", "center", "b", "center"), beliefs, turn=False)
+    assert plain.yaw_release == pytest.approx(0.0)
+
+
+def test_a_cube_released_beside_a_tower_leaves_the_tower_standing(station, planner):
+    # before the quarter turn the tower's top cube fell 18 cm
+    out = run(station, planner, TOWER_BESIDE_BLOCK, Action("c", "center", "b", "center"))
+    assert out.status == "ok"
+    assert np.array(out.objects["c"].end)[2] == pytest.approx(0.075, abs=0.005)
+    for i in range(4):
+        moved = np.subtract(out.objects[f"t{i}"].end, out.objects[f"t{i}"].start)
+        assert np.linalg.norm(moved) < 0.005, f"t{i}"

@@ -72,7 +72,7 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
     return {
         "run": label, "problem": str(folder), "n_objects": problem["n_objects"],
         "k": problem["k"], "monitor": config.monitor, "status": result.status,
-        "failure_cause": result.failure_cause,
+        "failure_cause": result.failure_cause, "message": result.message,
         "success_true": true_success(result.objects, goal),
         "symbolic_goal_reached": result.symbolic_goal_reached, "plan_length": len(result.plan),
         "level": result.level,

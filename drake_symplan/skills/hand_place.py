@@ -16,9 +16,10 @@ physics (what it raises rides along, what leaned on the box falls), and the load
 moves rigidly to the release pose. Either way, a release pose that is not clear of the
 rest of the scene is reached by a descent in full physics from above it, as the arm's.
 
-Where the arm, at its own grasp point, would touch what the hand does not (its wrist
-striking a box on the way down, its open fingers landing on a neighbour: world/hand.py's
-`wrist_strikes`, `finger_strikes`; its fingers pinching the source and a rider together),
+Where the arm would touch what the hand does not (its wrist striking a box on the way
+down to the grasp, its open fingers landing on a neighbour there, its palm striking a
+stack beside the grasp or the release: world/hand.py's `wrist_strikes`, `finger_strikes`,
+`palm_strikes`; its fingers pinching the source and a rider together),
 the hand would keep what the arm knocks over or drops; given an `ArmTwin`, the action is
 run by the arm instead (skills/arm_twin.py).
 """
@@ -36,11 +37,13 @@ from drake_symplan.actions import Action
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.arm_twin import ArmTwin
+from drake_symplan.skills.carry import riders
 from drake_symplan.skills.pick_place import action_geometry, arm_geometry
 from drake_symplan.world.hand import (
     finger_strikes,
     grasp_catches,
     hand_q_of_pose,
+    palm_strikes,
     wrist_strikes,
 )
 from drake_symplan.world.settling import settle_until_rest
@@ -92,6 +95,11 @@ def plan_hand(
     struck = wrist_strikes(poses, half, arm.grasp)
     struck += [n for n in finger_strikes(poses, half, arm.grasp, arm.yaw_grasp, held)
                if n not in struck]
+    if held is not None:  # the palm beside what it carries, at the grasp and the release
+        load = {held, *riders(held, station.object_states())}
+        struck += [n for n in palm_strikes(poses, half, arm.grasp, arm.yaw_grasp, load)
+                   + palm_strikes(poses, half, arm.release, arm.yaw_release, load)
+                   if n not in struck]
     pinched = carry == "pinched"
     if held is None:
         return HandMotion(None, struck=struck, pinched=pinched)

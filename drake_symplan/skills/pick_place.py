@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.actions import Action, grasp_point, release_point
@@ -28,6 +29,7 @@ from drake_symplan.skills.carry import (
 )
 from drake_symplan.skills.ik import ArmIK
 from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
+from drake_symplan.world.hand import finger_strikes, palm_strikes
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
 
@@ -117,7 +119,35 @@ class ActionGeometry:
         return (self.release - self.grasp)[:2]
 
 
-def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGeometry:
+def gripper_strikes(objects: dict[str, ObjectState], tcp: np.ndarray, yaw: float,
+                    skip: set[str]) -> list[str]:
+    """The boxes of the beliefs `objects` (but `skip`) that the palm or the open fingers,
+    coming straight down to `tcp` with the finger axis at `yaw`, would strike
+    (world/hand.py's palm_strikes, finger_strikes)."""
+    poses = {n: RigidTransform(RotationMatrix.MakeZRotation(o.yaw), o.position)
+             for n, o in objects.items()}
+    half = {n: np.array(HALF_EXTENTS[o.type]) for n, o in objects.items()}
+    struck = palm_strikes(poses, half, tcp, yaw, skip)
+    return struck + [n for n in finger_strikes(poses, half, tcp, yaw)
+                     if n not in skip and n not in struck]
+
+
+def _clear_turn(yaw: float, tcp: np.ndarray, objects: dict[str, ObjectState],
+                skip: set[str], near: float) -> float:
+    """`yaw`, or where the gripper strikes fewer boxes turned a quarter (the palm is 15 cm
+    long along the finger axis, 4 cm across), the quarter turn nearer `near`."""
+    turned = min(yaw + np.pi / 2, yaw - np.pi / 2, key=lambda y: abs(y - near))
+    if len(gripper_strikes(objects, tcp, turned, skip)) < len(
+            gripper_strikes(objects, tcp, yaw, skip)):
+        return float(turned)
+    return yaw
+
+
+def action_geometry(action: Action, objects: dict[str, ObjectState],
+                    turn: bool = True) -> ActionGeometry:
+    """`turn`: a cube with nothing on it is grasped, and released, with the wrist turned
+    a quarter where the gripper strikes fewer neighbours that way (a tower beside the
+    source or the target; a cube held either way is the same cube)."""
     for name in (action.source, action.target):
         if name not in objects:
             raise ValueError(f"unknown object {name!r} (objects: {sorted(objects)})")
@@ -127,15 +157,20 @@ def action_geometry(action: Action, objects: dict[str, ObjectState]) -> ActionGe
     carry_z = max(MIN_CARRY_HEIGHT, max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
     yaw_g = grasp_yaw(src)
     yaw_r = yaw_g + fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"])  # any quarter turn lines up faces
+    if turn and src.type == "cube" and not riders(action.source, objects):
+        skip = {action.source}
+        yaw_g, yaw_r = (_clear_turn(yaw_g, grasp, objects, skip, yaw_g),
+                        _clear_turn(yaw_r, release, objects, skip, yaw_g))
     return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
 
 
-def arm_geometry(action: Action, objects: dict[str, ObjectState]) -> tuple[ActionGeometry, str]:
+def arm_geometry(action: Action, objects: dict[str, ObjectState],
+                 turn: bool = True) -> tuple[ActionGeometry, str]:
     """Where the arm's TCP goes for `action` by the believed `objects`, and how it carries:
     "plain" (nothing rides on the source: the action's points), "careful" (the careful
     carry's points, skills/carry.py) or "pinched" (a load with no point clear of it, which
-    the fingers close on together with the source)."""
-    g = action_geometry(action, objects)
+    the fingers close on together with the source). `turn`: as action_geometry."""
+    g = action_geometry(action, objects, turn)
     if not riders(action.source, objects):
         return g, "plain"
     grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
@@ -162,18 +197,24 @@ class PickPlaceMotions:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
         still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
         g, carry = arm_geometry(action, objects)
-        try:
-            return self._motion(g, carry, q_start, lift_hold)
-        except InfeasibleAction as first:
-            # The fingers are symmetric under a half turn: the same grasp and release with
-            # the wrist turned by pi. Near a box's folded yaw (a long block at +-90 deg, a
-            # cube at +-45) a few degrees of belief pick the turn the joint box cannot reach.
-            half_turn = dc.replace(g, yaw_grasp=g.yaw_grasp + np.pi,
-                                   yaw_release=g.yaw_release + np.pi)
+        plain, _ = arm_geometry(action, objects, turn=False)
+        # The fingers are symmetric under a half turn: the same grasp and release with
+        # the wrist turned by pi. Near a box's folded yaw (a long block at +-90 deg, a
+        # cube at +-45) a few degrees of belief pick the turn the joint box cannot reach.
+        # A cube's quarter turn clear of its neighbours (action_geometry) that the arm
+        # cannot reach either way is done unturned.
+        tries = [g, dc.replace(g, yaw_grasp=g.yaw_grasp + np.pi,
+                               yaw_release=g.yaw_release + np.pi)]
+        if (plain.yaw_grasp, plain.yaw_release) != (g.yaw_grasp, g.yaw_release):
+            tries += [plain, dc.replace(plain, yaw_grasp=plain.yaw_grasp + np.pi,
+                                        yaw_release=plain.yaw_release + np.pi)]
+        first = None
+        for geometry in tries:
             try:
-                return self._motion(half_turn, carry, q_start, lift_hold)
-            except InfeasibleAction:
-                raise first from None
+                return self._motion(geometry, carry, q_start, lift_hold)
+            except InfeasibleAction as e:
+                first = first or e
+        raise first
 
     def _motion(self, g: ActionGeometry, carry: str, q_start: np.ndarray,
                 lift_hold: bool) -> Motion:

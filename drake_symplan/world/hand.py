@@ -70,7 +70,8 @@ def grasp_catches(
 # wrist_3_link's cylinder about the tool axis (4.5 cm radius) from 8.7 cm above the TCP,
 # and at the wrist_3 joint, 17.7 cm above the TCP, wrist_2_link's cylinder sticking out
 # sideways up to 16.5 cm from the axis (towards the robot's base; any side, to be safe).
-# The palm below them is left out: a rider it presses is pinched and kept on both.
+# The palm below them, over the load, is left out: a rider it presses is pinched and kept
+# on both (beside the load: palm_strikes).
 WRIST_ZONES = (  # (height above the TCP from which, radius about the tool axis), m
     (0.087, 0.045),
     (0.132, 0.165),
@@ -136,6 +137,37 @@ def finger_strikes(
                                    X.translation()[:2], R_b, h[:2]):
                 struck.append(name)
                 break
+    return struck
+
+
+# The arm's palm (models/ur10/ur10.urdf): a 15 x 4 cm box along the finger axis whose
+# underside is 4.5 cm above the TCP. Coming down beside a stack taller than that, at the
+# grasp or at the release, it strikes the stack's top.
+PALM_HALF = np.array([0.075, 0.02])  # m: half length (finger axis), half width
+PALM_ABOVE_TCP = 0.045  # m
+PALM_MARGIN = 0.005  # m
+
+
+def palm_strikes(
+    poses: dict[str, RigidTransform],
+    half_extents: dict[str, np.ndarray],
+    tcp: np.ndarray,
+    yaw: float,
+    skip=(),
+) -> list[str]:
+    """The boxes (but those in `skip`) that the arm's palm, coming straight down to the
+    TCP point `tcp` with the finger axis at `yaw`, would strike: those reaching above its
+    underside under its footprint."""
+    axis = np.array([np.cos(yaw), np.sin(yaw)])
+    R_p = np.array([axis, [-axis[1], axis[0]]])
+    struck = []
+    for name, X in poses.items():
+        h = np.asarray(half_extents[name], float)
+        if name in skip or _top(X, h) <= tcp[2] + PALM_ABOVE_TCP:
+            continue
+        if _rectangles_overlap(np.asarray(tcp[:2], float), R_p, PALM_HALF + PALM_MARGIN,
+                               X.translation()[:2], X.rotation().matrix()[:2, :2].T, h[:2]):
+            struck.append(name)
     return struck
 
 
