@@ -121,22 +121,31 @@ def finger_strikes(
     """The boxes (but `skip`, the one the fingers close on) that the arm's open fingers,
     coming straight down to the TCP point `tcp` with the finger axis at `yaw`, would land
     on or push: those reaching above the pads' lowest point under either pad."""
+    axis, R_f = _finger_frame(yaw)
+    pads = [np.asarray(tcp[:2], float) + side * FINGER_CENTRE * axis for side in (-1.0, 1.0)]
+    return _reaching(poses, half_extents, tcp[2] - FINGER_BELOW_TCP, pads, R_f,
+                     FINGER_HALF + FINGER_MARGIN, () if skip is None else (skip,))
+
+
+def _finger_frame(yaw: float) -> tuple[np.ndarray, np.ndarray]:
+    """The finger axis at `yaw` in world xy, and the finger frame's axes as rows."""
     axis = np.array([np.cos(yaw), np.sin(yaw)])
-    R_f = np.array([axis, [-axis[1], axis[0]]])  # rows: the finger frame's axes in world xy
+    return axis, np.array([axis, [-axis[1], axis[0]]])
+
+
+def _reaching(poses: dict[str, RigidTransform], half_extents: dict[str, np.ndarray],
+              floor: float, centres, R: np.ndarray, half: np.ndarray, skip) -> list[str]:
+    """The boxes (but those in `skip`) reaching above the height `floor` whose footprint
+    overlaps one of the rectangles at `centres` (axes the rows of R, half extents `half`)."""
     struck = []
     for name, X in poses.items():
-        if name == skip:
-            continue
         h = np.asarray(half_extents[name], float)
-        if _top(X, h) <= tcp[2] - FINGER_BELOW_TCP:
+        if name in skip or _top(X, h) <= floor:
             continue
         R_b = X.rotation().matrix()[:2, :2].T  # rows: the box's x, y axes in world xy
-        for side in (-1.0, 1.0):
-            centre = np.asarray(tcp[:2], float) + side * FINGER_CENTRE * axis
-            if _rectangles_overlap(centre, R_f, FINGER_HALF + FINGER_MARGIN,
-                                   X.translation()[:2], R_b, h[:2]):
-                struck.append(name)
-                break
+        if any(_rectangles_overlap(c, R, half, X.translation()[:2], R_b, h[:2])
+               for c in centres):
+            struck.append(name)
     return struck
 
 
@@ -148,27 +157,13 @@ PALM_ABOVE_TCP = 0.045  # m
 PALM_MARGIN = 0.005  # m
 
 
-def palm_strikes(
-    poses: dict[str, RigidTransform],
-    half_extents: dict[str, np.ndarray],
-    tcp: np.ndarray,
-    yaw: float,
-    skip=(),
-) -> list[str]:
+def palm_strikes(poses: dict[str, RigidTransform], half_extents: dict[str, np.ndarray],
+                 tcp: np.ndarray, yaw: float, skip=()) -> list[str]:
     """The boxes (but those in `skip`) that the arm's palm, coming straight down to the
     TCP point `tcp` with the finger axis at `yaw`, would strike: those reaching above its
     underside under its footprint."""
-    axis = np.array([np.cos(yaw), np.sin(yaw)])
-    R_p = np.array([axis, [-axis[1], axis[0]]])
-    struck = []
-    for name, X in poses.items():
-        h = np.asarray(half_extents[name], float)
-        if name in skip or _top(X, h) <= tcp[2] + PALM_ABOVE_TCP:
-            continue
-        if _rectangles_overlap(np.asarray(tcp[:2], float), R_p, PALM_HALF + PALM_MARGIN,
-                               X.translation()[:2], X.rotation().matrix()[:2, :2].T, h[:2]):
-            struck.append(name)
-    return struck
+    return _reaching(poses, half_extents, tcp[2] + PALM_ABOVE_TCP, [np.asarray(tcp[:2], float)],
+                     _finger_frame(yaw)[1], PALM_HALF + PALM_MARGIN, skip)
 
 
 def _rectangles_overlap(c1, R1, h1, c2, R2, h2) -> bool:
