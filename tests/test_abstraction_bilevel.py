@@ -18,7 +18,6 @@ from drake_symplan.actions import Action, release_shift
 from drake_symplan.agent.planning_modes import (
     BilevelMode,
     PlanningMode,
-    RecedingMode,
     SymbolicMode,
 )
 from drake_symplan.features import object_features
@@ -447,7 +446,7 @@ def test_a_subgoal_holds_the_boxes_the_rest_leaves_alone_to_their_goals():
 
 
 def test_a_step_that_missed_its_prediction_makes_its_move_dearer_in_later_plans():
-    planner = object.__new__(RecedingMode)  # the monitor's side alone
+    planner = object.__new__(BilevelMode)  # the monitor's side alone (the default mode)
     planner.penalties = Counter()
     step = Step(STACK["center"], ("a", "c"))
     predicted = Stacking().predict(START, [step.action])[0]

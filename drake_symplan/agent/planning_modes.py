@@ -166,11 +166,19 @@ class _ContinuousModelMode(PlanningMode):
         self.penalties: Counter = Counter()
 
     def observed(self, step: PlanStep, predicted: Boxes | None, seen: Observation) -> None:
-        """A move of the continuous search whose boxes were seen off their predicted
-        positions costs more in the solve's later searches (Refiner.missed): the arm
-        does not try the same pick/place again while another way is left."""
-        if isinstance(step, Reposition) and step.kind == "move" and predicted is not None \
-                and off_prediction(predicted, seen):
+        """What the arm missed costs more for the rest of the solve, so it does not try
+        the same thing again while another way is left: a move of the continuous search
+        whose boxes were seen off their predicted positions, in later searches
+        (Refiner.missed); a skeleton's step whose outcome was not the predicted one (its
+        positions, else its operator's symbols), its move with the same riders in later
+        skeletons (bilevel.PENALTY)."""
+        from drake_symplan.abstraction.bilevel import PENALTY
+
+        if isinstance(step, Step):
+            if off_prediction(predicted, seen) if predicted is not None \
+                    else self.abs.mismatches(seen.reading, step):
+                self.penalties[tuple(step.args)] += PENALTY
+        elif step.kind == "move" and predicted is not None and off_prediction(predicted, seen):
             self.refiner.missed[step.action] += 1
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
@@ -209,11 +217,7 @@ class BilevelMode(_ContinuousModelMode):
 
 
 class RecedingMode(_ContinuousModelMode):
-    """Bilevel over a receding horizon. A move (source onto target, with the riders its
-    operator names) whose outcome was not the predicted one costs more (bilevel.PENALTY)
-    in the solve's later skeletons: the robot does not try again what its own hands just
-    failed at while another way is left (a carry that dropped its rider, a stack that
-    fell)."""
+    """Bilevel over a receding horizon."""
 
     name = "receding"
     help = ("bilevel over a receding horizon: a long skeleton's first step refined to its "
@@ -223,19 +227,6 @@ class RecedingMode(_ContinuousModelMode):
     # Not better than bilevel on the reproducible sets (docs/planning.md); its row would add
     # a fifth to the reproduction's time.
     reproduced = False
-
-    def observed(self, step: PlanStep, predicted: Boxes | None, seen: Observation) -> None:
-        """A step whose outcome was not the predicted one (its positions, else its
-        operator's symbols) makes its move, with the same riders, dearer."""
-        from drake_symplan.abstraction.bilevel import PENALTY
-
-        if not isinstance(step, Step):
-            super().observed(step, predicted, seen)
-            return
-        if off_prediction(predicted, seen) if predicted is not None \
-                else self.abs.mismatches(seen.reading, step):
-            self.penalties[tuple(step.args)] += PENALTY
-
 
 class ContinuousMode(_ContinuousModelMode):
     name = "continuous"
