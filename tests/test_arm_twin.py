@@ -46,3 +46,24 @@ def test_the_hand_knocks_a_tall_tower_where_the_arms_wrist_would(hand):
     assert result.lift is not before  # the lifted scene was perceived from the twin's
     # the block left, the tower did not stay on it: nothing stands 17.5 cm high any more
     assert max(o.position[2] for o in result.after.objects) < 0.15
+
+
+def test_a_block_released_beside_a_tower_knocks_it_on_the_hand_as_the_palm_does(hand):
+    # A block (held across its short side: it cannot be turned as a cube is) released on
+    # a block 9.6 cm along x from a tower of four: the arm's palm comes down on the
+    # tower's top; the hand, which has no palm, ran it on the twin.
+    from drake_symplan.world.scenes import ObjectSpec, Scene
+
+    tower = [ObjectSpec(f"t{i}", "cube", [0.618, -0.235, 0.025 + 0.05 * i], 0.0)
+             for i in range(4)]
+    hand.reset(Scene(tower + [ObjectSpec("b", "long", [0.714, -0.235, 0.025], 0.0),
+                              ObjectSpec("l", "long", [0.85, 0.2, 0.025], 0.0)]))
+    before = hand.perceive()
+    top = [0.618, -0.235, 0.175]
+    assert _perceived_near(before, top)[0] < 0.01
+    runs = hand.twin.actions
+    result = hand.execute(Action(_perceived_near(before, [0.85, 0.2, 0.025])[1], "center",
+                                 _perceived_near(before, [0.714, -0.235, 0.025])[1], "center"),
+                          before)
+    assert result.status == "ok" and hand.twin.actions == runs + 1
+    assert _perceived_near(result.after, top)[0] > 0.03  # the tower's top is gone from there
