@@ -196,24 +196,25 @@ class PickPlaceMotions:
              q_start: np.ndarray = HOME_Q, lift_hold: bool = True) -> Motion:
         """The motion for `action` from the believed `objects`; `lift_hold`: the arm holds
         still LIFT_HOLD after the lift, for a camera to see the lifted scene."""
-        g, carry = arm_geometry(action, objects)
-        plain, _ = arm_geometry(action, objects, turn=False)
         # The fingers are symmetric under a half turn: the same grasp and release with
         # the wrist turned by pi. Near a box's folded yaw (a long block at +-90 deg, a
         # cube at +-45) a few degrees of belief pick the turn the joint box cannot reach.
         # A cube's quarter turn clear of its neighbours (action_geometry) that the arm
         # cannot reach either way is done unturned.
-        tries = [g, dc.replace(g, yaw_grasp=g.yaw_grasp + np.pi,
-                               yaw_release=g.yaw_release + np.pi)]
-        if (plain.yaw_grasp, plain.yaw_release) != (g.yaw_grasp, g.yaw_release):
-            tries += [plain, dc.replace(plain, yaw_grasp=plain.yaw_grasp + np.pi,
-                                        yaw_release=plain.yaw_release + np.pi)]
+        g, carry = arm_geometry(action, objects)
         first = None
-        for geometry in tries:
-            try:
-                return self._motion(geometry, carry, q_start, lift_hold)
-            except InfeasibleAction as e:
-                first = first or e
+        for turned in (True, False):
+            if not turned:
+                plain, _ = arm_geometry(action, objects, turn=False)
+                if (plain.yaw_grasp, plain.yaw_release) == (g.yaw_grasp, g.yaw_release):
+                    break
+                g = plain
+            for geometry in (g, dc.replace(g, yaw_grasp=g.yaw_grasp + np.pi,
+                                           yaw_release=g.yaw_release + np.pi)):
+                try:
+                    return self._motion(geometry, carry, q_start, lift_hold)
+                except InfeasibleAction as e:
+                    first = first or e
         raise first
 
     def _motion(self, g: ActionGeometry, carry: str, q_start: np.ndarray,
