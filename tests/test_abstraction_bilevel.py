@@ -448,16 +448,44 @@ def test_a_subgoal_holds_the_boxes_the_rest_leaves_alone_to_their_goals():
 def test_a_step_that_missed_its_prediction_makes_its_move_dearer_in_later_plans():
     planner = object.__new__(BilevelMode)  # the monitor's side alone (the default mode)
     planner.penalties = Counter()
+    planner.refiner = Refiner(list(STACK.values()), Stacking())
     step = Step(STACK["center"], ("a", "c"))
     predicted = Stacking().predict(START, [step.action])[0]
-    planner.observed(step, predicted, observe(Seen(predicted)))  # as predicted
-    assert not planner.penalties
-    planner.observed(step, predicted, observe(Seen(START)))  # a never left
-    assert planner.penalties == {("a", "c"): PENALTY}
+    before = observe(Seen(START))
+    planner.observed(step, predicted, before, observe(Seen(predicted)))  # as predicted
+    assert not planner.penalties and not planner.refiner.missed
+    short = boxes(a=(0.65, 0.05, 0.025), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    planner.observed(step, predicted, before, observe(Seen(short)))  # a fell short of c
+    assert planner.penalties == {("a", "c"): PENALTY} and not planner.refiner.missed
     # The penalties reach every skeleton the symbolic planner is asked for.
     asked = Penalized()
     solve(asked, TOWER, horizon=1, penalties=dict(planner.penalties))
     assert asked.asked[0] == {("a", "c"): PENALTY}
+
+
+class SymbolsHold(Skeletons):
+    """An abstraction whose symbols always come true (mismatches finds none)."""
+
+    def mismatches(self, reading, step):
+        return set()
+
+
+def test_a_step_after_which_nothing_moved_is_missed_though_its_symbols_hold():
+    planner = object.__new__(BilevelMode)  # the monitor's side alone
+    planner.abs, planner.penalties = SymbolsHold(), Counter()
+    planner.refiner = Refiner(list(STACK.values()), Stacking())
+    step = Step(STACK["center"], ("a", "c"))  # run on its symbols: no positions predicted
+    before = observe(Seen(START))
+    moved = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    planner.observed(step, None, before, observe(Seen(moved)))
+    assert not planner.penalties and not planner.refiner.missed
+    nudged = boxes(a=(0.51, 0.2, 0.025), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
+    planner.observed(step, None, before, observe(Seen(nudged)))  # a grasp caught nothing
+    assert planner.penalties == {("a", "c"): PENALTY}
+    assert planner.refiner.missed == {step.action: 1}
+    move = Reposition(Action("a", "center", "b", "center"), "move")
+    planner.observed(move, None, before, observe(Seen(nudged)))
+    assert planner.refiner.missed == {step.action: 1, move.action: 1}
 
 
 def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
@@ -465,9 +493,10 @@ def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
     planner.refiner = Refiner(list(STACK.values()), Stacking(), defer=None)
     move = Reposition(Action("a", "center", "b", "center"), "move")
     predicted = Stacking().predict(START, [move.action])[0]
-    planner.observed(move, predicted, observe(Seen(predicted)))  # as predicted
+    before = observe(Seen(START))
+    planner.observed(move, predicted, before, observe(Seen(predicted)))  # as predicted
     assert not planner.refiner.missed
-    planner.observed(move, predicted, observe(Seen(START)))  # a never left
+    planner.observed(move, predicted, before, observe(Seen(START)))  # a never left
     assert planner.refiner.missed == {move.action: 1}
     # a on b, which stands beside c: onto b or onto c's right end, one step each
     side = boxes(a=(0.5, 0.2, 0.025), b=(0.7, 0.075, 0.025), c=(0.7, 0.0, 0.025))

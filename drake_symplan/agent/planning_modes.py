@@ -50,9 +50,19 @@ if TYPE_CHECKING:
 # m: a box perceived this far from its predicted position (beyond the prediction's spread)
 # departs the plan
 DEVIATION = 0.03
+# m: after a step that moved no box farther than this (perceived), the arm achieved nothing:
+# the same action on the same scene would do the same, so it counts as missed
+STILL = 0.015
 # Steps of a longer skeleton the receding mode refines before it looks and plans again: the
 # learned model predicts one action to 1.5 cm (mean, held out) and five to 9 cm (README).
 HORIZON = 1
+
+
+def nothing_moved(before: Observation, seen: Observation) -> bool:
+    """Was every box seen within STILL of where it was seen before the step?"""
+    then = before.boxes.where()
+    return all(np.linalg.norm(p - then[n]) <= STILL
+               for n, p in seen.boxes.where().items() if n in then)
 
 
 def off_prediction(predicted: Boxes, seen: Observation) -> bool:
@@ -124,9 +134,10 @@ class PlanningMode:
             return not reaches(rest, believed, goal_atoms)
         return bool(self.abs.mismatches(seen.reading, step))
 
-    def observed(self, step: PlanStep, predicted: Boxes | None, seen: Observation) -> None:
-        """Told what was seen after each step the monitor checks (what a mode learns
-        within a solve; none by default)."""
+    def observed(self, step: PlanStep, predicted: Boxes | None, before: Observation,
+                 seen: Observation) -> None:
+        """Told what was seen `before` and after each step the monitor checks (what a
+        mode learns within a solve; none by default)."""
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
         """At the plan's end: every box seen within the tolerance of its goal (also after
@@ -165,20 +176,27 @@ class _ContinuousModelMode(PlanningMode):
         # costs added to the skeletons' moves, by their leading arguments (`observed`)
         self.penalties: Counter = Counter()
 
-    def observed(self, step: PlanStep, predicted: Boxes | None, seen: Observation) -> None:
+    def observed(self, step: PlanStep, predicted: Boxes | None, before: Observation,
+                 seen: Observation) -> None:
         """What the arm missed costs more for the rest of the solve, so it does not try
         the same thing again while another way is left: a move of the continuous search
         whose boxes were seen off their predicted positions, in later searches
         (Refiner.missed); a skeleton's step whose outcome was not the predicted one (its
         positions, else its operator's symbols), its move with the same riders in later
-        skeletons (bilevel.PENALTY)."""
+        skeletons (bilevel.PENALTY). A step after which no box moved (a grasp that
+        caught nothing) is missed whatever was predicted, in both: a skeleton run on its
+        symbols alone predicts no positions, and its symbols can hold without a move."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
+        still = nothing_moved(before, seen)
         if isinstance(step, Step):
-            if off_prediction(predicted, seen) if predicted is not None \
-                    else self.abs.mismatches(seen.reading, step):
+            if still or (off_prediction(predicted, seen) if predicted is not None
+                         else self.abs.mismatches(seen.reading, step)):
                 self.penalties[tuple(step.args)] += PENALTY
-        elif step.kind == "move" and predicted is not None and off_prediction(predicted, seen):
+            if still:
+                self.refiner.missed[step.action] += 1
+        elif step.kind == "move" and (still or predicted is not None
+                                      and off_prediction(predicted, seen)):
             self.refiner.missed[step.action] += 1
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:

@@ -354,8 +354,9 @@ class _Run:
         """Reads the symbols now; if the scene departs from the step's prediction
         (planning_modes.PlanningMode.departs), replans."""
         with self.clock("symbols"):
+            before = self.now
             self._perceived(self.scene)
-            self.planner.observed(step, predicted, self.now)
+            self.planner.observed(step, predicted, before, self.now)
             wrong = self.planner.departs(step, predicted, self.now, self.rest,
                                          self.believed, self.goal_atoms, self.goal)
         if wrong and self.result.replans < self.config.max_replans:
