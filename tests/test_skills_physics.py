@@ -141,3 +141,38 @@ def test_a_cube_released_beside_a_tower_leaves_the_tower_standing(station, plann
     for i in range(4):
         moved = np.subtract(out.objects[f"t{i}"].end, out.objects[f"t{i}"].start)
         assert np.linalg.norm(moved) < 0.005, f"t{i}"
+
+
+# A cube on a cube, with a free cube and a free block to set down beside it.
+STACK_OF_TWO = [("t0", "cube", (0.6, 0.0, 0.025)), ("t1", "cube", (0.6, 0.0, 0.075))]
+
+
+def test_a_box_released_beside_a_raised_target_is_set_down_not_dropped():
+    beliefs = {n: ObjectState(n, t, np.array(p, float))
+               for n, t, p in [*STACK_OF_TWO, ("c", "cube", (0.5, 0.3, 0.025))]}
+    beside = action_geometry(Action("c", "center", "t1", "right"), beliefs)
+    assert beside.release == pytest.approx([0.6, 0.075, 0.029])  # 4 mm above the table
+    on_top = action_geometry(Action("c", "center", "t1", "center"), beliefs)
+    assert on_top.release == pytest.approx([0.6, 0.0, 0.129])  # 4 mm above t1, as before
+    missed = action_geometry(Action("c", "right", "t1", "right"), beliefs)  # holds nothing
+    assert missed.release[2] == pytest.approx(0.129)
+    # a three-cube tower 8 cm along x from the release: the palm (along x, or turned along
+    # y over the stack of two) would strike it low down, so the box goes only as low as
+    # the palm clears that tower's top
+    tower = {f"u{i}": ObjectState(f"u{i}", "cube", np.array([0.68, 0.075, 0.025 + 0.05 * i]))
+             for i in range(3)}
+    crowded = action_geometry(Action("c", "center", "t1", "right"), {**beliefs, **tower})
+    assert 0.029 < crowded.release[2] < 0.129
+    assert gripper_strikes({**beliefs, **tower}, crowded.release, crowded.yaw_release,
+                           {"c"}) == []
+
+
+def test_a_block_released_beside_a_stack_lands_flat_and_leaves_it_standing(station, planner):
+    # dropped from the stack's top (before), the block landed leaning on the stack
+    out = run(station, planner, [*STACK_OF_TWO, ("c", "long", (0.5, 0.3, 0.025))],
+              Action("c", "left", "t1", "right"))
+    assert out.status == "ok"
+    assert np.array(out.objects["c"].end) == pytest.approx([0.6, 0.15, 0.025], abs=0.005)
+    for name in ("t0", "t1"):
+        moved = np.subtract(out.objects[name].end, out.objects[name].start)
+        assert np.linalg.norm(moved) < 0.005, name

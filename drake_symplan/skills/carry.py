@@ -122,6 +122,24 @@ def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarra
     return top, [n for n, t in tops.items() if t >= top - REST_TOL]
 
 
+def holds(src: ObjectState, grasp: np.ndarray) -> bool:
+    """Do the fingers, closing at the TCP point `grasp`, hold the source (by the beliefs:
+    the point within its footprint, give or take GRASP_SLACK)?"""
+    half = np.array(HALF_EXTENTS[src.type])
+    return bool(np.all(np.abs(_local(src, grasp)) <= half[:2] + GRASP_SLACK[:2]))
+
+
+def landing_height(objects: dict[str, ObjectState], source: str, grasp: np.ndarray,
+                   release: np.ndarray, yaw_turn: float, skip: set[str]) -> float:
+    """The TCP height at which the source, held at `grasp` and released at `release`
+    (xy; the gripper turned by `yaw_turn` between them), rests RELEASE_GAP above the
+    highest believed top (not in `skip`) under where it lands, the table's where none."""
+    src = objects[source]
+    landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
+    under, _ = _supports(objects, skip, landing, src.yaw + yaw_turn, HALF_EXTENTS[src.type])
+    return under + HALF_EXTENTS[src.type][2] + RELEASE_GAP + (grasp[2] - src.position[2])
+
+
 def _onto_support(support: ObjectState, com: np.ndarray) -> np.ndarray:
     """The xy shift that brings a load's centre of mass `com` (world xy), where it lies
     beyond the top of the one box it is released on or within STABLE_MARGIN of its edge,
@@ -143,9 +161,8 @@ def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.nd
     pick (that holds the stack; only a release beside the target is lowered)."""
     src = objects[action.source]
     load = [objects[n] for n in riders(action.source, objects)]
-    local = _local(src, grasp)
     half = np.array(HALF_EXTENTS[src.type])
-    if np.any(np.abs(local) > half[:2] + GRASP_SLACK[:2]):  # the grasp catches nothing
+    if not holds(src, grasp):  # the grasp catches nothing
         top = max(o.position[2] + HALF_EXTENTS[o.type][2] for o in load)
         lifted = grasp.copy()
         lifted[2] = max(grasp[2], top + PALM_MARGIN + PAD_BELOW_TCP)

@@ -25,6 +25,8 @@ from drake_symplan.skills.carry import (
     CAREFUL_OPEN_SECONDS,
     CAREFUL_TCP_ACCELERATION,
     careful_points,
+    holds,
+    landing_height,
     riders,
 )
 from drake_symplan.skills.ik import ArmIK
@@ -37,6 +39,7 @@ APPROACH_HEIGHT = 0.12  # m above grasp/release points
 MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
+LOWER_STEP = 0.005  # m: the heights tried, from the landing up, for a release beside the target
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
 ARM_SETTLE_MAX = 0.5  # s of settling at most once home (the boxes were let go before)
@@ -157,11 +160,33 @@ def action_geometry(action: Action, objects: dict[str, ObjectState],
     carry_z = max(MIN_CARRY_HEIGHT, max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
     yaw_g = grasp_yaw(src)
     yaw_r = yaw_g + fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"])  # any quarter turn lines up faces
-    if turn and src.type == "cube" and not riders(action.source, objects):
+    plain = not riders(action.source, objects)
+    if turn and src.type == "cube" and plain:
         skip = {action.source}
         yaw_g, yaw_r = (_clear_turn(yaw_g, grasp, objects, skip, yaw_g),
                         _clear_turn(yaw_r, release, objects, skip, yaw_g))
+    if plain:
+        release[2] = _lowered(objects, action.source, grasp, release, yaw_g, yaw_r)
     return ActionGeometry(grasp, release, float(carry_z), yaw_g, yaw_r)
+
+
+def _lowered(objects: dict[str, ObjectState], source: str, grasp: np.ndarray,
+             release: np.ndarray, yaw_g: float, yaw_r: float) -> float:
+    """The release height of a box with nothing on it: where the target's top is not under
+    it (a release beside a raised target), lowered toward what is (the table), as far as
+    the palm and the open fingers strike nothing they would not strike at the target's
+    top; a careful robot sets a box down rather than drop it."""
+    if not holds(objects[source], grasp):  # nothing to set down
+        return float(release[2])
+    skip = {source}
+    low = landing_height(objects, source, grasp, release, yaw_r - yaw_g, skip)
+    if low >= release[2] - LOWER_STEP:
+        return float(release[2])
+    nominal = set(gripper_strikes(objects, release, yaw_r, skip))
+    for z in np.arange(low, release[2], LOWER_STEP):
+        if set(gripper_strikes(objects, np.array([*release[:2], z]), yaw_r, skip)) <= nominal:
+            return float(z)
+    return float(release[2])
 
 
 def arm_geometry(action: Action, objects: dict[str, ObjectState],
