@@ -238,6 +238,32 @@ def test_the_monitor_replans_on_a_forced_mismatch():
     assert [str(s) for s in capped.executed] == [STEP, "(pick_center_place_center_n1_op0 c a)"]
 
 
+class RefusingBackend(FakeBackend):
+    """Refuses its first `refusals` actions (an unreachable pose), as the arm does."""
+
+    def __init__(self, refusals: int):
+        super().__init__()
+        self.refusals, self.tried = refusals, 0
+
+    def execute(self, action, before, lift=True):
+        self.tried += 1
+        if self.refusals > 0:
+            self.refusals -= 1
+            return Execution("infeasible", message="unreachable pose: grasp")
+        return super().execute(action, before, lift)
+
+
+def test_a_step_the_arm_refuses_is_planned_again_from_the_same_scene():
+    result, backend = solve(OracleAbstraction(), backend=RefusingBackend(1))
+    assert result.status == "success", result.to_json()
+    assert (backend.tried, result.replans, [str(s) for s in result.executed]) == (2, 1, [STEP])
+    # with no replan left, or open loop, the refusal ends the solve as before
+    result, _ = solve(OracleAbstraction(), backend=RefusingBackend(3), max_replans=2)
+    assert (result.status, result.replans, len(result.executed)) == ("infeasible", 2, 1)
+    result, _ = solve(OracleAbstraction(), monitor=False, backend=RefusingBackend(1))
+    assert (result.status, result.replans) == ("infeasible", 0)
+
+
 def test_a_failed_replan_lets_the_current_plan_run_on():
     tower = Scene([cube("a", 0.8, 0.0, 0.075), cube("b", 0.8, 0.0), cube("c", 0.8, 0.0, 0.125)])
     result, _ = solve(OracleAbstraction(force_mismatches=1, fail_replans=True), goal=tower)

@@ -176,3 +176,17 @@ def test_a_block_released_beside_a_stack_lands_flat_and_leaves_it_standing(stati
     for name in ("t0", "t1"):
         moved = np.subtract(out.objects[name].end, out.objects[name].start)
         assert np.linalg.norm(moved) < 0.005, name
+
+
+def test_the_arm_refuses_a_grasp_under_a_stack_of_two_and_pinches_one():
+    from drake_symplan.skills.pick_place import InfeasibleAction, arm_geometry
+
+    tower = {f"t{i}": ObjectState(f"t{i}", "cube", np.array([0.6, 0.0, 0.025 + 0.05 * i]))
+             for i in range(3)}
+    free = {"c": ObjectState("c", "cube", np.array([0.5, 0.3, 0.025]))}
+    with pytest.raises(InfeasibleAction, match="under a stack of 2 \\(t1, t2\\)"):
+        arm_geometry(Action("t0", "center", "c", "center"), {**tower, **free})
+    two = {n: o for n, o in tower.items() if n != "t2"}  # the carry suite's two-cube tower
+    assert arm_geometry(Action("t0", "center", "c", "center"), {**two, **free})[1] == "pinched"
+    # the middle cube of the three is pinched with the top one
+    assert arm_geometry(Action("t1", "center", "c", "center"), {**tower, **free})[1] == "pinched"

@@ -139,6 +139,10 @@ class PlanningMode:
         """Told what was seen `before` and after each step the monitor checks (what a
         mode learns within a solve; none by default)."""
 
+    def refused(self, step: PlanStep) -> None:
+        """Told that the arm could not run `step` from the scene seen now (an unreachable
+        pose, a grasp under a stack): the agent plans again from the same scene."""
+
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
         """At the plan's end: every box seen within the tolerance of its goal (also after
         a skeleton that ran on its symbols, whose atoms can hold with a box far off)."""
@@ -198,6 +202,14 @@ class _ContinuousModelMode(PlanningMode):
         elif step.kind == "move" and (still or predicted is not None
                                       and off_prediction(predicted, seen)):
             self.refiner.missed[step.action] += 1
+
+    def refused(self, step: PlanStep) -> None:
+        """A step the arm could not run is missed, as one after which nothing moved."""
+        from drake_symplan.abstraction.bilevel import PENALTY
+
+        if isinstance(step, Step):
+            self.penalties[tuple(step.args)] += PENALTY
+        self.refiner.missed[step.action] += 1
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         from drake_symplan.abstraction.bilevel import Search, plan_bilevel

@@ -315,9 +315,10 @@ class _Run:
         load = riders(step.action.source, self.scene.object_states())
         with self.clock("execute"):
             execution = self.agent.robot.execute(step.action, self.scene, lift=False)
-        self.result.executed.append(step)
         if execution.status == "infeasible":
-            raise _Stop(self.scene, "infeasible", f"{step}: {execution.message}")
+            self._refused(step, f"{step}: {execution.message}")
+            return
+        self.result.executed.append(step)
         if execution.status != "ok":
             raise _Stop(self.scene, "error", f"{step}: {execution.message}")
         seen = self._follow(self.scene, execution.after, step.action)
@@ -367,6 +368,19 @@ class _Run:
                     raise
                 # The planner found nothing from here (timeout, no plan): the current
                 # plan runs on, as it would open loop.
+
+    def _refused(self, step: PlanStep, message: str) -> None:
+        """The arm could not run `step` (nothing moved): monitored, with a replan left, the
+        planner is told and plans again from the same scene; else the solve stops."""
+        if not (self.config.monitor and self.result.replans < self.config.max_replans):
+            self.result.executed.append(step)
+            raise _Stop(self.scene, "infeasible", message)
+        self.planner.refused(step)
+        try:
+            self.todo = self._replan()
+        except _Stop:
+            self.result.executed.append(step)
+            raise _Stop(self.scene, "infeasible", message) from None
 
     def _goal_seen(self) -> bool:
         """The plan has run out. The monitor checks that the goal's atoms are seen too (a

@@ -80,6 +80,14 @@ def riders(source: str, objects: dict[str, ObjectState]) -> list[str]:
     return found
 
 
+def stacked_over(source: str, objects: dict[str, ObjectState], point: np.ndarray) -> list[str]:
+    """The riders of `source` whose footprint holds the xy `point` (the grasp's): the
+    stack the palm comes down on there."""
+    return [n for n in riders(source, objects)
+            if np.all(np.abs(_local(objects[n], point)) <= np.array(HALF_EXTENTS[
+                objects[n].type][:2]) + FOOTPRINT_TOL)]
+
+
 def _half_along_y(o: ObjectState, yaw: float) -> float:
     """Half extent of `o`'s footprint along the axis at `yaw` turned by 90 degrees (local y)."""
     hx, hy, _ = HALF_EXTENTS[o.type]

@@ -4,6 +4,8 @@ pick(source, grasp) then place on target at a release offset: approach, descend,
 lift, carry, descend, open, retreat, home. Offsets run along world y. The gripper TCP goes
 to source + grasp offset, then to target + release offset, so the two offsets compose
 (a long block grasped off-centre and released at the centre of a cube hangs over it).
+Where the target's top is not under the released box (beside a raised target), the box
+is set down on what is, as far as the gripper clears its neighbours (`_lowered`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from drake_symplan.skills.carry import (
     holds,
     landing_height,
     riders,
+    stacked_over,
 )
 from drake_symplan.skills.ik import ArmIK
 from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
@@ -39,6 +42,10 @@ APPROACH_HEIGHT = 0.12  # m above grasp/release points
 MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
+# Boxes stacked over the grasp point that the fingers pinch with the source: the palm
+# presses one box down onto it (the carry suite: tools/bench_carry.py); over two or more
+# it stops on the stack's top, the fingers close on the boxes above and the stack falls.
+MAX_PINCHED = 1
 LOWER_STEP = 0.005  # m: the heights tried, from the landing up, for a release beside the target
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
@@ -200,6 +207,10 @@ def arm_geometry(action: Action, objects: dict[str, ObjectState],
         return g, "plain"
     grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
                                              g.yaw_release - g.yaw_grasp)
+    over = stacked_over(action.source, objects, grasp)
+    if not careful and len(over) > MAX_PINCHED:
+        raise InfeasibleAction(f"the grasp on {action.source} is under a stack of "
+                               f"{len(over)} ({', '.join(over)})")
     return dc.replace(g, grasp=grasp, release=release), "careful" if careful else "pinched"
 
 
