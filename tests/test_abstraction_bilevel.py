@@ -506,3 +506,12 @@ def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
     planner.refiner.missed.clear()
     found, _ = planner.refiner.search(side, goal, Budget.of_cpu(10))
     assert [s.action for s in found.steps] == [move.action]
+    # Refused by the arm (a grasp under a stack): a at that grasp is in no plan from this
+    # scene; once a step has run, the scene is another and it may be again.
+    planner.penalties = Counter()
+    planner.refused(move)
+    assert planner.refiner.refused == {("a", "center")}
+    found, _ = planner.refiner.search(side, goal, Budget.of_cpu(10))
+    assert found is None  # every move of a grasps its centre
+    planner.observed(move, predicted, before, observe(Seen(predicted)))
+    assert not planner.refiner.refused

@@ -196,7 +196,13 @@ class Refiner:
         # the moves the arm was seen to miss in this solve, with how often: no longer
         # asked for, and a move's cost in the search is 1 + MISSED per miss
         self.missed: Counter = Counter()
+        # the (source, grasp) pairs the arm refused in the scene as it stands (a grasp
+        # under a stack, an unreachable pose): no step of the plans from it takes them
+        self.refused: set[tuple[str, str]] = set()
         self.predictions = 0
+
+    def _allowed(self, action: Action) -> bool:
+        return (action.source, action.grasp) not in self.refused
 
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
         self.predictions += len(steps)
@@ -226,6 +232,8 @@ class Refiner:
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
+                if not self._allowed(step.action):
+                    continue
                 found = extend(i + 1, after, step.apply(state),
                                Refined(done.steps + [step], done.predicted + [after]))
                 if found is not None or budget.spent():
@@ -313,8 +321,8 @@ class Refiner:
                 if key in seen or len(done.steps) >= depth:
                     continue
                 seen.add(key)
-                options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
-                                boxes.riding)
+                options = [m for m in moves(boxes.names, set(boxes.names), boxes.half_length,
+                                            "move", boxes.riding) if self._allowed(m.action)]
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,
                                                   self.missed)

@@ -192,6 +192,7 @@ class _ContinuousModelMode(PlanningMode):
         symbols alone predicts no positions, and its symbols can hold without a move."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
+        self.refiner.refused.clear()  # a step ran: the scene is another
         still = nothing_moved(before, seen)
         if isinstance(step, Step):
             if still or (off_prediction(predicted, seen) if predicted is not None
@@ -204,12 +205,14 @@ class _ContinuousModelMode(PlanningMode):
             self.refiner.missed[step.action] += 1
 
     def refused(self, step: PlanStep) -> None:
-        """A step the arm could not run is missed, as one after which nothing moved."""
+        """A step the arm could not run is missed, as one after which nothing moved, and
+        its source at that grasp is taken by no plan until a step has run."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
         if isinstance(step, Step):
             self.penalties[tuple(step.args)] += PENALTY
         self.refiner.missed[step.action] += 1
+        self.refiner.refused.add((step.action.source, step.action.grasp))
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         from drake_symplan.abstraction.bilevel import Search, plan_bilevel
