@@ -60,12 +60,16 @@ def _local(src: ObjectState, p: np.ndarray) -> np.ndarray:
     return _turn(np.asarray(p[:2], float) - src.position[:2], -src.yaw)
 
 
+def _covers(o: ObjectState, p: np.ndarray, tol) -> bool:
+    """Does `o`'s footprint, grown by `tol` (m, or per local axis), hold the xy point `p`?"""
+    return bool(np.all(np.abs(_local(o, p)) <= np.array(HALF_EXTENTS[o.type][:2]) + tol))
+
+
 def _rests_on(top: ObjectState, below: ObjectState) -> bool:
     hb, ht = HALF_EXTENTS[below.type], HALF_EXTENTS[top.type]
     if abs((top.position[2] - ht[2]) - (below.position[2] + hb[2])) > REST_TOL:
         return False
-    local = _local(below, top.position)
-    return bool(np.all(np.abs(local) <= np.array(hb[:2]) + FOOTPRINT_TOL))
+    return _covers(below, top.position, FOOTPRINT_TOL)
 
 
 def riders(source: str, objects: dict[str, ObjectState]) -> list[str]:
@@ -83,9 +87,7 @@ def riders(source: str, objects: dict[str, ObjectState]) -> list[str]:
 def stacked_over(source: str, objects: dict[str, ObjectState], point: np.ndarray) -> list[str]:
     """The riders of `source` whose footprint holds the xy `point` (the grasp's): the
     stack the palm comes down on there."""
-    return [n for n in riders(source, objects)
-            if np.all(np.abs(_local(objects[n], point)) <= np.array(HALF_EXTENTS[
-                objects[n].type][:2]) + FOOTPRINT_TOL)]
+    return [n for n in riders(source, objects) if _covers(objects[n], point, FOOTPRINT_TOL)]
 
 
 def _half_along_y(o: ObjectState, yaw: float) -> float:
@@ -121,9 +123,8 @@ def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarra
     for name, o in objects.items():
         if name in skip:
             continue
-        h = HALF_EXTENTS[o.type]
-        if any(np.all(np.abs(_local(o, p)) <= np.array(h[:2])) for p in points):
-            tops[name] = float(o.position[2] + h[2])
+        if any(_covers(o, p, 0.0) for p in points):
+            tops[name] = float(o.position[2] + HALF_EXTENTS[o.type][2])
     if not tops:
         return 0.0, []
     top = max(tops.values())
@@ -133,8 +134,7 @@ def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarra
 def holds(src: ObjectState, grasp: np.ndarray) -> bool:
     """Do the fingers, closing at the TCP point `grasp`, hold the source (by the beliefs:
     the point within its footprint, give or take GRASP_SLACK)?"""
-    half = np.array(HALF_EXTENTS[src.type])
-    return bool(np.all(np.abs(_local(src, grasp)) <= half[:2] + GRASP_SLACK[:2]))
+    return _covers(src, grasp, GRASP_SLACK[:2])
 
 
 def landing_height(objects: dict[str, ObjectState], source: str, grasp: np.ndarray,
