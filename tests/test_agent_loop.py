@@ -16,7 +16,7 @@ from drake_symplan.abstraction.abstraction import Abstraction, Plan, Reading
 from drake_symplan.actions import Action
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import SolveConfig
-from drake_symplan.agent.solve import Agent, SolveResult
+from drake_symplan.agent.solve import REFUSALS_PER_OBJECT, Agent, SolveResult
 from drake_symplan.datasets import ObjectState
 from drake_symplan.features import object_features
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
@@ -256,12 +256,16 @@ class RefusingBackend(FakeBackend):
 def test_a_step_the_arm_refuses_is_planned_again_from_the_same_scene():
     result, backend = solve(OracleAbstraction(), backend=RefusingBackend(1))
     assert result.status == "success", result.to_json()
-    assert (backend.tried, result.replans, [str(s) for s in result.executed]) == (2, 1, [STEP])
-    # with no replan left, or open loop, the refusal ends the solve as before
-    result, _ = solve(OracleAbstraction(), backend=RefusingBackend(3), max_replans=2)
-    assert (result.status, result.replans, len(result.executed)) == ("infeasible", 2, 1)
+    # a refusal costs a plan, not one of the replans on a departure
+    assert (backend.tried, result.refusals, result.replans) == (2, 1, 0)
+    assert [str(s) for s in result.executed] == [STEP] and result.to_json()["refusals"] == 1
+    # with no refusal left (two per object), or open loop, the refusal ends the solve
+    limit = REFUSALS_PER_OBJECT * len(START.names)
+    result, backend = solve(OracleAbstraction(), backend=RefusingBackend(100), max_replans=0)
+    assert (result.status, result.refusals, backend.tried) == ("infeasible", limit, limit + 1)
+    assert len(result.executed) == 1
     result, _ = solve(OracleAbstraction(), monitor=False, backend=RefusingBackend(1))
-    assert (result.status, result.replans) == ("infeasible", 0)
+    assert (result.status, result.refusals) == ("infeasible", 0)
 
 
 def test_a_failed_replan_lets_the_current_plan_run_on():

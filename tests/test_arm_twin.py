@@ -33,7 +33,7 @@ def _perceived_near(scene, xyz):
                for o in scene.objects)
 
 
-def test_the_hand_knocks_a_tall_tower_where_the_arms_wrist_would(hand):
+def test_the_hand_refuses_what_the_arms_wrist_would_knock_as_the_arm_does(hand):
     hand.reset(suite_scene("tall_p9"))  # three cubes stacked 9 cm along the base block
     before = hand.perceive()
     top = [0.70, -0.15 + 0.09, 0.175]  # the top cube's centre
@@ -42,10 +42,11 @@ def test_the_hand_knocks_a_tall_tower_where_the_arms_wrist_would(hand):
     result = hand.execute(Action(_perceived_near(before, [0.70, -0.15, 0.025])[1], "center",
                                  _perceived_near(before, [0.70, 0.18, 0.025])[1], "center"),
                           before)
-    assert result.status == "ok" and hand.twin.actions == runs + 1
-    assert result.lift is not before  # the lifted scene was perceived from the twin's
-    # the block left, the tower did not stay on it: nothing stands 17.5 cm high any more
-    assert max(o.position[2] for o in result.after.objects) < 0.15
+    # the twin planned it and its wrist would sweep the tower's top: refused, not run
+    # (before the arm checked its links, it ran and the tower fell)
+    assert result.status == "infeasible", result.message
+    assert "wrist" in result.message and hand.twin.actions == runs
+    assert _perceived_near(hand.perceive(), top)[0] < 0.01  # the tower stands
 
 
 def test_a_block_released_beside_a_tower_knocks_it_on_the_hand_as_the_palm_does(hand):

@@ -61,6 +61,9 @@ PLANNER_STATUS = {"unsolvable": "no_plan", "timeout": "timeout", "error": "error
 # Plans made at subgoals per object at most: a tower of n boxes from a scattered start is
 # n - 1 of them; unstacking first about doubles that.
 SUBGOALS_PER_OBJECT = 3
+# Steps the arm refused (nothing moved) planned around per object at most, apart from the
+# replans on a departure: a refusal costs a plan, not a step.
+REFUSALS_PER_OBJECT = 2
 
 
 @dc.dataclass
@@ -93,6 +96,8 @@ class SolveResult:
     # Plans made again where a plan ended at its subgoal (receding planning), apart from
     # the replans on a departure
     subgoals: int = 0
+    # Steps the arm refused that were planned around (apart from the replans)
+    refusals: int = 0
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -113,6 +118,8 @@ class SolveResult:
             out["dropped_riders"] = self.dropped_riders
         if self.subgoals:
             out["subgoals"] = self.subgoals
+        if self.refusals:
+            out["refusals"] = self.refusals
         if not self.success:
             out["failure_cause"] = self.failure_cause
             out["message"] = self.message
@@ -370,14 +377,17 @@ class _Run:
                 # plan runs on, as it would open loop.
 
     def _refused(self, step: PlanStep, message: str) -> None:
-        """The arm could not run `step` (nothing moved): monitored, with a replan left, the
-        planner is told and plans again from the same scene; else the solve stops."""
-        if not (self.config.monitor and self.result.replans < self.config.max_replans):
+        """The arm could not run `step` (nothing moved): monitored, with refusals left
+        (REFUSALS_PER_OBJECT), the planner is told and plans again from the same scene;
+        else the solve stops."""
+        limit = REFUSALS_PER_OBJECT * len(self.scene.names)
+        if not (self.config.monitor and self.result.refusals < limit):
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message)
         self.planner.refused(step)
+        self.result.refusals += 1
         try:
-            self.todo = self._replan()
+            self.todo = self._steps(self._search())
         except _Stop:
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message) from None

@@ -78,6 +78,7 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
         "level": result.level,
         "executed": len(result.executed), "replans": result.replans,
         "dropped_riders": result.dropped_riders, "subgoals": result.subgoals,
+        "refusals": result.refusals,
         "seconds": {k: round(v, 4) for k, v in result.seconds.items()},
         "error_cm": {n: o["error_cm"] for n, o in result.objects.items()},
     }

@@ -21,7 +21,8 @@ down to the grasp, its open fingers landing on a neighbour there, its palm strik
 stack beside the grasp or the release: world/hand.py's `wrist_strikes`, `finger_strikes`,
 `palm_strikes`; its fingers pinching the source and a rider together),
 the hand would keep what the arm knocks over or drops; given an `ArmTwin`, the action is
-run by the arm instead (skills/arm_twin.py).
+run by the arm instead (skills/arm_twin.py), which refuses it where its planned wrist or
+forearm would strike a believed box (skills/arm_clearance.py).
 """
 
 from __future__ import annotations
@@ -99,7 +100,8 @@ def plan_hand(
         load = {held, *riders(held, station.object_states())}
         struck += [n for n in palm_strikes(poses, half, arm.grasp, arm.yaw_grasp, load)
                    + palm_strikes(poses, half, arm.release, arm.yaw_release, load)
-                   if n not in struck]
+                   + wrist_strikes(poses, half, arm.release)
+                   if n not in struck and n not in load]
     pinched = carry == "pinched"
     if held is None:
         return HandMotion(None, struck=struck, pinched=pinched)

@@ -22,6 +22,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_symplan.actions import Action, grasp_point, release_point
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.datasets import ObjectState
+from drake_symplan.skills.arm_clearance import link_strikes
 from drake_symplan.skills.carry import (
     CAREFUL_FINGER,
     CAREFUL_OPEN_SECONDS,
@@ -248,13 +249,23 @@ class PickPlaceMotions:
             for geometry in (g, dc.replace(g, yaw_grasp=g.yaw_grasp + np.pi,
                                            yaw_release=g.yaw_release + np.pi)):
                 try:
-                    return self._motion(geometry, carry, q_start, lift_hold)
+                    return self._motion(geometry, carry, q_start, lift_hold, action, objects)
                 except InfeasibleAction as e:
                     first = first or e
         raise first
 
+    def _clear(self, waypoints: list[np.ndarray], objects: dict[str, ObjectState],
+               skip: set[str], where: str) -> None:
+        """InfeasibleAction where the wrist or forearm would strike a believed box (but
+        `skip`) between the `waypoints` (skills/arm_clearance.py)."""
+        struck = link_strikes(self.ik, waypoints, objects, skip)
+        if struck is not None:
+            link, name = struck
+            raise InfeasibleAction(f"the arm's {link.removesuffix('_link')} would strike "
+                                   f"{name} on the way {where}")
+
     def _motion(self, g: ActionGeometry, carry: str, q_start: np.ndarray,
-                lift_hold: bool) -> Motion:
+                lift_hold: bool, action: Action, objects: dict[str, ObjectState]) -> Motion:
         careful = carry == "careful"
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
@@ -273,6 +284,11 @@ class PickPlaceMotions:
                                      g.yaw_grasp + (g.yaw_release - g.yaw_grasp) * f, carry[-1]))
         at_release = self._solve("release", g.release, g.yaw_release, carry[-1])
         retreat = self._solve("retreat", g.release + up, g.yaw_release, at_release)
+        self._clear([q_start, pre, mid, at_grasp], objects, {action.source},
+                    f"down to {action.source}")
+        self._clear([carry[-1], at_release, retreat, HOME_Q], objects,
+                    {action.source, *riders(action.source, objects)},
+                    f"down to {action.target}")
         opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(grip)
         lifting = [
             Phase(opened(q_start, pre)),

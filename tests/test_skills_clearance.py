@@ -1,0 +1,42 @@
+"""The arm's wrist and forearm against the believed boxes: the motion is refused where a
+link would strike one on the way down (skills/arm_clearance.py)."""
+
+import numpy as np
+import pytest
+
+from drake_symplan.actions import Action
+from drake_symplan.datasets import ObjectState
+from drake_symplan.skills.arm_clearance import cylinder_points
+from drake_symplan.skills.pick_place import InfeasibleAction
+
+
+def test_cylinder_points_lie_on_the_cylinder_and_reach_its_ends():
+    points = cylinder_points((0.0, 0.0, 0.1), (0.0, 0.0, 1.0), 0.06, 0.045)
+    across = np.linalg.norm(points[:2], axis=0)
+    assert across.max() == pytest.approx(0.045)
+    assert points[2].min() == pytest.approx(0.04) and points[2].max() == pytest.approx(0.16)
+    side = np.isclose(across, 0.045)
+    inside_ends = ~side
+    assert np.all(np.isclose(points[2, inside_ends], 0.04) | np.isclose(points[2, inside_ends], 0.16))
+
+
+TOWER = [(0.7109, 0.0379, 0.025, 0.0), (0.7111, 0.0374, 0.0749, -0.0839),
+         (0.7114, 0.0357, 0.1249, -0.1318), (0.7118, 0.0336, 0.1748, -0.2458)]
+
+
+def _tower_beside_a_block(levels: int) -> dict[str, ObjectState]:
+    """A traced eight-box scene: a tower of cubes 9 cm from the near end of a long block."""
+    tower = {f"t{i}": ObjectState(f"t{i}", "cube", np.array([x, y, z]), yaw)
+             for i, (x, y, z, yaw) in enumerate(TOWER[:levels])}
+    return {**tower, "b": ObjectState("b", "long", np.array([0.776, 0.253, 0.025])),
+            "c": ObjectState("c", "cube", np.array([0.835, -0.36, 0.025]))}
+
+
+def test_the_wrist_that_would_sweep_a_tower_of_four_refuses_the_grasp(planner):
+    # In physics this grasp knocked the top three cubes off (the wrist_1 link comes down
+    # 16 cm beside the tool, level with the tower's top).
+    with pytest.raises(InfeasibleAction, match="wrist_1 would strike t3 on the way down to b"):
+        planner.plan(Action("b", "left", "c", "center"), _tower_beside_a_block(4))
+    # the block's other end, and the same end beside a tower of two, are clear
+    planner.plan(Action("b", "right", "c", "center"), _tower_beside_a_block(4))
+    planner.plan(Action("b", "left", "c", "center"), _tower_beside_a_block(2))
