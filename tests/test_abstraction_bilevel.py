@@ -506,12 +506,15 @@ def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
     planner.refiner.missed.clear()
     found, _ = planner.refiner.search(side, goal, Budget.of_cpu(10))
     assert [s.action for s in found.steps] == [move.action]
-    # Refused by the arm (a grasp under a stack): a at that grasp is in no plan from this
-    # scene; once a step has run, the scene is another and it may be again.
+    # Refused by the arm (a grasp under a stack): a at that grasp is in no plan while
+    # nothing near a moves; once a box within NEAR of it has, it may be again.
     planner.penalties = Counter()
     planner.refused(move)
     assert planner.refiner.refused == {("a", "center")}
     found, _ = planner.refiner.search(side, goal, Budget.of_cpu(10))
     assert found is None  # every move of a grasps its centre
+    far = boxes(a=(0.5, 0.2, 0.025), b=(0.5, -0.3, 0.025), c=(0.7, 0.0, 0.025))  # b, 40 cm
+    planner.observed(move, predicted, before, observe(Seen(far)))
+    assert planner.refiner.refused == {("a", "center")}
     planner.observed(move, predicted, before, observe(Seen(predicted)))
     assert not planner.refiner.refused

@@ -58,11 +58,21 @@ STILL = 0.015
 HORIZON = 1
 
 
+# A refused grasp stands until a box this near its source (xy, m) moves: the arm's wrist
+# reaches 21 cm beside the tool axis, and a grasp is up to 10 cm from the source's centre.
+NEAR = 0.30
+
+
+def moved(before: Observation, seen: Observation) -> set[str]:
+    """The boxes seen more than STILL from where they were seen before the step."""
+    then = before.boxes.where()
+    return {n for n, p in seen.boxes.where().items()
+            if n in then and np.linalg.norm(p - then[n]) > STILL}
+
+
 def nothing_moved(before: Observation, seen: Observation) -> bool:
     """Was every box seen within STILL of where it was seen before the step?"""
-    then = before.boxes.where()
-    return all(np.linalg.norm(p - then[n]) <= STILL
-               for n, p in seen.boxes.where().items() if n in then)
+    return not moved(before, seen)
 
 
 def off_prediction(predicted: Boxes, seen: Observation) -> bool:
@@ -192,8 +202,12 @@ class _ContinuousModelMode(PlanningMode):
         symbols alone predicts no positions, and its symbols can hold without a move."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
-        self.refiner.refused.clear()  # a step ran: the scene is another
-        still = nothing_moved(before, seen)
+        then, shifted = before.boxes.where(), moved(before, seen)
+        self.refiner.refused = {  # what was refused stands while nothing near it moved
+            (source, grasp) for source, grasp in self.refiner.refused
+            if source in then and all(np.linalg.norm((then[m] - then[source])[:2]) > NEAR
+                                      for m in shifted)}
+        still = not shifted
         if isinstance(step, Step):
             if still or (off_prediction(predicted, seen) if predicted is not None
                          else self.abs.mismatches(seen.reading, step)):
@@ -206,7 +220,8 @@ class _ContinuousModelMode(PlanningMode):
 
     def refused(self, step: PlanStep) -> None:
         """A step the arm could not run is missed, as one after which nothing moved, and
-        its source at that grasp is taken by no plan until a step has run."""
+        its source at that grasp is taken by no plan until a box within NEAR of it has
+        moved."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
         if isinstance(step, Step):
