@@ -20,7 +20,8 @@ def record(run, monitor, n, k, status, cause=None, plan_length=1, replans=0, pla
 RECORDS = [
     record("rel", True, 2, 1, "success", plan_length=1, replans=1),
     record("rel", True, 2, 2, "success", plan_length=3),
-    record("rel", True, 3, 1, "failure", "execution", plan_length=1, plan_s=0.4),
+    {**record("rel", True, 3, 1, "failure", "execution", plan_length=1, plan_s=0.4),
+     "refusals": 2},
     record("rel", True, 3, 2, "no_plan", "no_plan", plan_length=0, plan_s=0.1),
     record("rel", False, 2, 1, "failure", "perception"),
 ]
@@ -40,6 +41,7 @@ def test_summary_by_object_count_and_k():
     assert mon["plan_length_minus_k"] == pytest.approx(1 / 3, abs=1e-3)
     assert mon["plan_seconds"]["median"] == pytest.approx(0.2)
     assert mon["replans_mean"] == 0.25
+    assert mon["refusals"] == 2 and open_loop["refusals"] == 0  # old records: none
     assert open_loop["success"] == 0.0 and open_loop["failure_causes"] == {"perception": 1}
 
 

@@ -320,6 +320,8 @@ def summarise(records: list[dict]) -> dict:
             "plan_length_minus_k": round(float(np.mean(
                 [r["plan_length"] - r["k"] for r in solved])), 3) if solved else None,
             "replans_mean": round(float(np.mean([r["replans"] for r in rs])), 3),
+            # Steps the arm refused, planned round (records made before the count have none)
+            "refusals": sum(r.get("refusals", 0) for r in rs),
             "failure_causes": dict(Counter(r["failure_cause"] for r in rs
                                            if r["status"] != "success").most_common()),
             # Failures after which a rider the arm carried was seen off its base (records
