@@ -53,13 +53,12 @@ def cylinder_points(centre, axis, half: float, radius: float) -> np.ndarray:
     return np.asarray(centre, float)[:, None] + np.hstack(points)
 
 
-def _link_points(ik: ArmIK) -> dict[str, tuple[object, np.ndarray]]:
-    """Per link: its body and the points on its cylinder (link frame, 3 x N)."""
-    return {link: (ik.plant.GetBodyByName(link), cylinder_points(*cylinder))
-            for link, cylinder in LINK_CYLINDERS.items()}
+# Per link, the points on its cylinder (link frame, 3 x N): fixed, so made once.
+LINK_POINTS = {link: cylinder_points(*cylinder) for link, cylinder in LINK_CYLINDERS.items()}
 
 
 def _box_frames(objects: dict[str, ObjectState], skip: Iterable[str]):
+    """(name, world-to-box transform, half extents) of the believed boxes but `skip`."""
     skip = set(skip)
     return [(n, RigidTransform(RotationMatrix.MakeZRotation(o.yaw), o.position).inverse(),
              np.array(HALF_EXTENTS[o.type])) for n, o in objects.items() if n not in skip]
@@ -72,7 +71,7 @@ def link_strikes(ik: ArmIK, waypoints: list[np.ndarray], objects: dict[str, Obje
     boxes = _box_frames(objects, skip)
     if not boxes:
         return None
-    links = _link_points(ik)
+    links = {link: (ik.plant.GetBodyByName(link), points) for link, points in LINK_POINTS.items()}
     for q_a, q_b in zip(waypoints[:-1], waypoints[1:], strict=True):
         for f in np.linspace(0.0, 1.0, SEGMENT_SAMPLES):
             q = q_a + (q_b - q_a) * f
