@@ -86,6 +86,11 @@ def along_y(metres: float, dims: int = 3) -> np.ndarray:
     v[1] = metres
     return v
 
+# How far (m, box frame) outside a box the grasp point may lie and still catch it: the
+# open fingers are 8.5 cm apart across x (1.75 cm of slack on a 5 cm box), the finger pads
+# are 2 cm wide along y and reach 1.5 cm below the grasp point.
+GRASP_SLACK = np.array([0.0175, 0.008, 0.015])
+
 
 def grasp_point(centre: np.ndarray, action: Action) -> np.ndarray:
     """Where the fingers close on the source whose centre (xy or xyz) is `centre`."""

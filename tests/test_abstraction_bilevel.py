@@ -192,6 +192,30 @@ def test_a_box_is_placed_only_on_a_box_with_nothing_on_it_and_not_on_what_it_car
     assert targets("a", None) == {"b", "c", "d"}
 
 
+def test_no_plan_lifts_a_cube_from_under_a_stack_of_two_as_the_arm_would_not():
+    # the skill's rule (skills/carry.unpinchable) on the believed boxes: the arm refuses
+    # such a grasp, so the planner plans none; one rider, or a block with its end clear, it
+    # lifts
+    tower = boxes(a=(0.5, 0.0, 0.025), b=(0.5, 0.0, 0.075), c=(0.5, 0.0, 0.125),
+                  d=(0.7, 0.2, 0.025))
+    refiner = Refiner(list(STACK.values()), Stacking())
+    assert refiner.barred(tower) == {("a", "center")}
+    goal = {**tower.where(), "a": np.array([0.7, 0.2, 0.075])}  # the base onto d
+    found, _ = refiner.search(tower, goal, Budget.of_cpu(10))
+    sources = [s.action.source for s in found.steps]
+    assert sources[0] == "c" and "a" in sources  # the top off first (else: a alone)
+    two = boxes(a=(0.5, 0.0, 0.025), b=(0.5, 0.0, 0.075), d=(0.7, 0.2, 0.025))
+    assert refiner.barred(two) == set()
+    block = np.stack([object_features("long", np.array([0.5, 0.0, 0.025]), np.eye(3)),
+                      *[object_features("cube", np.array([0.5, 0.1, z]), np.eye(3))
+                        for z in (0.075, 0.125)]])
+    on_its_end = Boxes(("l", "b", "c"), block, frozenset()).moved(block[:, :3])
+    assert on_its_end.riding("l") == {"b", "c"}
+    assert refiner.barred(on_its_end) == set()  # the fingers close at the clear end
+    refiner.refused.add(("d", "center"))
+    assert refiner.barred(tower) == {("a", "center"), ("d", "center")}
+
+
 class Slow(Skeletons):
     """Skeletons whose planner takes 0.1 s a call."""
 

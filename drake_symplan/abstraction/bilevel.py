@@ -201,8 +201,24 @@ class Refiner:
         self.refused: set[tuple[str, str]] = set()
         self.predictions = 0
 
-    def _allowed(self, action: Action) -> bool:
-        return (action.source, action.grasp) not in self.refused
+    def barred(self, boxes: Boxes) -> set[tuple[str, str]]:
+        """The (source, grasp) pairs no step from `boxes` takes: those the arm refused in
+        this solve, and the grasps it would refuse there by its own rule, under a stack it
+        will not lift (skills/carry.unpinchable, on the boxes as believed or predicted)."""
+        # The skill's own rule on beliefs (Drake-free); imported here, as the agent's
+        # modes import the learned models: importing the planner loads no skill.
+        from drake_symplan.skills.carry import unpinchable
+
+        out = set(self.refused)
+        objects = None
+        for source in boxes.names:
+            if not boxes.riding(source):
+                continue
+            objects = objects or boxes.object_states()
+            target = next(n for n in boxes.names if n != source)
+            out |= {(source, g) for g in OFFSETS
+                    if unpinchable(Action(source, g, target, "center"), objects)}
+        return out
 
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
         self.predictions += len(steps)
@@ -229,10 +245,11 @@ class Refiner:
                 return done if self.subgoal_reached(boxes, goal, before, placed, later) \
                     else None
             scorer = PredictedScorer(self._predict, boxes, goal)
+            barred = self.barred(boxes)
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
-                if not self._allowed(step.action):
+                if (step.action.source, step.action.grasp) in barred:
                     continue
                 found = extend(i + 1, after, step.apply(state),
                                Refined(done.steps + [step], done.predicted + [after]))
@@ -268,7 +285,10 @@ class Refiner:
         if depth >= self.extra_moves or budget.spent():
             return None
         off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
-        options = moves(boxes.names, off, boxes.half_length, "reposition", boxes.riding)
+        barred = self.barred(boxes)
+        options = [m for m in moves(boxes.names, off, boxes.half_length, "reposition",
+                                    boxes.riding)
+                   if (m.action.source, m.action.grasp) not in barred]
         scored = sorted(zip(self._predict(boxes, options), options, strict=True),
                         key=lambda pair: max(goal_errors(pair[0], goal).values()))
         for after, option in scored[:3]:
@@ -321,8 +341,10 @@ class Refiner:
                 if key in seen or len(done.steps) >= depth:
                     continue
                 seen.add(key)
+                barred = self.barred(boxes)
                 options = [m for m in moves(boxes.names, set(boxes.names), boxes.half_length,
-                                            "move", boxes.riding) if self._allowed(m.action)]
+                                            "move", boxes.riding)
+                           if (m.action.source, m.action.grasp) not in barred]
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,
                                                   self.missed)

@@ -23,6 +23,7 @@ import torch
 
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
 from drake_symplan.boxes import HALF_EXTENTS, contact_graph, goal_distances
+from drake_symplan.datasets import ObjectState
 from drake_symplan.features import box_of
 
 
@@ -78,6 +79,14 @@ class Boxes:
     def kinds(self) -> dict[str, str]:
         """Each box's type by name."""
         return {n: box_of(row)[0] for n, row in zip(self.names, self.features, strict=True)}
+
+    def object_states(self) -> dict[str, ObjectState]:
+        """The boxes as the skills read them (type, centre, yaw; upright)."""
+        out = {}
+        for name, row in zip(self.names, self.features, strict=True):
+            kind, centre, R = box_of(row)
+            out[name] = ObjectState(name, kind, centre, float(np.arctan2(R[1, 0], R[0, 0])))
+        return out
 
     def half_length(self, name: str) -> float:
         """Half the length of box `name` along its long axis (local y), by its type."""

@@ -30,10 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.actions import Action
+from drake_symplan.actions import GRASP_SLACK, Action, grasp_point
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
-from drake_symplan.world.hand import GRASP_SLACK
 
 PAD_BELOW_TCP = 0.015  # m: the finger pads reach this far below the TCP
 PALM_HALF_WIDTH = 0.02  # m: the palm's half extent across the finger axis
@@ -47,6 +46,10 @@ STABLE_MARGIN = 0.015  # m: a released load's centre of mass lies this far insid
 CAREFUL_FINGER = -0.02  # finger command while carrying a load: 37.5 N on a 5 cm box
 CAREFUL_OPEN_SECONDS = 0.05  # s: the fingers let go of a load at once (a tipping load)
 CAREFUL_TCP_ACCELERATION = 2.0  # m/s^2 at the TCP while lifting, carrying, lowering a load
+# Boxes stacked over the grasp point that the fingers pinch with the source: the palm
+# presses one box down onto it (the carry suite: tools/bench_carry.py); over two or more
+# it stops on the stack's top, the fingers close on the boxes above and the stack falls.
+MAX_PINCHED = 1
 
 
 def _turn(v: np.ndarray, yaw: float) -> np.ndarray:
@@ -135,6 +138,20 @@ def holds(src: ObjectState, grasp: np.ndarray) -> bool:
     """Do the fingers, closing at the TCP point `grasp`, hold the source (by the beliefs:
     the point within its footprint, give or take GRASP_SLACK)?"""
     return _covers(src, grasp, GRASP_SLACK[:2])
+
+
+def unpinchable(action: Action, objects: dict[str, ObjectState]) -> list[str]:
+    """The stack over `action`'s grasp that the arm will not lift (the boxes, bottom up), or
+    [] where it will: more than MAX_PINCHED boxes over the grasp point of a source with no
+    point clear of its load (careful_points), which the fingers would pinch together with
+    it. The arm refuses such a grasp (skills/pick_place.py) and the planner plans none."""
+    src = objects[action.source]
+    load = [objects[n] for n in riders(action.source, objects)]
+    grasp = grasp_point(src.position, action)
+    if not load or not holds(src, grasp) or _clear_point(src, load, 0.0) is not None:
+        return []
+    over = stacked_over(action.source, objects, grasp)
+    return over if len(over) > MAX_PINCHED else []
 
 
 def landing_height(objects: dict[str, ObjectState], source: str, grasp: np.ndarray,

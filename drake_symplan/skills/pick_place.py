@@ -31,7 +31,7 @@ from drake_symplan.skills.carry import (
     holds,
     landing_height,
     riders,
-    stacked_over,
+    unpinchable,
 )
 from drake_symplan.skills.ik import ArmIK
 from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
@@ -43,10 +43,6 @@ APPROACH_HEIGHT = 0.12  # m above grasp/release points
 MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
-# Boxes stacked over the grasp point that the fingers pinch with the source: the palm
-# presses one box down onto it (the carry suite: tools/bench_carry.py); over two or more
-# it stops on the stack's top, the fingers close on the boxes above and the stack falls.
-MAX_PINCHED = 1
 LOWER_STEP = 0.005  # m: the heights tried, from the landing up, for a release beside the target
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
@@ -206,12 +202,12 @@ def arm_geometry(action: Action, objects: dict[str, ObjectState],
     g = action_geometry(action, objects, turn)
     if not riders(action.source, objects):
         return g, "plain"
-    grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
-                                             g.yaw_release - g.yaw_grasp)
-    over = stacked_over(action.source, objects, grasp)
-    if not careful and len(over) > MAX_PINCHED:
+    over = unpinchable(action, objects)
+    if over:
         raise InfeasibleAction(f"the grasp on {action.source} is under a stack of "
                                f"{len(over)} ({', '.join(over)})")
+    grasp, release, careful = careful_points(action, objects, g.grasp, g.release,
+                                             g.yaw_release - g.yaw_grasp)
     return dc.replace(g, grasp=grasp, release=release), "careful" if careful else "pinched"
 
 

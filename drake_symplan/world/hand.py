@@ -26,16 +26,14 @@ from pydrake.multibody.tree import (
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_symplan.actions import GRASP_SLACK
+
 # Joint order of the hand's configuration q = [x, y, z, yaw, pitch, roll].
 HAND_JOINTS = ("hand_x", "hand_y", "hand_z", "hand_yaw", "hand_pitch", "hand_roll")
 HAND_KP = [2e4, 2e4, 2e4, 300.0, 300.0, 300.0]
 HAND_KD = [600.0, 600.0, 600.0, 3.0, 3.0, 3.0]
 HAND_PARK = np.array([0.0, 0.0, 1.5, 0.0, 0.0, 0.0])
 
-# How far (m, box frame) outside a box the grasp point may lie and still catch it: the
-# open fingers are 8.5 cm apart across x (1.75 cm of slack on a 5 cm box), the finger pads
-# are 2 cm wide along y and reach 1.5 cm below the grasp point.
-GRASP_SLACK = np.array([0.0175, 0.008, 0.015])
 
 
 def hand_q_of_pose(X: RigidTransform) -> np.ndarray:
