@@ -13,7 +13,7 @@ import torch
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.bilevel import PENALTY, Refiner, Search, moves, plan_bilevel
-from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+from drake_symplan.abstraction.continuous import Boxes, ContinuousModel, tips
 from drake_symplan.actions import Action, release_shift
 from drake_symplan.agent.planning_modes import (
     BilevelMode,
@@ -214,6 +214,36 @@ def test_no_plan_lifts_a_cube_from_under_a_stack_of_two_as_the_arm_would_not():
     assert refiner.barred(on_its_end) == set()  # the fingers close at the clear end
     refiner.refused.add(("d", "center"))
     assert refiner.barred(tower) == {("a", "center"), ("d", "center")}
+
+
+def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_plan_goes_there():
+    def scene(**where):  # name -> (type, position)
+        features = np.stack([object_features(kind, np.array(p, float), np.eye(3))
+                             for kind, p in where.values()])
+        return Boxes(tuple(where), features, frozenset()).moved(features[:, :3])
+
+    c = ("cube", (0.5, 0.0, 0.025))
+    assert tips(scene(c=c, l=("long", (0.5, 0.075, 0.075))), "l")  # its end over c
+    assert tips(scene(c=c, t=("cube", (0.5, 0.035, 0.075))), "t")  # 1 cm past c's edge
+    assert not tips(scene(c=c, l=("long", (0.5, 0.02, 0.075))), "l")  # c under its centre
+    assert not tips(scene(c=c, d=("cube", (0.5, 0.2, 0.025)), l=("long", (0.5, 0.1, 0.075))),
+                    "l")  # a bridge: its centre between its two supports
+    assert not tips(scene(c=c, l=("long", (0.5, 0.075, 0.025))), "l")  # on the table
+    # a block leaning with one end on c (tilted 20 degrees): held by the table too
+    leaning = object_features("long", np.array([0.5, 0.1, 0.05]),
+                              np.array([[1, 0, 0], [0, 0.94, -0.342], [0, 0.342, 0.94]]))
+    both = np.stack([object_features("cube", np.array(c[1]), np.eye(3)), leaning])
+    assert not tips(Boxes(("c", "l"), both, frozenset()).moved(both[:, :3]), "l")
+    # the hand-written model puts l's centre 7.5 cm off c's (a release at c's right): the
+    # search reaches that scene without the rule and not with it
+    start = scene(c=c, l=("long", (0.7, 0.2, 0.025)))
+    goal = {"c": np.array(c[1]), "l": np.array([0.5, 0.075, 0.075])}
+    refiner = Refiner(list(STACK.values()), Stacking())
+    found, _ = refiner.search(start, goal, Budget.of_cpu(10))
+    assert found is None
+    refiner.topples = lambda before, after: False
+    found, _ = refiner.search(start, goal, Budget.of_cpu(10))
+    assert [(s.action.source, s.action.target) for s in found.steps] == [("l", "c")]
 
 
 class Slow(Skeletons):

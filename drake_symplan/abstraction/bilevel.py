@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
-from drake_symplan.abstraction.continuous import Boxes, goal_errors, rollout
+from drake_symplan.abstraction.continuous import Boxes, goal_errors, rollout, tips
 from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, ranked
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
@@ -220,6 +220,13 @@ class Refiner:
                     if unpinchable(Action(source, g, target, "center"), objects)}
         return out
 
+    @staticmethod
+    def topples(before: Boxes, after: Boxes) -> bool:
+        """Is a box the step moved predicted to rest where it topples (continuous.tips)? No
+        plan goes through such a scene: the model predicts where such a box was released,
+        not where it falls."""
+        return any(tips(after, n) for n in moved(before, after))
+
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
         self.predictions += len(steps)
         return self.continuous.predict(boxes, [s.action for s in steps])
@@ -249,7 +256,8 @@ class Refiner:
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
-                if (step.action.source, step.action.grasp) in barred:
+                if (step.action.source, step.action.grasp) in barred \
+                        or self.topples(boxes, after):
                     continue
                 found = extend(i + 1, after, step.apply(state),
                                Refined(done.steps + [step], done.predicted + [after]))
@@ -289,7 +297,9 @@ class Refiner:
         options = [m for m in moves(boxes.names, off, boxes.half_length, "reposition",
                                     boxes.riding)
                    if (m.action.source, m.action.grasp) not in barred]
-        scored = sorted(zip(self._predict(boxes, options), options, strict=True),
+        scored = sorted(((after, option) for after, option in
+                         zip(self._predict(boxes, options), options, strict=True)
+                         if not self.topples(boxes, after)),
                         key=lambda pair: max(goal_errors(pair[0], goal).values()))
         for after, option in scored[:3]:
             found = self.finish(after, Refined(done.steps + [option],
@@ -355,6 +365,8 @@ class Refiner:
             else:
                 options = deferred
             for after, option in zip(self._predict(boxes, options), options, strict=True):
+                if self.topples(boxes, after):
+                    continue
                 distance = h(after)
                 cost = g + 1 + MISSED * self.missed[option.action]
                 heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,

@@ -205,6 +205,59 @@ def rest(positions: np.ndarray, features: np.ndarray, moved: list[int]) -> np.nd
     return out
 
 
+RAISED = 0.01  # m: a box whose bottom is this far above the table stands on something
+STACK_GAP = 0.02  # m: a box's top this near another's bottom holds it up
+HULL_TOL = 0.005  # m: a centre this far outside where a box is held still stands
+LEVEL = np.cos(np.radians(10))  # cos tilt: a box tilted more leans (on the table too)
+
+
+def _footprint(kind: str, spacing: float = 0.00625) -> np.ndarray:
+    """Points over a box's bottom face (local xy, m), `spacing` apart, its edges included."""
+    hx, hy = HALF_EXTENTS[kind][:2]
+    u = np.linspace(-hx, hx, int(round(2 * hx / spacing)) + 1)
+    v = np.linspace(-hy, hy, int(round(2 * hy / spacing)) + 1)
+    return np.array([(a, b) for a in u for b in v])
+
+
+_FOOTPRINTS = {kind: _footprint(kind) for kind in HALF_EXTENTS}
+
+
+# Directions in which a centre is compared with where a box is held: a hull of 32 sides
+_DIRECTIONS = np.stack([np.cos(np.arange(32) * np.pi / 16), np.sin(np.arange(32) * np.pi / 16)],
+                       axis=1)
+
+
+def tips(boxes: Boxes, name: str) -> bool:
+    """Does box `name`, as predicted, rest partly on boxes under it with its centre beyond
+    where they hold it (outside the convex hull of its footprint's points over their tops,
+    by more than HULL_TOL): a block released at its end over one cube, which topples? A box
+    on the table, one held across two supports (a bridge) or centred over one, and one held
+    up by nothing predicted (its height a regression's mean) are not judged."""
+    i = boxes.names.index(name)
+    kind, centre, R = box_of(boxes.features[i])
+    bottom = centre[2] - HALF_EXTENTS[kind][2]
+    if bottom < RAISED or boxes.features[i][3] < LEVEL:
+        return False
+    under = []
+    for j, row in enumerate(boxes.features):
+        kind_j, centre_j, R_j = box_of(row)
+        half_j = np.asarray(HALF_EXTENTS[kind_j][:2])
+        if j != i and abs(centre_j[2] + HALF_EXTENTS[kind_j][2] - bottom) <= STACK_GAP:
+            if np.all(np.abs((centre - centre_j)[:2] @ R_j[:2, :2]) <= half_j):
+                return False  # centred over a support
+            under.append((centre_j[:2], R_j[:2, :2], half_j))
+    if not under:
+        return False
+    points = centre[:2] + _FOOTPRINTS[kind] @ R[:2, :2].T
+    held = np.zeros(len(points), bool)
+    for centre_j, R_j, half_j in under:
+        held |= np.all(np.abs((points - centre_j) @ R_j) <= half_j, axis=1)
+    if not held.any():
+        return False
+    reach = (points[held] @ _DIRECTIONS.T).max(axis=0)
+    return bool(np.any(centre[:2] @ _DIRECTIONS.T > reach + HULL_TOL))
+
+
 def _covers(row: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
     """Is `point`'s xy over the top face of the box of features `row` standing at
     `centre`?"""
