@@ -190,6 +190,16 @@ def test_a_box_is_placed_only_on_a_box_with_nothing_on_it_and_not_on_what_it_car
     assert targets("a") == {"d"}  # not b or c, which ride on it
     assert targets("d") == {"c"}  # the tower's top, not a or b under it
     assert targets("a", None) == {"b", "c", "d"}
+    # a block on a cube whose end reaches over another cube beside it (its centre is not
+    # over that cube, so nothing rides on it): that cube is covered all the same
+    features = np.stack([object_features("cube", np.array([0.7, 0.0, 0.025]), np.eye(3)),
+                         object_features("long", np.array([0.7, 0.0, 0.075]), np.eye(3)),
+                         object_features("cube", np.array([0.7, 0.11, 0.025]), np.eye(3)),
+                         object_features("cube", np.array([0.5, 0.3, 0.025]), np.eye(3))])
+    over = Boxes(("a", "l", "e", "f"), features, frozenset()).moved(features[:, :3])
+    assert over.riding("e") == set() and over.covered() == {"a", "e"}
+    assert {m.action.target for m in moves(over.names, {"f"}, over.half_length, "move",
+                                           over.riding, over.covered())} == {"l"}
 
 
 def test_no_plan_lifts_a_cube_from_under_a_stack_of_two_as_the_arm_would_not():

@@ -153,8 +153,8 @@ def moved(before: Boxes, after: Boxes) -> set[str]:
     return {n for n, p in after.where().items() if np.linalg.norm(p - then[n]) > MOVED}
 
 
-def moves(names, sources, half_length, kind: str = "reposition", riding=None
-          ) -> list[Reposition]:
+def moves(names, sources, half_length, kind: str = "reposition", riding=None,
+          covered=frozenset()) -> list[Reposition]:
     """Every pick/place of a box in `sources` onto another of `names`, at a grasp point on
     the box (actions.grasp_on_box; `half_length(name)`: the box's half length along the
     offsets' axis, as the caller measures it), in the order of `names` and OFFSETS.
@@ -162,10 +162,11 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None
     on it, and never on what it carries. The arm releases a box at the height of the
     target's own top, so a box placed on one under a stack is driven into the stack (a
     tower knocked over, the box flung 40 cm); the model, which saw few such actions,
-    predicts the box on the stack's top."""
+    predicts the box on the stack's top. `covered`: boxes with another resting on them in
+    part (a block's end over a cube: Boxes.covered), barred as targets too."""
     out = []
     on = {n: riding(n) for n in names} if riding is not None else {}
-    covered = {n for n, above in on.items() if above}
+    covered = set(covered) | {n for n, above in on.items() if above}
     for src in names:
         if src not in sources:
             continue
@@ -252,12 +253,12 @@ class Refiner:
                 return done if self.subgoal_reached(boxes, goal, before, placed, later) \
                     else None
             scorer = PredictedScorer(self._predict, boxes, goal)
-            barred = self.barred(boxes)
+            barred, covered = self.barred(boxes), boxes.covered()
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
                 if (step.action.source, step.action.grasp) in barred \
-                        or self.topples(boxes, after):
+                        or step.action.target in covered or self.topples(boxes, after):
                     continue
                 found = extend(i + 1, after, step.apply(state),
                                Refined(done.steps + [step], done.predicted + [after]))
@@ -295,7 +296,7 @@ class Refiner:
         off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
         barred = self.barred(boxes)
         options = [m for m in moves(boxes.names, off, boxes.half_length, "reposition",
-                                    boxes.riding)
+                                    boxes.riding, boxes.covered())
                    if (m.action.source, m.action.grasp) not in barred]
         scored = sorted(((after, option) for after, option in
                          zip(self._predict(boxes, options), options, strict=True)
@@ -353,7 +354,7 @@ class Refiner:
                 seen.add(key)
                 barred = self.barred(boxes)
                 options = [m for m in moves(boxes.names, set(boxes.names), boxes.half_length,
-                                            "move", boxes.riding)
+                                            "move", boxes.riding, boxes.covered())
                            if (m.action.source, m.action.grasp) not in barred]
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,

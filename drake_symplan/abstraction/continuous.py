@@ -107,6 +107,10 @@ class Boxes:
                     frontier.append(other)
         return found
 
+    def covered(self) -> set[str]:
+        """The boxes with another resting on them, wholly or in part (`covered`)."""
+        return covered(self)
+
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves
         (actions.relevant_objects)."""
@@ -208,6 +212,7 @@ def rest(positions: np.ndarray, features: np.ndarray, moved: list[int]) -> np.nd
 RAISED = 0.01  # m: a box whose bottom is this far above the table stands on something
 STACK_GAP = 0.02  # m: a box's top this near another's bottom holds it up
 HULL_TOL = 0.005  # m: a centre this far outside where a box is held still stands
+COVER_INSET = 0.005  # m: a box over another's top this far inside its edges rests on it
 LEVEL = np.cos(np.radians(10))  # cos tilt: a box tilted more leans (on the table too)
 
 
@@ -232,30 +237,58 @@ def tips(boxes: Boxes, name: str) -> bool:
     where they hold it (outside the convex hull of its footprint's points over their tops,
     by more than HULL_TOL): a block released at its end over one cube, which topples? A box
     on the table, one held across two supports (a bridge) or centred over one, and one held
-    up by nothing predicted (its height a regression's mean) are not judged."""
+    up by nothing predicted (its height a regression's mean) are not judged, nor one that
+    leans (tilted beyond LEVEL: held by the table or a side too)."""
     i = boxes.names.index(name)
-    kind, centre, R = box_of(boxes.features[i])
-    bottom = centre[2] - HALF_EXTENTS[kind][2]
-    if bottom < RAISED or boxes.features[i][3] < LEVEL:
+    if boxes.features[i][3] < LEVEL:
         return False
-    under = []
-    for j, row in enumerate(boxes.features):
-        kind_j, centre_j, R_j = box_of(row)
-        half_j = np.asarray(HALF_EXTENTS[kind_j][:2])
-        if j != i and abs(centre_j[2] + HALF_EXTENTS[kind_j][2] - bottom) <= STACK_GAP:
-            if np.all(np.abs((centre - centre_j)[:2] @ R_j[:2, :2]) <= half_j):
-                return False  # centred over a support
-            under.append((centre_j[:2], R_j[:2, :2], half_j))
-    if not under:
-        return False
-    points = centre[:2] + _FOOTPRINTS[kind] @ R[:2, :2].T
+    centre = boxes.features[i][:3].astype(float)
+    under = _under(boxes, i)
+    if any(np.all(np.abs((centre[:2] - c) @ R) <= half) for _, c, R, half in under):
+        return False  # centred over a support
+    points = _footprint_points(boxes, i)
     held = np.zeros(len(points), bool)
-    for centre_j, R_j, half_j in under:
-        held |= np.all(np.abs((points - centre_j) @ R_j) <= half_j, axis=1)
+    for _, c, R, half in under:
+        held |= np.all(np.abs((points - c) @ R) <= half, axis=1)
     if not held.any():
         return False
     reach = (points[held] @ _DIRECTIONS.T).max(axis=0)
     return bool(np.any(centre[:2] @ _DIRECTIONS.T > reach + HULL_TOL))
+
+
+def covered(boxes: Boxes) -> set[str]:
+    """The boxes with another resting on their top, wholly or in part (a block's end over
+    a cube, more than COVER_INSET inside its edges): nothing is set down on them."""
+    out = set()
+    for i in range(len(boxes.names)):
+        under = _under(boxes, i)
+        if not under:
+            continue
+        points = _footprint_points(boxes, i)
+        out |= {boxes.names[j] for j, c, R, half in under
+                if np.any(np.all(np.abs((points - c) @ R) <= half - COVER_INSET, axis=1))}
+    return out
+
+
+def _under(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """The boxes whose top is within STACK_GAP of box i's bottom, i raised off the table:
+    (index, centre xy, yaw's 2x2 rotation, top's half extents) each."""
+    kind, centre, _ = box_of(boxes.features[i])
+    bottom = centre[2] - HALF_EXTENTS[kind][2]
+    if bottom < RAISED:
+        return []
+    out = []
+    for j, row in enumerate(boxes.features):
+        kind_j, centre_j, R_j = box_of(row)
+        if j != i and abs(centre_j[2] + HALF_EXTENTS[kind_j][2] - bottom) <= STACK_GAP:
+            out.append((j, centre_j[:2], R_j[:2, :2], np.asarray(HALF_EXTENTS[kind_j][:2])))
+    return out
+
+
+def _footprint_points(boxes: Boxes, i: int) -> np.ndarray:
+    """Points over box i's bottom face, world xy."""
+    kind, centre, R = box_of(boxes.features[i])
+    return centre[:2] + _FOOTPRINTS[kind] @ R[:2, :2].T
 
 
 def _covers(row: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
