@@ -256,6 +256,24 @@ def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_pl
     assert [(s.action.source, s.action.target) for s in found.steps] == [("l", "c")]
 
 
+def test_a_grasp_refused_for_a_box_in_the_way_is_planned_once_that_box_is_moved():
+    # the arm refused a at its centre: its wrist would strike d. In the plans' predicted
+    # scenes the refusal stands while d stays where it was seen, so d goes first
+    scene = boxes(a=(0.5, 0.2, 0.025), b=(0.7, 0.075, 0.025), d=(0.5, 0.3, 0.025),
+                  e=(0.8, -0.2, 0.025))
+    goal = {n: p for n, p in scene.where().items() if n != "d"}  # d may go anywhere
+    goal["a"] = np.array([0.7, 0.075, 0.075])
+    refiner = Refiner(list(STACK.values()), Stacking())
+    refiner.refuse(Action("a", "center", "b", "center"), {"d": scene.where()["d"]})
+    assert refiner.barred(scene) == {("a", "center")} and refiner.in_the_way(scene) == {"d"}
+    found, _ = refiner.search(scene, goal, Budget.of_cpu(10))
+    assert [s.action.source for s in found.steps] == ["d", "a"]
+    assert refiner.in_the_way(found.predicted[0]) == set()
+    refiner.blockers.clear()  # refused with no box known in the way: a stays
+    found, _ = refiner.search(scene, goal, Budget.of_cpu(10))
+    assert found is None
+
+
 class Slow(Skeletons):
     """Skeletons whose planner takes 0.1 s a call."""
 

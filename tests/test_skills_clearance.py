@@ -35,8 +35,10 @@ def _tower_beside_a_block(levels: int) -> dict[str, ObjectState]:
 def test_the_wrist_that_would_sweep_a_tower_of_four_refuses_the_grasp(planner):
     # In physics this grasp knocked the top three cubes off (the wrist_1 link comes down
     # 16 cm beside the tool, level with the tower's top).
-    with pytest.raises(InfeasibleAction, match="wrist_1 would strike t3 on the way down to b"):
+    with pytest.raises(InfeasibleAction, match="wrist_1 would strike t3 on the way down to b"
+                       ) as refused:
         planner.plan(Action("b", "left", "c", "center"), _tower_beside_a_block(4))
+    assert refused.value.obstacles == ("t3",)  # what the planner is told is in the way
     # the block's other end, and the same end beside a tower of two, are clear
     planner.plan(Action("b", "right", "c", "center"), _tower_beside_a_block(4))
     planner.plan(Action("b", "left", "c", "center"), _tower_beside_a_block(2))

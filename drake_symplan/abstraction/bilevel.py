@@ -126,12 +126,15 @@ class Refined:
 
 
 def _asked_first(options: list[Reposition], boxes: Boxes, order: GoalOrder,
-                 goal: dict[str, np.ndarray], limit: float, missed: Counter
+                 goal: dict[str, np.ndarray], limit: float, missed: Counter,
+                 in_the_way: set[str] = frozenset()
                  ) -> tuple[list[Reposition], list[Reposition]]:
     """`options` split into the moves the goal's order asks for next (GoalOrder.next_moves:
-    FD's preferred operators, in kind) and the rest, with every move in `missed`."""
+    FD's preferred operators, in kind; and any move of a box `in_the_way` of a refused
+    grasp) and the rest, with every move in `missed`."""
     asked = order.next_moves(boxes.where(), goal_errors(boxes, goal), limit,
                              {n for n in boxes.names if boxes.riding(n)})
+    asked.update({n: None for n in in_the_way})
     first, later = [], []
     for option in options:
         a = option.action
@@ -198,19 +201,43 @@ class Refiner:
         # asked for, and a move's cost in the search is 1 + MISSED per miss
         self.missed: Counter = Counter()
         # the (source, grasp) pairs the arm refused in the scene as it stands (a grasp
-        # under a stack, an unreachable pose): no step of the plans from it takes them
+        # under a stack, an unreachable pose): no step of the plans from it takes them,
+        # but where a box in the arm's way (`blockers`: where it was seen) is predicted
+        # moved
         self.refused: set[tuple[str, str]] = set()
+        self.blockers: dict[tuple[str, str], dict[str, np.ndarray]] = {}
         self.predictions = 0
+
+    def refuse(self, action: Action, obstacles: dict[str, np.ndarray] | None = None) -> None:
+        """The arm refused `action` in the scene seen now; `obstacles`: the boxes in its
+        way there, by where they were seen."""
+        key = (action.source, action.grasp)
+        self.refused.add(key)
+        if obstacles:
+            self.blockers[key] = dict(obstacles)
+
+    def in_the_way(self, boxes: Boxes) -> set[str]:
+        """The boxes in the way of a refused grasp that still stand where they were seen
+        in `boxes`: the search asks for their moves first."""
+        cleared = self._cleared(boxes.where())
+        return {n for key in self.refused - cleared for n in self.blockers.get(key, {})}
+
+    def _cleared(self, where: dict[str, np.ndarray]) -> set[tuple[str, str]]:
+        """The refused pairs one of whose blockers is predicted moved (beyond MOVED)."""
+        return {key for key, boxes in self.blockers.items()
+                if any(n in where and np.linalg.norm(where[n] - p) > MOVED
+                       for n, p in boxes.items())}
 
     def barred(self, boxes: Boxes) -> set[tuple[str, str]]:
         """The (source, grasp) pairs no step from `boxes` takes: those the arm refused in
-        this solve, and the grasps it would refuse there by its own rule, under a stack it
-        will not lift (skills/carry.unpinchable, on the boxes as believed or predicted)."""
+        this solve (unless a box in its way is predicted moved), and the grasps it would
+        refuse there by its own rule, under a stack it will not lift
+        (skills/carry.unpinchable, on the boxes as believed or predicted)."""
         # The skill's own rule on beliefs (Drake-free); imported here, as the agent's
         # modes import the learned models: importing the planner loads no skill.
         from drake_symplan.skills.carry import unpinchable
 
-        out = set(self.refused)
+        out = set(self.refused) - self._cleared(boxes.where())
         objects = None
         for source in boxes.names:
             if not boxes.riding(source):
@@ -358,7 +385,7 @@ class Refiner:
                            if (m.action.source, m.action.grasp) not in barred]
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,
-                                                  self.missed)
+                                                  self.missed, self.in_the_way(boxes))
                     if later and options:
                         heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
                                                   boxes, done, later))

@@ -149,9 +149,11 @@ class PlanningMode:
         """Told what was seen `before` and after each step the monitor checks (what a
         mode learns within a solve; none by default)."""
 
-    def refused(self, step: PlanStep) -> None:
+    def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None
+                ) -> None:
         """Told that the arm could not run `step` from the scene seen now (an unreachable
-        pose, a grasp under a stack): the agent plans again from the same scene."""
+        pose, a box its wrist would strike; `obstacles`: those boxes, where they are seen):
+        the agent plans again from the same scene."""
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
         """At the plan's end: every box seen within the tolerance of its goal (also after
@@ -207,6 +209,8 @@ class _ContinuousModelMode(PlanningMode):
             (source, grasp) for source, grasp in self.refiner.refused
             if source in then and all(np.linalg.norm((then[m] - then[source])[:2]) > NEAR
                                       for m in shifted)}
+        self.refiner.blockers = {key: boxes for key, boxes in self.refiner.blockers.items()
+                                 if key in self.refiner.refused}
         still = not shifted
         if isinstance(step, Step):
             if still or (off_prediction(predicted, seen) if predicted is not None
@@ -218,16 +222,18 @@ class _ContinuousModelMode(PlanningMode):
                                       and off_prediction(predicted, seen)):
             self.refiner.missed[step.action] += 1
 
-    def refused(self, step: PlanStep) -> None:
+    def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None
+                ) -> None:
         """A step the arm could not run is missed, as one after which nothing moved, and
         its source at that grasp is taken by no plan until a box within NEAR of it has
-        moved."""
+        moved; in the plans' predicted scenes, until one of the `obstacles` has moved
+        (Refiner.refuse)."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
         if isinstance(step, Step):
             self.penalties[tuple(step.args)] += PENALTY
         self.refiner.missed[step.action] += 1
-        self.refiner.refused.add((step.action.source, step.action.grasp))
+        self.refiner.refuse(step.action, obstacles)
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         from drake_symplan.abstraction.bilevel import Search, plan_bilevel

@@ -323,7 +323,7 @@ class _Run:
         with self.clock("execute"):
             execution = self.agent.robot.execute(step.action, self.scene, lift=False)
         if execution.status == "infeasible":
-            self._refused(step, f"{step}: {execution.message}")
+            self._refused(step, f"{step}: {execution.message}", execution.obstacles)
             return
         self.result.executed.append(step)
         if execution.status != "ok":
@@ -376,15 +376,16 @@ class _Run:
                 # The planner found nothing from here (timeout, no plan): the current
                 # plan runs on, as it would open loop.
 
-    def _refused(self, step: PlanStep, message: str) -> None:
-        """The arm could not run `step` (nothing moved): monitored, with refusals left
-        (REFUSALS_PER_OBJECT), the planner is told and plans again from the same scene;
-        else the solve stops."""
+    def _refused(self, step: PlanStep, message: str, obstacles: tuple[str, ...] = ()) -> None:
+        """The arm could not run `step` (nothing moved; `obstacles`: the boxes in its way,
+        where it knows them): monitored, with refusals left (REFUSALS_PER_OBJECT), the
+        planner is told and plans again from the same scene; else the solve stops."""
         limit = REFUSALS_PER_OBJECT * len(self.scene.names)
         if not (self.config.monitor and self.result.refusals < limit):
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message)
-        self.planner.refused(step)
+        where = self.now.boxes.where()
+        self.planner.refused(step, {n: where[n] for n in obstacles if n in where})
         self.result.refusals += 1
         try:
             self.todo = self._steps(self._search())

@@ -93,7 +93,13 @@ class Outcome:
 
 
 class InfeasibleAction(Exception):
-    """No IK solution for a waypoint of the action."""
+    """The arm will not run the action from the believed scene (no IK solution for a
+    waypoint, a grasp under a stack, a link that would strike a box); `obstacles`: the
+    believed boxes in its way, where it knows them (with them moved it might run it)."""
+
+    def __init__(self, message: str, obstacles: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.obstacles = tuple(obstacles)
 
 
 def _top_z(o: ObjectState) -> float:
@@ -258,7 +264,7 @@ class PickPlaceMotions:
         if struck is not None:
             link, name = struck
             raise InfeasibleAction(f"the arm's {link.removesuffix('_link')} would strike "
-                                   f"{name} on the way {where}")
+                                   f"{name} on the way {where}", (name,))
 
     def _motion(self, g: ActionGeometry, carry: str, q_start: np.ndarray,
                 lift_hold: bool, action: Action, objects: dict[str, ObjectState]) -> Motion:
