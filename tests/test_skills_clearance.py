@@ -39,6 +39,7 @@ def test_the_wrist_that_would_sweep_a_tower_of_four_refuses_the_grasp(planner):
                        ) as refused:
         planner.plan(Action("b", "left", "c", "center"), _tower_beside_a_block(4))
     assert refused.value.obstacles == ("t3",)  # what the planner is told is in the way
+    assert refused.value.at == "grasp"  # on the source's side
     # the block's other end, and the same end beside a tower of two, are clear
     planner.plan(Action("b", "right", "c", "center"), _tower_beside_a_block(4))
     planner.plan(Action("b", "left", "c", "center"), _tower_beside_a_block(2))

@@ -181,6 +181,14 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
     return out
 
 
+def refusal(action: Action, at: str) -> tuple[str, str, str]:
+    """What a refusal of `action` bars: at its release ("release"), placing on its target
+    at that release offset, whatever the source; else its source at that grasp."""
+    if at == "release":
+        return ("release", action.target, action.release)
+    return ("grasp", action.source, action.grasp)
+
+
 class Refiner:
     """The continuous level: refines skeletons and searches (module docstring).
     `operators`: the learned operators (a list, or symbolic/structs.py's
@@ -200,18 +208,19 @@ class Refiner:
         # the moves the arm was seen to miss in this solve, with how often: no longer
         # asked for, and a move's cost in the search is 1 + MISSED per miss
         self.missed: Counter = Counter()
-        # the (source, grasp) pairs the arm refused in the scene as it stands (a grasp
-        # under a stack, an unreachable pose): no step of the plans from it takes them,
-        # but where a box in the arm's way (`blockers`: where it was seen) is predicted
-        # moved
-        self.refused: set[tuple[str, str]] = set()
-        self.blockers: dict[tuple[str, str], dict[str, np.ndarray]] = {}
+        # what the arm refused in the scene as it stands (a box its wrist would strike, an
+        # unreachable pose), as `refusal` keys: a source at a grasp, a target at a release
+        # offset. No step of the plans from it takes them, but where a box in the arm's
+        # way (`blockers`: where it was seen) is predicted moved.
+        self.refused: set[tuple[str, str, str]] = set()
+        self.blockers: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}
         self.predictions = 0
 
-    def refuse(self, action: Action, obstacles: dict[str, np.ndarray] | None = None) -> None:
-        """The arm refused `action` in the scene seen now; `obstacles`: the boxes in its
-        way there, by where they were seen."""
-        key = (action.source, action.grasp)
+    def refuse(self, action: Action, obstacles: dict[str, np.ndarray] | None = None,
+               at: str = "") -> None:
+        """The arm refused `action` in the scene seen now, `at` its grasp (the default) or
+        its release; `obstacles`: the boxes in its way there, by where they were seen."""
+        key = refusal(action, at)
         self.refused.add(key)
         if obstacles:
             self.blockers[key] = dict(obstacles)
@@ -223,14 +232,14 @@ class Refiner:
         return {n for key in self.refused - cleared for n in self.blockers.get(key, {})}
 
     def _cleared(self, where: dict[str, np.ndarray]) -> set[tuple[str, str]]:
-        """The refused pairs one of whose blockers is predicted moved (beyond MOVED)."""
+        """The refusals one of whose blockers is predicted moved (beyond MOVED)."""
         return {key for key, boxes in self.blockers.items()
                 if any(n in where and np.linalg.norm(where[n] - p) > MOVED
                        for n, p in boxes.items())}
 
-    def barred(self, boxes: Boxes) -> set[tuple[str, str]]:
-        """The (source, grasp) pairs no step from `boxes` takes: those the arm refused in
-        this solve (unless a box in its way is predicted moved), and the grasps it would
+    def barred(self, boxes: Boxes) -> set[tuple[str, str, str]]:
+        """The `refusal` keys no step from `boxes` takes (`allows`): those the arm refused
+        in this solve (unless a box in its way is predicted moved), and the grasps it would
         refuse there by its own rule, under a stack it will not lift
         (skills/carry.unpinchable, on the boxes as believed or predicted)."""
         # The skill's own rule on beliefs (Drake-free); imported here, as the agent's
@@ -244,9 +253,15 @@ class Refiner:
                 continue
             objects = objects or boxes.object_states()
             target = next(n for n in boxes.names if n != source)
-            out |= {(source, g) for g in OFFSETS
+            out |= {("grasp", source, g) for g in OFFSETS
                     if unpinchable(Action(source, g, target, "center"), objects)}
         return out
+
+    @staticmethod
+    def allows(action: Action, barred: set[tuple[str, str, str]]) -> bool:
+        """Does no key in `barred` (Refiner.barred) bar `action`, at its grasp or release?"""
+        return refusal(action, "grasp") not in barred \
+            and refusal(action, "release") not in barred
 
     @staticmethod
     def topples(before: Boxes, after: Boxes) -> bool:
@@ -284,7 +299,7 @@ class Refiner:
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
-                if (step.action.source, step.action.grasp) in barred \
+                if not self.allows(step.action, barred) \
                         or step.action.target in covered or self.topples(boxes, after):
                     continue
                 found = extend(i + 1, after, step.apply(state),
@@ -324,7 +339,7 @@ class Refiner:
         barred = self.barred(boxes)
         options = [m for m in moves(boxes.names, off, boxes.half_length, "reposition",
                                     boxes.riding, boxes.covered())
-                   if (m.action.source, m.action.grasp) not in barred]
+                   if self.allows(m.action, barred)]
         scored = sorted(((after, option) for after, option in
                          zip(self._predict(boxes, options), options, strict=True)
                          if not self.topples(boxes, after)),
@@ -382,7 +397,7 @@ class Refiner:
                 barred = self.barred(boxes)
                 options = [m for m in moves(boxes.names, set(boxes.names), boxes.half_length,
                                             "move", boxes.riding, boxes.covered())
-                           if (m.action.source, m.action.grasp) not in barred]
+                           if self.allows(m.action, barred)]
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,
                                                   self.missed, self.in_the_way(boxes))

@@ -149,11 +149,12 @@ class PlanningMode:
         """Told what was seen `before` and after each step the monitor checks (what a
         mode learns within a solve; none by default)."""
 
-    def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None
-                ) -> None:
+    def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None,
+                at: str = "") -> None:
         """Told that the arm could not run `step` from the scene seen now (an unreachable
-        pose, a box its wrist would strike; `obstacles`: those boxes, where they are seen):
-        the agent plans again from the same scene."""
+        pose, a box its wrist would strike; `obstacles`: those boxes, where they are seen;
+        `at`: "grasp" or "release", the side it refused at): the agent plans again from the
+        same scene."""
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
         """At the plan's end: every box seen within the tolerance of its goal (also after
@@ -206,9 +207,9 @@ class _ContinuousModelMode(PlanningMode):
 
         then, shifted = before.boxes.where(), moved(before, seen)
         self.refiner.refused = {  # what was refused stands while nothing near it moved
-            (source, grasp) for source, grasp in self.refiner.refused
-            if source in then and all(np.linalg.norm((then[m] - then[source])[:2]) > NEAR
-                                      for m in shifted)}
+            (side, box, offset) for side, box, offset in self.refiner.refused
+            if box in then and all(np.linalg.norm((then[m] - then[box])[:2]) > NEAR
+                                   for m in shifted)}
         self.refiner.blockers = {key: boxes for key, boxes in self.refiner.blockers.items()
                                  if key in self.refiner.refused}
         still = not shifted
@@ -222,18 +223,18 @@ class _ContinuousModelMode(PlanningMode):
                                       and off_prediction(predicted, seen)):
             self.refiner.missed[step.action] += 1
 
-    def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None
-                ) -> None:
+    def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None,
+                at: str = "") -> None:
         """A step the arm could not run is missed, as one after which nothing moved, and
-        its source at that grasp is taken by no plan until a box within NEAR of it has
-        moved; in the plans' predicted scenes, until one of the `obstacles` has moved
-        (Refiner.refuse)."""
+        its source at that grasp (refused `at` the release: its target at that release
+        offset) is taken by no plan until a box within NEAR of it has moved; in the plans'
+        predicted scenes, until one of the `obstacles` has moved (Refiner.refuse)."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
         if isinstance(step, Step):
             self.penalties[tuple(step.args)] += PENALTY
         self.refiner.missed[step.action] += 1
-        self.refiner.refuse(step.action, obstacles)
+        self.refiner.refuse(step.action, obstacles, at)
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         from drake_symplan.abstraction.bilevel import Search, plan_bilevel

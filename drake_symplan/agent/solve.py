@@ -323,7 +323,8 @@ class _Run:
         with self.clock("execute"):
             execution = self.agent.robot.execute(step.action, self.scene, lift=False)
         if execution.status == "infeasible":
-            self._refused(step, f"{step}: {execution.message}", execution.obstacles)
+            self._refused(step, f"{step}: {execution.message}", execution.obstacles,
+                          execution.at)
             return
         self.result.executed.append(step)
         if execution.status != "ok":
@@ -376,16 +377,17 @@ class _Run:
                 # The planner found nothing from here (timeout, no plan): the current
                 # plan runs on, as it would open loop.
 
-    def _refused(self, step: PlanStep, message: str, obstacles: tuple[str, ...] = ()) -> None:
+    def _refused(self, step: PlanStep, message: str, obstacles: tuple[str, ...] = (),
+                 at: str = "") -> None:
         """The arm could not run `step` (nothing moved; `obstacles`: the boxes in its way,
-        where it knows them): monitored, with refusals left (REFUSALS_PER_OBJECT), the
+        where it knows them; `at`: the side it refused at, "grasp" or "release"): monitored, with refusals left (REFUSALS_PER_OBJECT), the
         planner is told and plans again from the same scene; else the solve stops."""
         limit = REFUSALS_PER_OBJECT * len(self.scene.names)
         if not (self.config.monitor and self.result.refusals < limit):
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message)
         where = self.now.boxes.where()
-        self.planner.refused(step, {n: where[n] for n in obstacles if n in where})
+        self.planner.refused(step, {n: where[n] for n in obstacles if n in where}, at)
         self.result.refusals += 1
         try:
             self.todo = self._steps(self._search())

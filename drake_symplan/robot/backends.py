@@ -58,6 +58,7 @@ class Execution:
     after: object = None  # PerceivedScene after the action
     message: str = ""
     obstacles: tuple[str, ...] = ()  # infeasible: the boxes in the arm's way, where known
+    at: str = ""  # infeasible: "grasp" or "release", the side the arm refused at
 
 
 class Backend:
@@ -162,7 +163,7 @@ class HandBackend(Backend):
                                              allow_kinematic=self.allow_kinematic,
                                              twin=self.twin)
         except InfeasibleAction as e:
-            return Execution("infeasible", message=str(e), obstacles=e.obstacles)
+            return Execution("infeasible", message=str(e), obstacles=e.obstacles, at=e.at)
         except RuntimeError as e:
             # The state is unusable; the episode ends and the next reset starts afresh.
             self.station.release()
@@ -195,7 +196,7 @@ class ArmBackend(Backend):
             motion = self.planner.plan(action, before.object_states(),
                                        self.station.robot_positions(), lift_hold=lift)
         except InfeasibleAction as e:
-            return Execution("infeasible", message=str(e), obstacles=e.obstacles)
+            return Execution("infeasible", message=str(e), obstacles=e.obstacles, at=e.at)
         at_lift = (lambda: self.perceive(before)) if lift else (lambda: None)
         try:
             lifted = run_motion(self.station, motion, at_lift)

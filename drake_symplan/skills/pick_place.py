@@ -95,11 +95,12 @@ class Outcome:
 class InfeasibleAction(Exception):
     """The arm will not run the action from the believed scene (no IK solution for a
     waypoint, a grasp under a stack, a link that would strike a box); `obstacles`: the
-    believed boxes in its way, where it knows them (with them moved it might run it)."""
+    believed boxes in its way, where it knows them (with them moved it might run it); `at`:
+    "grasp" or "release", the side of the action it fails at (the source's, the target's)."""
 
-    def __init__(self, message: str, obstacles: tuple[str, ...] = ()):
+    def __init__(self, message: str, obstacles: tuple[str, ...] = (), at: str = "grasp"):
         super().__init__(message)
-        self.obstacles = tuple(obstacles)
+        self.obstacles, self.at = tuple(obstacles), at
 
 
 def _top_z(o: ObjectState) -> float:
@@ -228,7 +229,8 @@ class PickPlaceMotions:
         q = self.ik.solve(p, yaw, seed)
         if q is None:
             raise InfeasibleAction(
-                f"unreachable pose: {what} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})")
+                f"unreachable pose: {what} at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})",
+                at="release" if what in ("release", "retreat") else "grasp")
         return q
 
     def plan(self, action: Action, objects: dict[str, ObjectState],
@@ -257,14 +259,14 @@ class PickPlaceMotions:
         raise first
 
     def _clear(self, waypoints: list[np.ndarray], objects: dict[str, ObjectState],
-               skip: set[str], where: str) -> None:
+               skip: set[str], where: str, at: str) -> None:
         """InfeasibleAction where the wrist or forearm would strike a believed box (but
         `skip`) between the `waypoints` (skills/arm_clearance.py)."""
         struck = link_strikes(self.ik, waypoints, objects, skip)
         if struck is not None:
             link, name = struck
             raise InfeasibleAction(f"the arm's {link.removesuffix('_link')} would strike "
-                                   f"{name} on the way {where}", (name,))
+                                   f"{name} on the way {where}", (name,), at)
 
     def _motion(self, g: ActionGeometry, carry: str, q_start: np.ndarray,
                 lift_hold: bool, action: Action, objects: dict[str, ObjectState]) -> Motion:
@@ -287,10 +289,10 @@ class PickPlaceMotions:
         at_release = self._solve("release", g.release, g.yaw_release, carry[-1])
         retreat = self._solve("retreat", g.release + up, g.yaw_release, at_release)
         self._clear([q_start, pre, mid, at_grasp], objects, {action.source},
-                    f"down to {action.source}")
+                    f"down to {action.source}", "grasp")
         self._clear([carry[-1], at_release, retreat, HOME_Q], objects,
                     {action.source, *riders(action.source, objects)},
-                    f"down to {action.target}")
+                    f"down to {action.target}", "release")
         opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(grip)
         lifting = [
             Phase(opened(q_start, pre)),
