@@ -270,6 +270,12 @@ def test_a_grasp_refused_for_a_box_in_the_way_is_planned_once_that_box_is_moved(
     found, _ = refiner.search(scene, goal, Budget.of_cpu(10))
     assert [s.action.source for s in found.steps] == ["d", "a"]
     assert refiner.in_the_way(found.predicted[0]) == set()
+    # with d's place in the goal too and one step allowed, nothing reaches the goal nor
+    # comes nearer it: the step that moves d is what the search hands back to run
+    stay = {**goal, "d": scene.where()["d"]}
+    found, nearest = refiner.search(scene, stay, Budget.of_cpu(10), max_depth=1)
+    assert found is None and [s.action.source for s in nearest.steps] == ["d"]
+    assert refiner.clears_way(scene, nearest)
     refiner.blockers.clear()  # refused with no box known in the way: a stays
     found, _ = refiner.search(scene, goal, Budget.of_cpu(10))
     assert found is None

@@ -247,15 +247,17 @@ class Refiner:
         from drake_symplan.skills.carry import unpinchable
 
         out = set(self.refused) - self._cleared(boxes.where())
-        objects = None
+        objects = boxes.object_states()  # the skill's riders, not Boxes.riding: its tolerances
         for source in boxes.names:
-            if not boxes.riding(source):
-                continue
-            objects = objects or boxes.object_states()
             target = next(n for n in boxes.names if n != source)
             out |= {("grasp", source, g) for g in OFFSETS
                     if unpinchable(Action(source, g, target, "center"), objects)}
         return out
+
+    def clears_way(self, start: Boxes, plan: Refined) -> bool:
+        """Does `plan` move a box in the way of a refused grasp (in_the_way)?"""
+        return bool(plan.steps) and bool(self.in_the_way(start)
+                                         - self.in_the_way(plan.predicted[-1]))
 
     @staticmethod
     def allows(action: Action, barred: set[tuple[str, str, str]]) -> bool:
@@ -369,7 +371,9 @@ class Refiner:
         first; the rest wait in the frontier `defer` dearer (None: all at once), so the
         ~500 moves of an 8-box scene cost a prediction only where the asked ones lead
         nowhere. (the plan that reaches the goal or None, the plan predicted to end
-        nearest it, by h). `max_depth`: plans at most this long (default the refiner's)."""
+        nearest it, by h; where that is not nearer than the start (_nearer), the one
+        nearest it of those that move a box in the way of a refused grasp, if any).
+        `max_depth`: plans at most this long (default the refiner's)."""
         depth = self.max_depth if max_depth is None else max_depth
 
         order = GoalOrder(goal, start.kinds())
@@ -383,6 +387,8 @@ class Refiner:
         frontier = [(self.weight * h(start), next(tie), 0.0, h(start), start, Refined([], []),
                      None)]
         nearest = (h(start), Refined([], []))
+        clearing = None  # the node nearest the goal among those that clear a refused grasp
+        blocking = self.in_the_way(start)
         seen = set()
         while frontier and not budget.spent():
             f, _, g, distance, boxes, done, deferred = heapq.heappop(frontier)
@@ -390,6 +396,9 @@ class Refiner:
                 if reaches_goal(boxes, goal, self.limit):
                     return done, done
                 nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
+                if blocking and done.steps and blocking - self.in_the_way(boxes):
+                    clearing = min(clearing or (distance, done), (distance, done),
+                                   key=lambda pair: pair[0])
                 key = tuple(np.round(boxes.positions, 2).ravel())
                 if key in seen or len(done.steps) >= depth:
                     continue
@@ -416,6 +425,8 @@ class Refiner:
                                           distance, after, Refined(done.steps + [option],
                                                                    done.predicted + [after]),
                                           None))
+        if clearing is not None and not _nearer(nearest[1], start, goal):
+            return None, clearing[1]
         return None, nearest[1]
 
 
@@ -484,6 +495,11 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
         # nearer it; the monitor replans from what is perceived at their end.
         return found(nearest.steps, f"{missed}; the steps predicted nearest it run, then "
                      "a replan", "nearest", nearest.predicted)
+    if refiner.clears_way(start.boxes, nearest):
+        # Nor nearer, but they move a box the arm's wrist would strike on a refused grasp:
+        # once it is seen moved, the grasp is planned again.
+        return found(nearest.steps, f"{missed}; the steps that move a box in the way of a "
+                     "refused grasp run, then a replan", "nearest", nearest.predicted)
     if unverified is not None:  # the goal's symbols hold already: nothing to run
         return found([], missed, "symbolic")
     return found([], missed, search.level, status="timeout")
