@@ -14,6 +14,7 @@ import torch
 from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.bilevel import PENALTY, Refiner, Search, moves, plan_bilevel
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel, tips
+from drake_symplan.abstraction.refusals import allows
 from drake_symplan.actions import Action, release_shift
 from drake_symplan.agent.planning_modes import (
     BilevelMode,
@@ -209,21 +210,21 @@ def test_no_plan_lifts_a_cube_from_under_a_stack_of_two_as_the_arm_would_not():
     tower = boxes(a=(0.5, 0.0, 0.025), b=(0.5, 0.0, 0.075), c=(0.5, 0.0, 0.125),
                   d=(0.7, 0.2, 0.025))
     refiner = Refiner(list(STACK.values()), Stacking())
-    assert refiner.barred(tower) == {("grasp", "a", "center")}
+    assert refiner.refusals.barred(tower) == {("grasp", "a", "center")}
     goal = {**tower.where(), "a": np.array([0.7, 0.2, 0.075])}  # the base onto d
     found, _ = refiner.search(tower, goal, Budget.of_cpu(10))
     sources = [s.action.source for s in found.steps]
     assert sources[0] == "c" and "a" in sources  # the top off first (else: a alone)
     two = boxes(a=(0.5, 0.0, 0.025), b=(0.5, 0.0, 0.075), d=(0.7, 0.2, 0.025))
-    assert refiner.barred(two) == set()
+    assert refiner.refusals.barred(two) == set()
     block = np.stack([object_features("long", np.array([0.5, 0.0, 0.025]), np.eye(3)),
                       *[object_features("cube", np.array([0.5, 0.1, z]), np.eye(3))
                         for z in (0.075, 0.125)]])
     on_its_end = Boxes(("l", "b", "c"), block, frozenset()).moved(block[:, :3])
     assert on_its_end.riding("l") == {"b", "c"}
-    assert refiner.barred(on_its_end) == set()  # the fingers close at the clear end
-    refiner.refuse(Action("d", "center", "a", "center"))
-    assert refiner.barred(tower) == {("grasp", "a", "center"), ("grasp", "d", "center")}
+    assert refiner.refusals.barred(on_its_end) == set()  # the fingers close at the clear end
+    refiner.refusals.refuse(Action("d", "center", "a", "center"))
+    assert refiner.refusals.barred(tower) == {("grasp", "a", "center"), ("grasp", "d", "center")}
 
 
 def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_plan_goes_there():
@@ -264,29 +265,29 @@ def test_a_grasp_refused_for_a_box_in_the_way_is_planned_once_that_box_is_moved(
     goal = {n: p for n, p in scene.where().items() if n != "d"}  # d may go anywhere
     goal["a"] = np.array([0.7, 0.075, 0.075])
     refiner = Refiner(list(STACK.values()), Stacking())
-    refiner.refuse(Action("a", "center", "b", "center"), {"d": scene.where()["d"]})
-    assert refiner.barred(scene) == {("grasp", "a", "center")}
-    assert refiner.in_the_way(scene) == {"d"}
+    refiner.refusals.refuse(Action("a", "center", "b", "center"), {"d": scene.where()["d"]})
+    assert refiner.refusals.barred(scene) == {("grasp", "a", "center")}
+    assert refiner.refusals.in_the_way(scene) == {"d"}
     found, _ = refiner.search(scene, goal, Budget.of_cpu(10))
     assert [s.action.source for s in found.steps] == ["d", "a"]
-    assert refiner.in_the_way(found.predicted[0]) == set()
+    assert refiner.refusals.in_the_way(found.predicted[0]) == set()
     # with d's place in the goal too and one step allowed, nothing reaches the goal nor
     # comes nearer it: the step that moves d is what the search hands back to run
     stay = {**goal, "d": scene.where()["d"]}
     found, nearest = refiner.search(scene, stay, Budget.of_cpu(10), max_depth=1)
     assert found is None and [s.action.source for s in nearest.steps] == ["d"]
     assert refiner.clears_way(scene, nearest)
-    refiner.blockers.clear()  # refused with no box known in the way: a stays
+    refiner.refusals.blockers.clear()  # refused with no box known in the way: a stays
     found, _ = refiner.search(scene, goal, Budget.of_cpu(10))
     assert found is None
     # refused at the release (the wrist would strike a box beside b): nothing is set down
     # on b at that offset, from any source, and a may go elsewhere
     refiner = Refiner(list(STACK.values()), Stacking())
-    refiner.refuse(Action("a", "center", "b", "center"), at="release")
-    assert refiner.barred(scene) == {("release", "b", "center")}
-    assert not refiner.allows(Action("e", "center", "b", "center"), refiner.barred(scene))
-    assert refiner.allows(Action("a", "center", "b", "left"), refiner.barred(scene))
-    assert refiner.allows(Action("a", "center", "e", "center"), refiner.barred(scene))
+    refiner.refusals.refuse(Action("a", "center", "b", "center"), at="release")
+    assert refiner.refusals.barred(scene) == {("release", "b", "center")}
+    assert not allows(Action("e", "center", "b", "center"), refiner.refusals.barred(scene))
+    assert allows(Action("a", "center", "b", "left"), refiner.refusals.barred(scene))
+    assert allows(Action("a", "center", "e", "center"), refiner.refusals.barred(scene))
 
 
 class Slow(Skeletons):
@@ -607,11 +608,11 @@ def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
     # nothing near a moves; once a box within NEAR of it has, it may be again.
     planner.penalties = Counter()
     planner.refused(move)
-    assert planner.refiner.refused == {("grasp", "a", "center")}
+    assert planner.refiner.refusals.keys == {("grasp", "a", "center")}
     found, _ = planner.refiner.search(side, goal, Budget.of_cpu(10))
     assert found is None  # every move of a grasps its centre
     far = boxes(a=(0.5, 0.2, 0.025), b=(0.5, -0.3, 0.025), c=(0.7, 0.0, 0.025))  # b, 40 cm
     planner.observed(move, predicted, before, observe(Seen(far)))
-    assert planner.refiner.refused == {("grasp", "a", "center")}
+    assert planner.refiner.refusals.keys == {("grasp", "a", "center")}
     planner.observed(move, predicted, before, observe(Seen(predicted)))
-    assert not planner.refiner.refused
+    assert not planner.refiner.refusals.keys

@@ -42,9 +42,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
-from drake_symplan.abstraction.continuous import Boxes, goal_errors, rollout, tips
+from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout, tips
 from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, ranked
+from drake_symplan.abstraction.refusals import Refusals, allows
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.planning.budget import Budget
@@ -62,7 +63,6 @@ MISSED = 3.0  # the search's cost added to a move each time the arm missed it in
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
-MOVED = 0.02  # m: a box predicted to go this far has moved (a rider too)
 SEARCH = "continuous"  # the Candidate.source of the continuous search
 
 
@@ -181,14 +181,6 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
     return out
 
 
-def refusal(action: Action, at: str) -> tuple[str, str, str]:
-    """What a refusal of `action` bars: at its release ("release"), placing on its target
-    at that release offset, whatever the source; else its source at that grasp."""
-    if at == "release":
-        return ("release", action.target, action.release)
-    return ("grasp", action.source, action.grasp)
-
-
 class Refiner:
     """The continuous level: refines skeletons and searches (module docstring).
     `operators`: the learned operators (a list, or symbolic/structs.py's
@@ -208,62 +200,15 @@ class Refiner:
         # the moves the arm was seen to miss in this solve, with how often: no longer
         # asked for, and a move's cost in the search is 1 + MISSED per miss
         self.missed: Counter = Counter()
-        # what the arm refused in the scene as it stands (a box its wrist would strike, an
-        # unreachable pose), as `refusal` keys: a source at a grasp, a target at a release
-        # offset. No step of the plans from it takes them, but where a box in the arm's
-        # way (`blockers`: where it was seen) is predicted moved.
-        self.refused: set[tuple[str, str, str]] = set()
-        self.blockers: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}
+        # what the arm refused in the scene as it stands (abstraction/refusals.py): no
+        # step of the plans from it takes them (Refusals.barred)
+        self.refusals = Refusals()
         self.predictions = 0
 
-    def refuse(self, action: Action, obstacles: dict[str, np.ndarray] | None = None,
-               at: str = "") -> None:
-        """The arm refused `action` in the scene seen now, `at` its grasp (the default) or
-        its release; `obstacles`: the boxes in its way there, by where they were seen."""
-        key = refusal(action, at)
-        self.refused.add(key)
-        if obstacles:
-            self.blockers[key] = dict(obstacles)
-
-    def in_the_way(self, boxes: Boxes) -> set[str]:
-        """The boxes in the way of a refused grasp that still stand where they were seen
-        in `boxes`: the search asks for their moves first."""
-        cleared = self._cleared(boxes.where())
-        return {n for key in self.refused - cleared for n in self.blockers.get(key, {})}
-
-    def _cleared(self, where: dict[str, np.ndarray]) -> set[tuple[str, str]]:
-        """The refusals one of whose blockers is predicted moved (beyond MOVED)."""
-        return {key for key, boxes in self.blockers.items()
-                if any(n in where and np.linalg.norm(where[n] - p) > MOVED
-                       for n, p in boxes.items())}
-
-    def barred(self, boxes: Boxes) -> set[tuple[str, str, str]]:
-        """The `refusal` keys no step from `boxes` takes (`allows`): those the arm refused
-        in this solve (unless a box in its way is predicted moved), and the grasps it would
-        refuse there by its own rule, under a stack it will not lift
-        (skills/carry.unpinchable, on the boxes as believed or predicted)."""
-        # The skill's own rule on beliefs (Drake-free); imported here, as the agent's
-        # modes import the learned models: importing the planner loads no skill.
-        from drake_symplan.skills.carry import unpinchable
-
-        out = set(self.refused) - self._cleared(boxes.where())
-        objects = boxes.object_states()  # the skill's riders, not Boxes.riding: its tolerances
-        for source in boxes.names:
-            target = next(n for n in boxes.names if n != source)
-            out |= {("grasp", source, g) for g in OFFSETS
-                    if unpinchable(Action(source, g, target, "center"), objects)}
-        return out
-
     def clears_way(self, start: Boxes, plan: Refined) -> bool:
-        """Does `plan` move a box in the way of a refused grasp (in_the_way)?"""
-        return bool(plan.steps) and bool(self.in_the_way(start)
-                                         - self.in_the_way(plan.predicted[-1]))
-
-    @staticmethod
-    def allows(action: Action, barred: set[tuple[str, str, str]]) -> bool:
-        """Does no key in `barred` (Refiner.barred) bar `action`, at its grasp or release?"""
-        return refusal(action, "grasp") not in barred \
-            and refusal(action, "release") not in barred
+        """Does `plan` move a box in the way of a refused step (Refusals.in_the_way)?"""
+        return bool(plan.steps) and bool(self.refusals.in_the_way(start)
+                                         - self.refusals.in_the_way(plan.predicted[-1]))
 
     @staticmethod
     def topples(before: Boxes, after: Boxes) -> bool:
@@ -297,11 +242,11 @@ class Refiner:
                 return done if self.subgoal_reached(boxes, goal, before, placed, later) \
                     else None
             scorer = PredictedScorer(self._predict, boxes, goal)
-            barred, covered = self.barred(boxes), boxes.covered()
+            barred, covered = self.refusals.barred(boxes), boxes.covered()
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
-                if not self.allows(step.action, barred) \
+                if not allows(step.action, barred) \
                         or step.action.target in covered or self.topples(boxes, after):
                     continue
                 found = extend(i + 1, after, step.apply(state),
@@ -338,10 +283,10 @@ class Refiner:
         if depth >= self.extra_moves or budget.spent():
             return None
         off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
-        barred = self.barred(boxes)
+        barred = self.refusals.barred(boxes)
         options = [m for m in moves(boxes.names, off, boxes.half_length, "reposition",
                                     boxes.riding, boxes.covered())
-                   if self.allows(m.action, barred)]
+                   if allows(m.action, barred)]
         scored = sorted(((after, option) for after, option in
                          zip(self._predict(boxes, options), options, strict=True)
                          if not self.topples(boxes, after)),
@@ -388,7 +333,7 @@ class Refiner:
                      None)]
         nearest = (h(start), Refined([], []))
         clearing = None  # the node nearest the goal among those that clear a refused grasp
-        blocking = self.in_the_way(start)
+        blocking = self.refusals.in_the_way(start)
         seen = set()
         while frontier and not budget.spent():
             f, _, g, distance, boxes, done, deferred = heapq.heappop(frontier)
@@ -396,20 +341,20 @@ class Refiner:
                 if reaches_goal(boxes, goal, self.limit):
                     return done, done
                 nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
-                if blocking and done.steps and blocking - self.in_the_way(boxes):
+                if blocking and done.steps and blocking - self.refusals.in_the_way(boxes):
                     clearing = min(clearing or (distance, done), (distance, done),
                                    key=lambda pair: pair[0])
                 key = tuple(np.round(boxes.positions, 2).ravel())
                 if key in seen or len(done.steps) >= depth:
                     continue
                 seen.add(key)
-                barred = self.barred(boxes)
+                barred = self.refusals.barred(boxes)
                 options = [m for m in moves(boxes.names, set(boxes.names), boxes.half_length,
                                             "move", boxes.riding, boxes.covered())
-                           if self.allows(m.action, barred)]
+                           if allows(m.action, barred)]
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,
-                                                  self.missed, self.in_the_way(boxes))
+                                                  self.missed, self.refusals.in_the_way(boxes))
                     if later and options:
                         heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
                                                   boxes, done, later))

@@ -188,6 +188,7 @@ class ContinuousModel:
 
 
 SETTLE_MOVED = 0.01  # m: a box predicted to move this far comes to rest (`rest`)
+MOVED = 0.02  # m: a box predicted to go this far has moved (a rider too)
 
 
 def rest(positions: np.ndarray, features: np.ndarray, moved: list[int]) -> np.ndarray:

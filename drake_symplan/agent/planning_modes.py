@@ -206,12 +206,10 @@ class _ContinuousModelMode(PlanningMode):
         from drake_symplan.abstraction.bilevel import PENALTY
 
         then, shifted = before.boxes.where(), moved(before, seen)
-        self.refiner.refused = {  # what was refused stands while nothing near it moved
-            (side, box, offset) for side, box, offset in self.refiner.refused
+        self.refiner.refusals.keep({  # what was refused stands while nothing near it moved
+            (side, box, offset) for side, box, offset in self.refiner.refusals.keys
             if box in then and all(np.linalg.norm((then[m] - then[box])[:2]) > NEAR
-                                   for m in shifted)}
-        self.refiner.blockers = {key: boxes for key, boxes in self.refiner.blockers.items()
-                                 if key in self.refiner.refused}
+                                   for m in shifted)})
         still = not shifted
         if isinstance(step, Step):
             if still or (off_prediction(predicted, seen) if predicted is not None
@@ -228,13 +226,13 @@ class _ContinuousModelMode(PlanningMode):
         """A step the arm could not run is missed, as one after which nothing moved, and
         its source at that grasp (refused `at` the release: its target at that release
         offset) is taken by no plan until a box within NEAR of it has moved; in the plans'
-        predicted scenes, until one of the `obstacles` has moved (Refiner.refuse)."""
+        predicted scenes, until one of the `obstacles` has moved (abstraction/refusals.py)."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
         if isinstance(step, Step):
             self.penalties[tuple(step.args)] += PENALTY
         self.refiner.missed[step.action] += 1
-        self.refiner.refuse(step.action, obstacles, at)
+        self.refiner.refusals.refuse(step.action, obstacles, at)
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         from drake_symplan.abstraction.bilevel import Search, plan_bilevel
