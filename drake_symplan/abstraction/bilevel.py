@@ -341,7 +341,8 @@ class Refiner:
                 if reaches_goal(boxes, goal, self.limit):
                     return done, done
                 nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
-                if blocking and done.steps and blocking - self.refusals.in_the_way(boxes):
+                in_the_way = self.refusals.in_the_way(boxes)
+                if blocking and done.steps and blocking - in_the_way:
                     clearing = min(clearing or (distance, done), (distance, done),
                                    key=lambda pair: pair[0])
                 key = tuple(np.round(boxes.positions, 2).ravel())
@@ -354,7 +355,7 @@ class Refiner:
                            if allows(m.action, barred)]
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,
-                                                  self.missed, self.refusals.in_the_way(boxes))
+                                                  self.missed, in_the_way)
                     if later and options:
                         heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
                                                   boxes, done, later))

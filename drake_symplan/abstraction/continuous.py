@@ -108,8 +108,16 @@ class Boxes:
         return found
 
     def covered(self) -> set[str]:
-        """The boxes with another resting on them, wholly or in part (`covered`)."""
-        return covered(self)
+        """The boxes with another resting on their top, wholly or in part (a block's end
+        over a cube, more than COVER_INSET inside its edges): nothing is set down on them."""
+        out = set()
+        for i in range(len(self.names)):
+            under = _under(self, i)
+            if under:
+                points = _footprint_points(self, i)
+                out |= {self.names[j] for j, *top in under
+                        if _over_top(points, top, COVER_INSET).any()}
+        return out
 
     def involved(self, action: Action) -> list[int]:
         """The indices, in scene order, of the objects the action involves
@@ -243,32 +251,18 @@ def tips(boxes: Boxes, name: str) -> bool:
     i = boxes.names.index(name)
     if boxes.features[i][3] < LEVEL:
         return False
-    centre = boxes.features[i][:3].astype(float)
+    centre = boxes.features[i][:2].astype(float)
     under = _under(boxes, i)
-    if any(np.all(np.abs((centre[:2] - c) @ R) <= half) for _, c, R, half in under):
+    if any(_over_top(centre[None], top)[0] for _, *top in under):
         return False  # centred over a support
     points = _footprint_points(boxes, i)
     held = np.zeros(len(points), bool)
-    for _, c, R, half in under:
-        held |= np.all(np.abs((points - c) @ R) <= half, axis=1)
+    for _, *top in under:
+        held |= _over_top(points, top)
     if not held.any():
         return False
     reach = (points[held] @ _DIRECTIONS.T).max(axis=0)
-    return bool(np.any(centre[:2] @ _DIRECTIONS.T > reach + HULL_TOL))
-
-
-def covered(boxes: Boxes) -> set[str]:
-    """The boxes with another resting on their top, wholly or in part (a block's end over
-    a cube, more than COVER_INSET inside its edges): nothing is set down on them."""
-    out = set()
-    for i in range(len(boxes.names)):
-        under = _under(boxes, i)
-        if not under:
-            continue
-        points = _footprint_points(boxes, i)
-        out |= {boxes.names[j] for j, c, R, half in under
-                if np.any(np.all(np.abs((points - c) @ R) <= half - COVER_INSET, axis=1))}
-    return out
+    return bool(np.any(centre @ _DIRECTIONS.T > reach + HULL_TOL))
 
 
 def _under(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
@@ -284,6 +278,13 @@ def _under(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.n
         if j != i and abs(centre_j[2] + HALF_EXTENTS[kind_j][2] - bottom) <= STACK_GAP:
             out.append((j, centre_j[:2], R_j[:2, :2], np.asarray(HALF_EXTENTS[kind_j][:2])))
     return out
+
+
+def _over_top(points: np.ndarray, top, inset: float = 0.0) -> np.ndarray:
+    """Which xy `points` [m, 2] lie over a top face `top` (centre xy, yaw's 2x2 rotation,
+    half extents: as _under gives), at least `inset` inside its edges."""
+    centre, R, half = top
+    return np.all(np.abs((points - centre) @ R) <= half - inset, axis=1)
 
 
 def _footprint_points(boxes: Boxes, i: int) -> np.ndarray:

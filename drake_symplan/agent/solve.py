@@ -380,8 +380,9 @@ class _Run:
     def _refused(self, step: PlanStep, message: str, obstacles: tuple[str, ...] = (),
                  at: str = "") -> None:
         """The arm could not run `step` (nothing moved; `obstacles`: the boxes in its way,
-        where it knows them; `at`: the side it refused at, "grasp" or "release"): monitored, with refusals left (REFUSALS_PER_OBJECT), the
-        planner is told and plans again from the same scene; else the solve stops."""
+        where it knows them; `at`: the side it refused at, "grasp" or "release"):
+        monitored, with refusals left (REFUSALS_PER_OBJECT), the planner is told and plans
+        again from the same scene; else the solve stops."""
         limit = REFUSALS_PER_OBJECT * len(self.scene.names)
         if not (self.config.monitor and self.result.refusals < limit):
             self.result.executed.append(step)
