@@ -227,6 +227,43 @@ def test_no_plan_lifts_a_cube_from_under_a_stack_of_two_as_the_arm_would_not():
     assert refiner.refusals.barred(tower) == {("grasp", "a", "center"), ("grasp", "d", "center")}
 
 
+def test_no_plan_grasps_a_cube_under_the_end_of_a_block_as_the_palm_would_strike_it():
+    # traced (eight boxes): a block on two cubes, its end over a third cube (c) it does not
+    # touch; the palm coming down to c struck the block and a tower of three fell. The
+    # planner reads the skill's rule (skills/pick_place.palm_struck) and moves the block off
+    # first; the cube under the block's centre (a) carries it as a rider.
+    features = np.stack([object_features("cube", np.array([0.816, y, 0.025]), np.eye(3))
+                         for y in (0.036, 0.111, 0.182)]
+                        + [object_features("long", np.array([0.814, 0.111, 0.075]), np.eye(3)),
+                           object_features("cube", np.array([0.6, -0.2, 0.025]), np.eye(3))])
+    bridge = Boxes(("c", "a", "e", "l", "d"), features, frozenset()).moved(features[:, :3])
+    refiner = Refiner(list(STACK.values()), Stacking())
+    assert refiner.refusals.barred(bridge) == {("grasp", "c", "center"), ("grasp", "e", "center")}
+    goal = {**bridge.where(), "c": np.array([0.6, -0.2, 0.075])}  # c onto d
+    found, _ = refiner.search(bridge, goal, Budget.of_cpu(10))
+    sources = [s.action.source for s in found.steps]
+    assert sources[0] == "l" and sources.count("c") == 1  # the block off c, and back
+
+
+def test_no_step_sets_a_block_down_into_a_taller_tower_beside_its_target():
+    # traced (eight boxes): a block (25 cm along y) centred on a cube 7 cm from a tower of
+    # three was lowered into the tower, which fell; the arm refuses it and the planner
+    # takes no such step (skills/pick_place.set_down_struck)
+    where = {**{f"t{i}": ("cube", (0.83, 0.127, 0.025 + 0.05 * i)) for i in range(3)},
+             "c": ("cube", (0.829, 0.197, 0.025)), "b": ("long", (0.938, 0.044, 0.025)),
+             "d": ("cube", (0.6, 0.07, 0.025))}
+    features = np.stack([object_features(kind, np.array(p), np.eye(3))
+                         for kind, p in where.values()])
+    scene = Boxes(tuple(where), features, frozenset()).moved(features[:, :3])
+    refiner = Refiner(list(STACK.values()), Stacking())
+    after = Stacking().predict(scene, [Action("b", "center", "c", "center")])[0]
+    assert refiner.unsafe(scene, after, Action("b", "center", "c", "center"))
+    assert not refiner.topples(scene, after)  # not by statics: by the arm
+    for clear in (Action("b", "center", "d", "center"), Action("d", "center", "c", "center"),
+                  Action("b", "center", "t2", "center")):
+        assert not refiner.refusals.sets_down_into(scene, clear)
+
+
 def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_plan_goes_there():
     def scene(**where):  # name -> (type, position)
         features = np.stack([object_features(kind, np.array(p, float), np.eye(3))

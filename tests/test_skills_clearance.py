@@ -43,3 +43,38 @@ def test_the_wrist_that_would_sweep_a_tower_of_four_refuses_the_grasp(planner):
     # the block's other end, and the same end beside a tower of two, are clear
     planner.plan(Action("b", "right", "c", "center"), _tower_beside_a_block(4))
     planner.plan(Action("b", "left", "c", "center"), _tower_beside_a_block(2))
+
+
+def _bridge_over_a_cube() -> dict[str, ObjectState]:
+    """A traced eight-box scene: a long block on two cubes, its near end over a third
+    cube (c1) it does not touch."""
+    def cube(name, y, z=0.025):
+        return ObjectState(name, "cube", np.array([0.816, y, z]))
+    return {"c1": cube("c1", 0.036), "c4": cube("c4", 0.111), "c5": cube("c5", 0.182),
+            "b": ObjectState("b", "long", np.array([0.814, 0.111, 0.075])),
+            "far": ObjectState("far", "cube", np.array([0.77, -0.263, 0.025]))}
+
+
+def test_a_grasp_under_a_block_that_bridges_over_the_source_is_refused(planner):
+    # In physics the palm came down on the block's end (a tower of three fell).
+    with pytest.raises(InfeasibleAction, match="palm would strike b coming down to c1"
+                       ) as refused:
+        planner.plan(Action("c1", "center", "far", "center"), _bridge_over_a_cube())
+    assert (refused.value.obstacles, refused.value.at) == (("b",), "grasp")
+    planner.plan(Action("b", "center", "far", "center"), _bridge_over_a_cube())
+
+
+def test_a_block_set_down_into_a_taller_tower_beside_its_target_is_refused(planner):
+    # A long block (25 cm along y) centred on a cube 7 cm from a tower of three: in
+    # physics it was lowered into the tower, which fell.
+    tower = {f"t{i}": ObjectState(f"t{i}", "cube", np.array([0.83, 0.127, 0.025 + 0.05 * i]))
+             for i in range(3)}
+    scene = {**tower, "c": ObjectState("c", "cube", np.array([0.829, 0.197, 0.025])),
+             "b": ObjectState("b", "long", np.array([0.938, 0.044, 0.025])),
+             "d": ObjectState("d", "cube", np.array([0.6, 0.07, 0.025]))}
+    with pytest.raises(InfeasibleAction, match="b would be driven into t1, t2 set down on c"
+                       ) as refused:
+        planner.plan(Action("b", "center", "c", "center"), scene)
+    assert (refused.value.obstacles, refused.value.at) == (("t1", "t2"), "release")
+    planner.plan(Action("b", "center", "d", "center"), scene)  # clear of the tower
+    planner.plan(Action("c", "center", "d", "center"), scene)  # a cube fits beside it

@@ -217,6 +217,11 @@ class Refiner:
         not where it falls."""
         return any(tips(after, n) for n in moved(before, after))
 
+    def unsafe(self, before: Boxes, after: Boxes, action: Action) -> bool:
+        """Does the step topple a box (topples) or drive its source into one at the release
+        (Refusals.sets_down_into, which the arm refuses)?"""
+        return self.topples(before, after) or self.refusals.sets_down_into(before, action)
+
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
         self.predictions += len(steps)
         return self.continuous.predict(boxes, [s.action for s in steps])
@@ -247,7 +252,8 @@ class Refiner:
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
                 if not allows(step.action, barred) \
-                        or step.action.target in covered or self.topples(boxes, after):
+                        or step.action.target in covered \
+                        or self.unsafe(boxes, after, step.action):
                     continue
                 found = extend(i + 1, after, step.apply(state),
                                Refined(done.steps + [step], done.predicted + [after]))
@@ -289,7 +295,7 @@ class Refiner:
                    if allows(m.action, barred)]
         scored = sorted(((after, option) for after, option in
                          zip(self._predict(boxes, options), options, strict=True)
-                         if not self.topples(boxes, after)),
+                         if not self.unsafe(boxes, after, option.action)),
                         key=lambda pair: max(goal_errors(pair[0], goal).values()))
         for after, option in scored[:3]:
             found = self.finish(after, Refined(done.steps + [option],
@@ -363,7 +369,7 @@ class Refiner:
             else:
                 options = deferred
             for after, option in zip(self._predict(boxes, options), options, strict=True):
-                if self.topples(boxes, after):
+                if self.unsafe(boxes, after, option.action):
                     continue
                 distance = h(after)
                 cost = g + 1 + MISSED * self.missed[option.action]

@@ -1,5 +1,5 @@
-"""What the planner knows of what the arm will not run: the grasps the arm's own rule
-refuses in a scene (a stack it will not lift), and the steps it refused in this solve, by
+"""What the planner knows of what the arm will not run: the grasps the arm's own rules
+refuse in a scene (a stack it will not lift, a box its palm would strike), and the steps it refused in this solve, by
 the side it refused at and the boxes it named in its way. Rules on the believed and
 predicted boxes only (abstraction/bilevel.py's Refiner asks them); no simulator.
 
@@ -13,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan.abstraction.continuous import MOVED, Boxes
-from drake_symplan.actions import OFFSETS, Action
+from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 
 Key = tuple[str, str, str]
+GRID = 0.005  # m (and rad): scenes whose boxes near a source agree this far share its palm
 
 
 def refusal(action: Action, at: str) -> Key:
@@ -40,6 +41,8 @@ class Refusals:
     def __init__(self):
         self.keys: set[Key] = set()
         self.blockers: dict[Key, dict[str, np.ndarray]] = {}
+        self._palm_struck: dict[tuple, bool] = {}
+        self._scene: tuple[Boxes, dict] | None = None  # the last scene asked, its states
 
     def refuse(self, action: Action, obstacles: dict[str, np.ndarray] | None = None,
                at: str = "") -> None:
@@ -69,16 +72,40 @@ class Refusals:
 
     def barred(self, boxes: Boxes) -> set[Key]:
         """The keys no step from `boxes` takes (`allows`): the refusals standing there, and
-        the grasps the arm would refuse there by its own rule, under a stack it will not
-        lift (skills/carry.unpinchable, with the skill's own riders and tolerances)."""
-        # The skill's rule on beliefs (Drake-free), imported here: importing the planner
-        # loads no skill.
+        the grasps the arm would refuse there by its own rules, under a stack it will not
+        lift (skills/carry.unpinchable, with the skill's own riders and tolerances) or
+        where its palm would strike a box (skills/pick_place.palm_struck)."""
+        # The skill's rules on beliefs, imported here: importing the planner loads no skill.
         from drake_symplan.skills.carry import unpinchable
+        from drake_symplan.skills.pick_place import palm_reach, palm_struck
 
         out = self.keys - self.cleared(boxes.where())
         objects = boxes.object_states()
         for source in boxes.names:
             target = next(n for n in boxes.names if n != source)
-            out |= {("grasp", source, g) for g in OFFSETS
-                    if unpinchable(Action(source, g, target, "center"), objects)}
+            near = palm_reach(source, objects)
+            # the palm's answer depends only on the source and the boxes near it: kept
+            # for the scenes the search predicts with them where they were (GRID)
+            key = tuple((n, *np.round(np.r_[objects[n].position, objects[n].yaw] / GRID))
+                        for n in (source, *near)) if near else None
+            for g in (g for g in OFFSETS if grasp_on_box(g, boxes.half_length(source))):
+                action = Action(source, g, target, "center")
+                if unpinchable(action, objects) or (
+                        near and self._palm(key + (g,), action, objects, palm_struck)):
+                    out.add(("grasp", source, g))
         return out
+
+    def sets_down_into(self, boxes: Boxes, action: Action) -> bool:
+        """Would `action`'s source be driven into a box at its release in `boxes`, which
+        the arm refuses (skills/pick_place.set_down_struck: a block set on a cube beside a
+        taller tower)?"""
+        from drake_symplan.skills.pick_place import set_down_struck
+
+        if self._scene is None or self._scene[0] is not boxes:
+            self._scene = (boxes, boxes.object_states())
+        return bool(set_down_struck(action, self._scene[1]))
+
+    def _palm(self, key, action: Action, objects, palm_struck) -> bool:
+        if key not in self._palm_struck:
+            self._palm_struck[key] = bool(palm_struck(action, objects))
+        return self._palm_struck[key]

@@ -42,6 +42,7 @@ REST_TOL = 0.015  # m: a box whose bottom is this near the source's top rests on
 FOOTPRINT_TOL = 0.01  # m outside the footprint that still counts as over it
 MASS = {"cube": 0.1, "long": 0.4}  # kg, models/objects
 RELEASE_GAP = 0.004  # m between the released source's bottom and what lies under it
+STRIKE_DEPTH = 0.01  # m a box's top may reach above a released source's bottom (beliefs)
 STABLE_MARGIN = 0.015  # m: a released load's centre of mass lies this far inside its support
 CAREFUL_FINGER = -0.02  # finger command while carrying a load: 37.5 N on a 5 cm box
 CAREFUL_OPEN_SECONDS = 0.05  # s: the fingers let go of a load at once (a tipping load)
@@ -115,19 +116,23 @@ def _clear_point(src: ObjectState, load: list[ObjectState], want: float) -> floa
     return float(ok[np.argmin(np.abs(ok - want) + 1e-9 * ok)])
 
 
+def _tops_under(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarray,
+                yaw: float, half: tuple) -> dict[str, float]:
+    """The believed boxes (not in `skip`) under a footprint (centre xy, yaw, half
+    extents), by the height of their top."""
+    u = np.linspace(-1.0, 1.0, 5)
+    grid = np.array([(a * half[0], b * half[1]) for a in u for b in u])
+    points = [centre[:2] + _turn(g, yaw) for g in grid]
+    return {name: float(o.position[2] + HALF_EXTENTS[o.type][2])
+            for name, o in objects.items()
+            if name not in skip and any(_covers(o, p, 0.0) for p in points)}
+
+
 def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarray,
               yaw: float, half: tuple) -> tuple[float, list[str]]:
     """The highest believed top under a footprint (centre xy, yaw, half extents) and the
     boxes (not in `skip`) whose top that is, or the table's (0, []) where none lies under it."""
-    u = np.linspace(-1.0, 1.0, 5)
-    grid = np.array([(a * half[0], b * half[1]) for a in u for b in u])
-    points = [centre[:2] + _turn(g, yaw) for g in grid]
-    tops = {}
-    for name, o in objects.items():
-        if name in skip:
-            continue
-        if any(_covers(o, p, 0.0) for p in points):
-            tops[name] = float(o.position[2] + HALF_EXTENTS[o.type][2])
+    tops = _tops_under(objects, skip, centre, yaw, half)
     if not tops:
         return 0.0, []
     top = max(tops.values())
@@ -163,6 +168,22 @@ def landing_height(objects: dict[str, ObjectState], source: str, grasp: np.ndarr
     landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
     under, _ = _supports(objects, skip, landing, src.yaw + yaw_turn, HALF_EXTENTS[src.type])
     return under + HALF_EXTENTS[src.type][2] + RELEASE_GAP + (grasp[2] - src.position[2])
+
+
+def release_strikes(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
+                    release: np.ndarray, yaw_turn: float) -> list[str]:
+    """The boxes (not the source's load) that the source, held at the TCP point `grasp`
+    and lowered to `release` (the gripper turned by `yaw_turn` between them), would be
+    driven into: under where it lands, their top more than STRIKE_DEPTH above its bottom
+    (a long block set on a cube beside a taller tower). The arm refuses such a release."""
+    src = objects[action.source]
+    if not holds(src, grasp):  # nothing is carried
+        return []
+    skip = {action.source, *riders(action.source, objects)}
+    landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
+    bottom = release[2] - (grasp[2] - src.position[2]) - HALF_EXTENTS[src.type][2]
+    tops = _tops_under(objects, skip, landing, src.yaw + yaw_turn, HALF_EXTENTS[src.type])
+    return [n for n, top in tops.items() if top > bottom + STRIKE_DEPTH]
 
 
 def _onto_support(support: ObjectState, com: np.ndarray) -> np.ndarray:

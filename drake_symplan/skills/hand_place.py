@@ -38,7 +38,7 @@ from drake_symplan.actions import Action
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.arm_twin import ArmTwin
-from drake_symplan.skills.carry import riders
+from drake_symplan.skills.carry import release_strikes, riders
 from drake_symplan.skills.pick_place import action_geometry, arm_geometry
 from drake_symplan.world.hand import (
     finger_strikes,
@@ -101,6 +101,8 @@ def plan_hand(
         struck += [n for n in palm_strikes(poses, half, arm.grasp, arm.yaw_grasp, load)
                    + palm_strikes(poses, half, arm.release, arm.yaw_release, load)
                    + wrist_strikes(poses, half, arm.release)
+                   + release_strikes(action, beliefs, arm.grasp, arm.release,
+                                     arm.yaw_release - arm.yaw_grasp)
                    if n not in struck and n not in load]
     pinched = carry == "pinched"
     if held is None:

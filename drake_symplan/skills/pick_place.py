@@ -27,15 +27,17 @@ from drake_symplan.skills.carry import (
     CAREFUL_FINGER,
     CAREFUL_OPEN_SECONDS,
     CAREFUL_TCP_ACCELERATION,
+    STRIKE_DEPTH,
     careful_points,
     holds,
     landing_height,
+    release_strikes,
     riders,
     unpinchable,
 )
 from drake_symplan.skills.ik import ArmIK
 from drake_symplan.skills.timing import TCP_ACCELERATION, PathTimer, Phase
-from drake_symplan.world.hand import finger_strikes, palm_strikes
+from drake_symplan.world.hand import PALM_ABOVE_TCP, finger_strikes, palm_strikes
 from drake_symplan.world.settling import settle_until_rest
 from drake_symplan.world.station import FINGER_CLOSED, FINGER_OPEN, HOME_Q, Station
 
@@ -43,6 +45,12 @@ APPROACH_HEIGHT = 0.12  # m above grasp/release points
 MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
+# m between the centres of a source and a box its palm can reach: the palm's half length
+# (7.5 cm), a grasp offset (7.5 cm), a long box's half diagonal (12.7 cm) and a margin
+PALM_REACH = 0.31
+# m between a release point and a box a source set down there can strike: a long box's
+# half diagonal twice and a grasp offset
+SET_DOWN_REACH = 0.33
 LOWER_STEP = 0.005  # m: the heights tried, from the landing up, for a release beside the target
 LIFTED_THRESHOLD = 0.05  # m of rise after the lift that counts as lifted
 FINGER_SECONDS = 0.15  # the fingers close (open) on a box while the arm holds still
@@ -133,14 +141,19 @@ class ActionGeometry:
         return (self.release - self.grasp)[:2]
 
 
+def _boxes(objects: dict[str, ObjectState]) -> tuple[dict, dict]:
+    """The believed boxes as world/hand.py's strike tests take them: poses, half extents."""
+    return ({n: RigidTransform(RotationMatrix.MakeZRotation(o.yaw), o.position)
+             for n, o in objects.items()},
+            {n: np.array(HALF_EXTENTS[o.type]) for n, o in objects.items()})
+
+
 def gripper_strikes(objects: dict[str, ObjectState], tcp: np.ndarray, yaw: float,
                     skip: set[str]) -> list[str]:
     """The boxes of the beliefs `objects` (but `skip`) that the palm or the open fingers,
     coming straight down to `tcp` with the finger axis at `yaw`, would strike
     (world/hand.py's palm_strikes, finger_strikes)."""
-    poses = {n: RigidTransform(RotationMatrix.MakeZRotation(o.yaw), o.position)
-             for n, o in objects.items()}
-    half = {n: np.array(HALF_EXTENTS[o.type]) for n, o in objects.items()}
+    poses, half = _boxes(objects)
     struck = palm_strikes(poses, half, tcp, yaw, skip)
     return struck + [n for n in finger_strikes(poses, half, tcp, yaw)
                      if n not in skip and n not in struck]
@@ -218,6 +231,64 @@ def arm_geometry(action: Action, objects: dict[str, ObjectState],
     return dc.replace(g, grasp=grasp, release=release), "careful" if careful else "pinched"
 
 
+def palm_reach(source: str, objects: dict[str, ObjectState]) -> list[str]:
+    """The boxes near `source` that rise past the palm's underside at its centre: the
+    only ones the palm can strike coming down to a grasp on it (its riders among them)."""
+    src = objects[source]
+    floor = src.position[2] + PALM_ABOVE_TCP
+    return [n for n, o in objects.items() if n != source
+            and o.position[2] + HALF_EXTENTS[o.type][2] > floor
+            and np.linalg.norm(o.position[:2] - src.position[:2]) < PALM_REACH]
+
+
+def palm_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
+    """The boxes the palm would strike coming down to `action`'s grasp by the arm's
+    geometry (arm_geometry, as _refuse_strikes tests it); [] at once where palm_reach
+    finds none."""
+    if not palm_reach(action.source, objects):
+        return []
+    g, _ = arm_geometry(action, objects)
+    load = {action.source, *riders(action.source, objects)}
+    return palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=0.0)
+
+
+def set_down_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
+    """The boxes the source would be driven into at `action`'s release by its nominal
+    points (action_geometry's, before a careful carry's shifts; _refuse_strikes tests the
+    arm's own); [] at once where no box near the target rises past the source's bottom
+    there."""
+    src, tgt = objects[action.source], objects[action.target]
+    release = release_point(tgt.position, action)
+    bottom = _top_z(tgt) + RELEASE_CLEARANCE
+    release[2] = bottom + HALF_EXTENTS[src.type][2]
+    if not any(n not in (action.source, action.target)
+               and o.position[2] + HALF_EXTENTS[o.type][2] > bottom + STRIKE_DEPTH
+               and np.linalg.norm(o.position[:2] - release[:2]) < SET_DOWN_REACH
+               for n, o in objects.items()):
+        return []
+    return release_strikes(action, objects, grasp_point(src.position, action), release,
+                           fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"]))
+
+
+def _refuse_strikes(action: Action, objects: dict[str, ObjectState], g: ActionGeometry,
+                    load: set[str]) -> None:
+    """InfeasibleAction where the palm coming down to the grasp would strike a box not in
+    the `load` (a block bridging over the source, a tower beside it), or where the source
+    would be driven into one at the release (skills/carry.py's release_strikes): the arm
+    knocks such boxes over. No margin: with PALM_MARGIN it refused grasps that pass a few
+    millimetres beside a block in physics; an open finger landing on a cube's edge slides
+    it (the quarter turn, action_geometry, avoids what it can)."""
+    struck = palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=0.0)
+    if struck:
+        raise InfeasibleAction(f"the palm would strike {', '.join(struck)} coming down "
+                               f"to {action.source}", tuple(struck), "grasp")
+    struck = release_strikes(action, objects, g.grasp, g.release,
+                             g.yaw_release - g.yaw_grasp)
+    if struck:
+        raise InfeasibleAction(f"{action.source} would be driven into {', '.join(struck)} "
+                               f"set down on {action.target}", tuple(struck), "release")
+
+
 class PickPlaceMotions:
     """Turns an action and the caller's object states into a joint trajectory."""
 
@@ -270,6 +341,8 @@ class PickPlaceMotions:
 
     def _motion(self, g: ActionGeometry, carry: str, q_start: np.ndarray,
                 lift_hold: bool, action: Action, objects: dict[str, ObjectState]) -> Motion:
+        load = {action.source, *riders(action.source, objects)}
+        _refuse_strikes(action, objects, g, load)
         careful = carry == "careful"
         loaded = CAREFUL_TCP_ACCELERATION if careful else TCP_ACCELERATION
         grip = CAREFUL_FINGER if careful else FINGER_CLOSED
@@ -290,8 +363,7 @@ class PickPlaceMotions:
         retreat = self._solve("retreat", g.release + up, g.yaw_release, at_release)
         self._clear([q_start, pre, mid, at_grasp], objects, {action.source},
                     f"down to {action.source}", "grasp")
-        self._clear([carry[-1], at_release, retreat, HOME_Q], objects,
-                    {action.source, *riders(action.source, objects)},
+        self._clear([carry[-1], at_release, retreat, HOME_Q], objects, load,
                     f"down to {action.target}", "release")
         opened, closed = _with_fingers(FINGER_OPEN), _with_fingers(grip)
         lifting = [

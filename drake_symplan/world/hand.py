@@ -156,12 +156,12 @@ PALM_MARGIN = 0.005  # m
 
 
 def palm_strikes(poses: dict[str, RigidTransform], half_extents: dict[str, np.ndarray],
-                 tcp: np.ndarray, yaw: float, skip=()) -> list[str]:
+                 tcp: np.ndarray, yaw: float, skip=(), margin: float = PALM_MARGIN) -> list[str]:
     """The boxes (but those in `skip`) that the arm's palm, coming straight down to the
     TCP point `tcp` with the finger axis at `yaw`, would strike: those reaching above its
-    underside under its footprint."""
+    underside under its footprint grown by `margin`."""
     return _reaching(poses, half_extents, tcp[2] + PALM_ABOVE_TCP, [np.asarray(tcp[:2], float)],
-                     _finger_frame(yaw)[1], PALM_HALF + PALM_MARGIN, skip)
+                     _finger_frame(yaw)[1], PALM_HALF + margin, skip)
 
 
 def _rectangles_overlap(c1, R1, h1, c2, R2, h2) -> bool:
