@@ -12,7 +12,14 @@ import numpy as np
 import torch
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
-from drake_symplan.abstraction.bilevel import PENALTY, Refiner, Search, moves, plan_bilevel
+from drake_symplan.abstraction.bilevel import (
+    PENALTY,
+    Refiner,
+    Search,
+    moves,
+    plan_bilevel,
+    set_down_tips,
+)
 from drake_symplan.abstraction.continuous import Boxes, ContinuousModel, tips
 from drake_symplan.abstraction.refusals import allows
 from drake_symplan.actions import Action, release_shift
@@ -264,6 +271,20 @@ def test_no_step_sets_a_block_down_into_a_taller_tower_beside_its_target():
         assert not refiner.refusals.sets_down_into(scene, clear)
 
 
+def test_a_block_grasped_at_its_end_and_released_over_a_cube_would_topple():
+    # traced (eight boxes): pick(o3:right) place(o6:center) brought the block's centre down
+    # 7.5 cm off a cube atop a tower, and block and tower fell; the model predicted the
+    # block resting on the cube. The action's own points say where it comes down.
+    features = np.stack([object_features("cube", np.array([0.89, 0.31, 0.025]), np.eye(3)),
+                         object_features("long", np.array([0.7, 0.0, 0.025]), np.eye(3))])
+    scene = Boxes(("c", "l"), features, frozenset()).moved(features[:, :3])
+    assert set_down_tips(scene, Action("l", "right", "c", "center"))  # centre 7.5 cm off
+    assert set_down_tips(scene, Action("l", "left", "c", "center"))
+    assert not set_down_tips(scene, Action("l", "center", "c", "center"))  # centred
+    assert not set_down_tips(scene, Action("l", "right", "c", "right"))  # offsets cancel
+    assert not set_down_tips(scene, Action("c", "center", "l", "right"))  # on its end: held
+
+
 def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_plan_goes_there():
     def scene(**where):  # name -> (type, position)
         features = np.stack([object_features(kind, np.array(p, float), np.eye(3))
@@ -283,13 +304,14 @@ def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_pl
     both = np.stack([object_features("cube", np.array(c[1]), np.eye(3)), leaning])
     assert not tips(Boxes(("c", "l"), both, frozenset()).moved(both[:, :3]), "l")
     # the hand-written model puts l's centre 7.5 cm off c's (a release at c's right): the
-    # search reaches that scene without the rule and not with it
+    # search reaches that scene without the rules (the prediction's and the action's own
+    # points') and not with them
     start = scene(c=c, l=("long", (0.7, 0.2, 0.025)))
     goal = {"c": np.array(c[1]), "l": np.array([0.5, 0.075, 0.075])}
     refiner = Refiner(list(STACK.values()), Stacking())
     found, _ = refiner.search(start, goal, Budget.of_cpu(10))
     assert found is None
-    refiner.topples = lambda before, after: False
+    refiner.unsafe = lambda before, after, action: False
     found, _ = refiner.search(start, goal, Budget.of_cpu(10))
     assert [(s.action.source, s.action.target) for s in found.steps] == [("l", "c")]
 

@@ -181,6 +181,18 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
     return out
 
 
+def set_down_tips(boxes: Boxes, action: Action) -> bool:
+    """Would `action`'s source topple where the action sets it down by its own points
+    (skills/pick_place.set_down_at; continuous.tips), its riders aside? A block grasped
+    at its end and released over a cube's centre comes down with its centre 7.5 cm off
+    the cube; the model, which saw few such steps, may predict it resting there."""
+    from drake_symplan.skills.pick_place import set_down_at  # the skill's geometry
+
+    positions = boxes.positions.copy()
+    positions[boxes.names.index(action.source)] = set_down_at(action, boxes.object_states())
+    return tips(boxes.moved(positions), action.source)
+
+
 class Refiner:
     """The continuous level: refines skeletons and searches (module docstring).
     `operators`: the learned operators (a list, or symbolic/structs.py's
@@ -218,9 +230,11 @@ class Refiner:
         return any(tips(after, n) for n in moved(before, after))
 
     def unsafe(self, before: Boxes, after: Boxes, action: Action) -> bool:
-        """Does the step topple a box (topples) or drive its source into one at the release
-        (Refusals.sets_down_into, which the arm refuses)?"""
-        return self.topples(before, after) or self.refusals.sets_down_into(before, action)
+        """Does the step topple a box, where the model predicts it (topples) or where the
+        action sets its source down (set_down_tips), or drive its source into a box at the
+        release (Refusals.sets_down_into, which the arm refuses)?"""
+        return self.topples(before, after) or set_down_tips(before, action) \
+            or self.refusals.sets_down_into(before, action)
 
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
         self.predictions += len(steps)

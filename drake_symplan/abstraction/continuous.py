@@ -17,6 +17,7 @@ the planner knows, the robot learned.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -82,6 +83,11 @@ class Boxes:
 
     def object_states(self) -> dict[str, ObjectState]:
         """The boxes as the skills read them (type, centre, yaw; upright)."""
+        return dict(self._states)
+
+    @cached_property
+    def _states(self) -> dict[str, ObjectState]:
+        # the planner asks the skills' rules of a scene once per step it predicts from it
         out = {}
         for name, row in zip(self.names, self.features, strict=True):
             kind, centre, R = box_of(row)

@@ -42,7 +42,6 @@ class Refusals:
         self.keys: set[Key] = set()
         self.blockers: dict[Key, dict[str, np.ndarray]] = {}
         self._palm_struck: dict[tuple, bool] = {}
-        self._scene: tuple[Boxes, dict] | None = None  # the last scene asked, its states
 
     def refuse(self, action: Action, obstacles: dict[str, np.ndarray] | None = None,
                at: str = "") -> None:
@@ -101,9 +100,7 @@ class Refusals:
         taller tower)?"""
         from drake_symplan.skills.pick_place import set_down_struck
 
-        if self._scene is None or self._scene[0] is not boxes:
-            self._scene = (boxes, boxes.object_states())
-        return bool(set_down_struck(action, self._scene[1]))
+        return bool(set_down_struck(action, boxes.object_states()))
 
     def _palm(self, key, action: Action, objects, palm_struck) -> bool:
         if key not in self._palm_struck:

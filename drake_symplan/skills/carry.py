@@ -159,14 +159,21 @@ def unpinchable(action: Action, objects: dict[str, ObjectState]) -> list[str]:
     return over if len(over) > MAX_PINCHED else []
 
 
+def landing(src: ObjectState, grasp: np.ndarray, release: np.ndarray,
+            yaw_turn: float) -> np.ndarray:
+    """Where (xy) the centre of `src`, held at the TCP point `grasp` and released at
+    `release` (the gripper turned by `yaw_turn` between them), comes down."""
+    return release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
+
+
 def landing_height(objects: dict[str, ObjectState], source: str, grasp: np.ndarray,
                    release: np.ndarray, yaw_turn: float, skip: set[str]) -> float:
     """The TCP height at which the source, held at `grasp` and released at `release`
     (xy; the gripper turned by `yaw_turn` between them), rests RELEASE_GAP above the
     highest believed top (not in `skip`) under where it lands, the table's where none."""
     src = objects[source]
-    landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
-    under, _ = _supports(objects, skip, landing, src.yaw + yaw_turn, HALF_EXTENTS[src.type])
+    under, _ = _supports(objects, skip, landing(src, grasp, release, yaw_turn),
+                         src.yaw + yaw_turn, HALF_EXTENTS[src.type])
     return under + HALF_EXTENTS[src.type][2] + RELEASE_GAP + (grasp[2] - src.position[2])
 
 
@@ -180,9 +187,9 @@ def release_strikes(action: Action, objects: dict[str, ObjectState], grasp: np.n
     if not holds(src, grasp):  # nothing is carried
         return []
     skip = {action.source, *riders(action.source, objects)}
-    landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
     bottom = release[2] - (grasp[2] - src.position[2]) - HALF_EXTENTS[src.type][2]
-    tops = _tops_under(objects, skip, landing, src.yaw + yaw_turn, HALF_EXTENTS[src.type])
+    tops = _tops_under(objects, skip, landing(src, grasp, release, yaw_turn),
+                       src.yaw + yaw_turn, HALF_EXTENTS[src.type])
     return [n for n, top in tops.items() if top > bottom + STRIKE_DEPTH]
 
 
@@ -221,14 +228,14 @@ def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.nd
     if y is not None:
         shift = src.position[:2] + _turn(np.array([0.0, y]), src.yaw) - grasp[:2]
     yaw = src.yaw + yaw_turn  # the source's yaw once released
-    landing = release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
+    down = landing(src, grasp, release, yaw_turn)
     skip = {action.source, *(o.name for o in load)}
     placed = release + np.array([*_turn(shift, yaw_turn), 0.0])
-    under, below = _supports(objects, skip, landing, yaw, HALF_EXTENTS[src.type])
+    under, below = _supports(objects, skip, down, yaw, HALF_EXTENTS[src.type])
     if len(below) == 1:  # one box under the source: keep the load's centre of mass over it
-        move = _onto_support(objects[below[0]], landing + _turn(com, yaw))
+        move = _onto_support(objects[below[0]], down + _turn(com, yaw))
         if np.any(move):
             placed[:2] += move
-            under, _ = _supports(objects, skip, landing + move, yaw, HALF_EXTENTS[src.type])
+            under, _ = _supports(objects, skip, down + move, yaw, HALF_EXTENTS[src.type])
     placed[2] = min(release[2], under + half[2] + RELEASE_GAP)
     return grasp + np.array([*shift, 0.0]), placed, y is not None

@@ -30,6 +30,7 @@ from drake_symplan.skills.carry import (
     STRIKE_DEPTH,
     careful_points,
     holds,
+    landing,
     landing_height,
     release_strikes,
     riders,
@@ -178,12 +179,11 @@ def action_geometry(action: Action, objects: dict[str, ObjectState],
     for name in (action.source, action.target):
         if name not in objects:
             raise ValueError(f"unknown object {name!r} (objects: {sorted(objects)})")
-    src, tgt = objects[action.source], objects[action.target]
-    grasp, release = grasp_point(src.position, action), release_point(tgt.position, action)
-    release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
+    src = objects[action.source]
+    grasp, release, turn_r = nominal_points(action, objects)
     carry_z = max(MIN_CARRY_HEIGHT, max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
     yaw_g = grasp_yaw(src)
-    yaw_r = yaw_g + fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"])  # any quarter turn lines up faces
+    yaw_r = yaw_g + turn_r  # any quarter turn lines up faces
     plain = not riders(action.source, objects)
     if turn and src.type == "cube" and plain:
         skip = {action.source}
@@ -252,22 +252,39 @@ def palm_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
     return palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=0.0)
 
 
-def set_down_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
-    """The boxes the source would be driven into at `action`'s release by its nominal
-    points (action_geometry's, before a careful carry's shifts; _refuse_strikes tests the
-    arm's own); [] at once where no box near the target rises past the source's bottom
-    there."""
+def nominal_points(action: Action, objects: dict[str, ObjectState]
+                   ) -> tuple[np.ndarray, np.ndarray, float]:
+    """`action`'s TCP points by the believed `objects` (grasp, release over the target's
+    top) and the gripper's turn between them, before the quarter turn clear of neighbours
+    and a careful carry's shifts (action_geometry, arm_geometry)."""
     src, tgt = objects[action.source], objects[action.target]
     release = release_point(tgt.position, action)
-    bottom = _top_z(tgt) + RELEASE_CLEARANCE
-    release[2] = bottom + HALF_EXTENTS[src.type][2]
+    release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
+    return (grasp_point(src.position, action), release,
+            fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"]))
+
+
+def set_down_at(action: Action, objects: dict[str, ObjectState]) -> np.ndarray:
+    """Where `action` sets its source down by its nominal points: its centre, released
+    over the target's top (the planner asks whether it would rest there)."""
+    grasp, release, turn = nominal_points(action, objects)
+    src = objects[action.source]
+    return np.array([*landing(src, grasp, release, turn),
+                     release[2] - (grasp[2] - src.position[2])])
+
+
+def set_down_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
+    """The boxes the source would be driven into at `action`'s release by its nominal
+    points (_refuse_strikes tests the arm's own); [] at once where no box near the
+    release rises past the source's bottom there."""
+    grasp, release, turn = nominal_points(action, objects)
+    bottom = release[2] - HALF_EXTENTS[objects[action.source].type][2]
     if not any(n not in (action.source, action.target)
                and o.position[2] + HALF_EXTENTS[o.type][2] > bottom + STRIKE_DEPTH
                and np.linalg.norm(o.position[:2] - release[:2]) < SET_DOWN_REACH
                for n, o in objects.items()):
         return []
-    return release_strikes(action, objects, grasp_point(src.position, action), release,
-                           fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"]))
+    return release_strikes(action, objects, grasp, release, turn)
 
 
 def _refuse_strikes(action: Action, objects: dict[str, ObjectState], g: ActionGeometry,
