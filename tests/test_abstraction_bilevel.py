@@ -415,6 +415,12 @@ def test_with_nothing_verified_the_first_skeleton_runs_on_its_symbols():
     assert found.solved and found.level == "symbolic" and found.steps == on_b.steps
     assert "runs on its symbols" in found.message
     assert [c.accepted for c in found.candidates] == [False, False, False]
+    # not where the arm refused its first step in this scene (traced: a skeleton with no
+    # other way was sent to the arm twelve times and refused each time)
+    refiner.refusals.refuse(on_b.steps[0].action)
+    found = plan_bilevel(Skeletons(on_b), refiner, observed(START), observed(goal),
+                         Budget(10.0, 30.0))
+    assert (found.status, found.steps) == ("timeout", [])
 
 
 class Staying(torch.nn.Module):

@@ -451,9 +451,11 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
     if refined is not None:
         return found(refined.steps, "", SEARCH, refined.predicted)
     missed = "no plan reaches the goal positions in prediction"
-    if unverified is not None and unverified.steps:
+    if unverified is not None and unverified.steps \
+            and allows(unverified.steps[0].action, refiner.refusals.barred(start.boxes)):
         # Predictions are not the world (`symplan eval rollout`): the symbolic plan still
-        # has its chance, completed and monitored as a symbolic plan is.
+        # has its chance, completed and monitored as a symbolic plan is; not where the arm
+        # refuses its first step (a skeleton with no other way found it again and again).
         return found(unverified.steps, f"{missed}; the first skeleton runs on its symbols",
                      "symbolic")
     if _nearer(nearest, start.boxes, target):
@@ -466,7 +468,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
         # once it is seen moved, the grasp is planned again.
         return found(nearest.steps, f"{missed}; the steps that move a box in the way of a "
                      "refused grasp run, then a replan", "nearest", nearest.predicted)
-    if unverified is not None:  # the goal's symbols hold already: nothing to run
+    if unverified is not None and not unverified.steps:  # the goal's symbols hold already
         return found([], missed, "symbolic")
     return found([], missed, search.level, status="timeout")
 
