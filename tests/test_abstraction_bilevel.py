@@ -274,15 +274,19 @@ def test_no_step_sets_a_block_down_into_a_taller_tower_beside_its_target():
 def test_a_block_grasped_at_its_end_and_released_over_a_cube_would_topple():
     # traced (eight boxes): pick(o3:right) place(o6:center) brought the block's centre down
     # 7.5 cm off a cube atop a tower, and block and tower fell; the model predicted the
-    # block resting on the cube. The action's own points say where it comes down.
-    features = np.stack([object_features("cube", np.array([0.89, 0.31, 0.025]), np.eye(3)),
-                         object_features("long", np.array([0.7, 0.0, 0.025]), np.eye(3))])
-    scene = Boxes(("c", "l"), features, frozenset()).moved(features[:, :3])
+    # block resting on the cube. The action's own points say where it comes down (c
+    # stands on d: a tower of two).
+    features = np.stack([object_features("cube", np.array([0.89, 0.31, z]), np.eye(3))
+                         for z in (0.025, 0.075)]
+                        + [object_features("long", np.array([0.7, 0.0, 0.025]), np.eye(3))])
+    scene = Boxes(("d", "c", "l"), features, frozenset()).moved(features[:, :3])
     assert set_down_tips(scene, Action("l", "right", "c", "center"))  # centre 7.5 cm off
     assert set_down_tips(scene, Action("l", "left", "c", "center"))
     assert not set_down_tips(scene, Action("l", "center", "c", "center"))  # centred
     assert not set_down_tips(scene, Action("l", "right", "c", "right"))  # offsets cancel
     assert not set_down_tips(scene, Action("c", "center", "l", "right"))  # on its end: held
+    # on a cube on the table the block leans on the table (goals have blocks so)
+    assert not set_down_tips(scene, Action("l", "right", "d", "center"))
 
 
 def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_plan_goes_there():

@@ -47,7 +47,7 @@ from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, ranked
 from drake_symplan.abstraction.refusals import Refusals, allows
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
-from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
+from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS, goal_reached
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Reposition, Step
 
@@ -62,6 +62,7 @@ DEFER = 3.0  # the search's f added to the moves the goal's order does not ask f
 MISSED = 3.0  # the search's cost added to a move each time the arm missed it in this solve
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
+LEANS = 0.06  # m: a source set down with its bottom this low leans on the table if it tips
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
 SEARCH = "continuous"  # the Candidate.source of the continuous search
 
@@ -183,13 +184,19 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
 
 def set_down_tips(boxes: Boxes, action: Action) -> bool:
     """Would `action`'s source topple where the action sets it down by its own points
-    (skills/pick_place.set_down_at; continuous.tips), its riders aside? A block grasped
-    at its end and released over a cube's centre comes down with its centre 7.5 cm off
-    the cube; the model, which saw few such steps, may predict it resting there."""
+    (skills/pick_place.set_down_at; continuous.tips), its riders aside, from higher than
+    LEANS (one box on the table: a block with its end on a cube leans on the table, as
+    goals have it)? A block grasped at its end and released over the centre of a cube
+    atop a tower comes down with its centre 7.5 cm off it, and falls; the model, which
+    saw few such steps, may predict it resting there."""
     from drake_symplan.skills.pick_place import set_down_at  # the skill's geometry
 
+    objects = boxes.object_states()
+    centre = set_down_at(action, objects)
+    if centre[2] - HALF_EXTENTS[objects[action.source].type][2] <= LEANS:
+        return False
     positions = boxes.positions.copy()
-    positions[boxes.names.index(action.source)] = set_down_at(action, boxes.object_states())
+    positions[boxes.names.index(action.source)] = centre
     return tips(boxes.moved(positions), action.source)
 
 
