@@ -46,6 +46,10 @@ APPROACH_HEIGHT = 0.12  # m above grasp/release points
 MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
 RELEASE_CLEARANCE = 0.004  # m gap between the held box's bottom and the target's top
+# m the palm may reach past a box's edge coming down (half its width): the long sets'
+# own steps brush 13 mm past a tower's edge and it stands; a palm squarely under a block
+# (4-5 cm in) brought a tower of three down
+PALM_BRUSH = 0.02
 # m between the centres of a source and a box its palm can reach: the palm's half length
 # (7.5 cm), a grasp offset (7.5 cm), a long box's half diagonal (12.7 cm) and a margin
 PALM_REACH = 0.31
@@ -249,7 +253,7 @@ def palm_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
         return []
     g, _ = arm_geometry(action, objects)
     load = {action.source, *riders(action.source, objects)}
-    return palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=0.0)
+    return palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=-PALM_BRUSH)
 
 
 def nominal_points(action: Action, objects: dict[str, ObjectState]
@@ -292,10 +296,10 @@ def _refuse_strikes(action: Action, objects: dict[str, ObjectState], g: ActionGe
     """InfeasibleAction where the palm coming down to the grasp would strike a box not in
     the `load` (a block bridging over the source, a tower beside it), or where the source
     would be driven into one at the release (skills/carry.py's release_strikes): the arm
-    knocks such boxes over. No margin: with PALM_MARGIN it refused grasps that pass a few
-    millimetres beside a block in physics; an open finger landing on a cube's edge slides
-    it (the quarter turn, action_geometry, avoids what it can)."""
-    struck = palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=0.0)
+    knocks such boxes over. The palm may brush PALM_BRUSH past a box's edge; an open
+    finger landing on a cube's edge slides it (the quarter turn, action_geometry, avoids
+    what it can)."""
+    struck = palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=-PALM_BRUSH)
     if struck:
         raise InfeasibleAction(f"the palm would strike {', '.join(struck)} coming down "
                                f"to {action.source}", tuple(struck), "grasp")
