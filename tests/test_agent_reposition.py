@@ -80,3 +80,18 @@ def test_a_stack_in_the_wrong_place_moves_as_one():
     # A later step moves a: b alone is off by 7.5 cm and goes all the same.
     assert str(reposition_step([step("(pick_center_place_center_n10_op0 a b)")], stack(0.0),
                                stack(-0.075), 0.05)) == "(reposition_center_left b a)"
+
+
+def test_no_repositioning_by_a_grasp_the_arm_refuses():
+    from drake_symplan.agent.reposition import reposition_step
+
+    def tower(y, levels):  # a tower of `levels` cubes at (0.6, y), t0 at the bottom
+        return scene({**{f"t{i}": ("cube", (0.6, y, 0.025 + 0.05 * i)) for i in range(levels)},
+                      "d": ("cube", (0.6, y - 0.15, 0.025))},
+                     [(f"t{i}", f"t{i + 1}") for i in range(levels - 1)])
+
+    # two on a box: the stack moves as one; three on it (under a stack of two): the arm
+    # will not lift it (skills/carry.unpinchable), so no repositioning asks for it
+    assert str(reposition_step([], tower(0.0, 2), tower(-0.075, 2), 0.05)) == \
+        "(reposition_center_left t0 t1)"
+    assert reposition_step([], tower(0.0, 3), tower(-0.075, 3), 0.05) is None

@@ -16,7 +16,7 @@ from drake_symplan.abstraction.continuous import MOVED, Boxes
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 
 Key = tuple[str, str, str]
-GRID = 0.005  # m (and rad): scenes whose boxes near a source agree this far share its palm
+GRID = 0.005  # m (and rad): scenes whose boxes near a source agree this far share its grasps
 
 
 def refusal(action: Action, at: str) -> Key:
@@ -41,7 +41,7 @@ class Refusals:
     def __init__(self):
         self.keys: set[Key] = set()
         self.blockers: dict[Key, dict[str, np.ndarray]] = {}
-        self._palm_struck: dict[tuple, bool] = {}
+        self._grasps: dict[tuple, bool] = {}  # the arm's rules on a grasp, by GRID key
 
     def refuse(self, action: Action, obstacles: dict[str, np.ndarray] | None = None,
                at: str = "") -> None:
@@ -75,22 +75,21 @@ class Refusals:
         lift (skills/carry.unpinchable, with the skill's own riders and tolerances) or
         where its palm would strike a box (skills/pick_place.palm_struck)."""
         # The skill's rules on beliefs, imported here: importing the planner loads no skill.
-        from drake_symplan.skills.carry import unpinchable
-        from drake_symplan.skills.pick_place import palm_reach, palm_struck
+        from drake_symplan.skills.pick_place import grasp_refused, palm_reach
 
         out = self.keys - self.cleared(boxes.where())
         objects = boxes.object_states()
         for source in boxes.names:
             target = next(n for n in boxes.names if n != source)
+            # the arm's answer depends only on the source and the boxes near it (its
+            # riders among them; with none near it lifts it): kept for the scenes the
+            # search predicts with them where they were (GRID)
             near = palm_reach(source, objects)
-            # the palm's answer depends only on the source and the boxes near it: kept
-            # for the scenes the search predicts with them where they were (GRID)
             key = tuple((n, *np.round(np.r_[objects[n].position, objects[n].yaw] / GRID))
-                        for n in (source, *near)) if near else None
+                        for n in (source, *near))
             for g in (g for g in OFFSETS if grasp_on_box(g, boxes.half_length(source))):
-                action = Action(source, g, target, "center")
-                if unpinchable(action, objects) or (
-                        near and self._palm(key + (g,), action, objects, palm_struck)):
+                if near and self._refused(key + (g,), Action(source, g, target, "center"),
+                                          objects, grasp_refused):
                     out.add(("grasp", source, g))
         return out
 
@@ -102,7 +101,7 @@ class Refusals:
 
         return bool(set_down_struck(action, boxes.object_states()))
 
-    def _palm(self, key, action: Action, objects, palm_struck) -> bool:
-        if key not in self._palm_struck:
-            self._palm_struck[key] = bool(palm_struck(action, objects))
-        return self._palm_struck[key]
+    def _refused(self, key, action: Action, objects, grasp_refused) -> bool:
+        if key not in self._grasps:
+            self._grasps[key] = grasp_refused(action, objects)
+        return self._grasps[key]

@@ -7,7 +7,8 @@ off its goal position (or carries one that is) and is moved by no later step, is
 down beside another box (the same pick/place action) so that it lands within the
 tolerance of its goal, on a free spot of the table; what rests on it rides along (a
 stack built in the wrong place moves as one, released relative to its own top if need
-be). Its learned operators have no symbolic effect to predict; the monitor checks
+be), by a grasp the arm does not refuse (skills/pick_place.grasp_refused). Its learned
+operators have no symbolic effect to predict; the monitor checks
 afterwards that the rest of the plan still applies. (Which offsets a step runs with is
 abstraction/offsets.py's choice.)
 """
@@ -19,6 +20,7 @@ import numpy as np
 from drake_symplan.abstraction.bilevel import moves
 from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.skills.pick_place import grasp_refused
 from drake_symplan.symbolic.structs import PlanStep, Reposition
 
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
@@ -66,6 +68,7 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
         return float(np.linalg.norm(boxes[n].position - wanted[n]))
 
     loads = {n: carried(now, n) for n in boxes}
+    objects = now.object_states()
     sources = sorted((n for n in boxes if n not in movers and not rests_on(goal, n)
                       and max(error(m) for m in {n} | loads[n] - movers) > tolerance),
                      key=lambda n: -max(error(m) for m in {n} | loads[n]))
@@ -73,6 +76,8 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
         size, load = footprint(boxes[src]), loads[src]
         best = None
         for move in moves(list(boxes), {src}, lambda _, length=size[1]: length):
+            if grasp_refused(move.action, objects):  # traced: asked sixteen times
+                continue
             land = release_centre(boxes[move.action.target].position[:2], move.action)
             shift = land - boxes[src].position[:2]
             miss = max(float(np.linalg.norm(boxes[n].position[:2] + shift - wanted[n][:2]))

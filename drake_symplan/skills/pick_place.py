@@ -268,6 +268,13 @@ def nominal_points(action: Action, objects: dict[str, ObjectState]
             fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"]))
 
 
+def grasp_refused(action: Action, objects: dict[str, ObjectState]) -> bool:
+    """Does the arm refuse `action`'s grasp by its own rules on the believed `objects`:
+    under a stack it will not lift (carry.unpinchable), or where its palm would strike a
+    box (palm_struck)? What the planner and the agent's repositioning read."""
+    return bool(unpinchable(action, objects) or palm_struck(action, objects))
+
+
 def set_down_at(action: Action, objects: dict[str, ObjectState]) -> np.ndarray:
     """Where `action` sets its source down by its nominal points: its centre, released
     over the target's top (the planner asks whether it would rest there)."""
