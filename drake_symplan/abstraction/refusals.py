@@ -1,7 +1,8 @@
 """What the planner knows of what the arm will not run: the grasps the arm's own rules
-refuse in a scene (a stack it will not lift, a box its palm would strike), and the steps it refused in this solve, by
-the side it refused at and the boxes it named in its way. Rules on the believed and
-predicted boxes only (abstraction/bilevel.py's Refiner asks them); no simulator.
+refuse in a scene (a stack it will not lift, a box its palm would strike), the releases
+that would drive a box into another, and the steps it refused in this solve, by the side
+it refused at and the boxes it named in its way. Rules on the believed and predicted
+boxes only (abstraction/bilevel.py's Refiner asks them); no simulator.
 
 A refusal key is (side, box, offset): ("grasp", source, grasp) bars that source at that
 grasp; ("release", target, release) bars setting anything down on that target at that
@@ -85,11 +86,13 @@ class Refusals:
             # riders among them; with none near it lifts it): kept for the scenes the
             # search predicts with them where they were (GRID)
             near = palm_reach(source, objects)
+            if not near:
+                continue
             key = tuple((n, *np.round(np.r_[objects[n].position, objects[n].yaw] / GRID))
                         for n in (source, *near))
             for g in (g for g in OFFSETS if grasp_on_box(g, boxes.half_length(source))):
-                if near and self._refused(key + (g,), Action(source, g, target, "center"),
-                                          objects, grasp_refused):
+                if self._refused(key + (g,), Action(source, g, target, "center"), objects,
+                                 grasp_refused):
                     out.add(("grasp", source, g))
         return out
 

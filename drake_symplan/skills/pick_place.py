@@ -252,7 +252,13 @@ def palm_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
     if not palm_reach(action.source, objects):
         return []
     g, _ = arm_geometry(action, objects)
-    load = {action.source, *riders(action.source, objects)}
+    return _palm_strikes(objects, g, {action.source, *riders(action.source, objects)})
+
+
+def _palm_strikes(objects: dict[str, ObjectState], g: ActionGeometry,
+                  load: set[str]) -> list[str]:
+    """The boxes (not in the `load`) the palm coming down to `g`'s grasp reaches more than
+    PALM_BRUSH into."""
     return palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=-PALM_BRUSH)
 
 
@@ -306,7 +312,7 @@ def _refuse_strikes(action: Action, objects: dict[str, ObjectState], g: ActionGe
     knocks such boxes over. The palm may brush PALM_BRUSH past a box's edge; an open
     finger landing on a cube's edge slides it (the quarter turn, action_geometry, avoids
     what it can)."""
-    struck = palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=-PALM_BRUSH)
+    struck = _palm_strikes(objects, g, load)
     if struck:
         raise InfeasibleAction(f"the palm would strike {', '.join(struck)} coming down "
                                f"to {action.source}", tuple(struck), "grasp")
