@@ -49,6 +49,22 @@ def test_ground_keeps_the_reachable_actions_on_distinct_objects():
     assert names(ground([PUT, MARK, THREE], two)) == sorted([f"{put} a b", f"{mark} a b"])
 
 
+def test_a_task_grounded_again_is_priced_by_its_own_penalties():
+    # The reachable part is kept between calls (a plan's skeletons ground one task twice);
+    # each call's penalties price it anew, a longer key only the actions that name it all.
+    task = Task(("a", "b", "c"), frozenset({Atom("p0", "a")}), frozenset({Atom("p1", "b")}))
+
+    def costs(penalties):
+        return {a.name: a.cost for a in ground([PUT, MARK, THREE], task, penalties).actions}
+
+    plain = costs(None)
+    priced = costs({("a", "b"): 1000, ("a", "c", "b"): 7})
+    assert priced[f"{PUT.name} a b"] == plain[f"{PUT.name} a b"] + 1000
+    assert priced[f"{THREE.name} a c b"] == plain[f"{THREE.name} a c b"] + 7
+    assert priced[f"{PUT.name} a c"] == plain[f"{PUT.name} a c"]
+    assert costs(None) == plain
+
+
 def test_the_sas_text_has_one_binary_variable_per_atom_and_the_actions_costs():
     task = Task(("a", "b"), frozenset({Atom("p0", "a")}), frozenset({Atom("p1", "b")}))
     text = sas_text(ground([PUT, MARK], task))

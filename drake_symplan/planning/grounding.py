@@ -17,6 +17,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 from drake_symplan.planning.planners import (
     DEFAULT_TIMEOUT,
@@ -50,34 +51,67 @@ class GroundTask:
     unreachable: frozenset
 
 
-def _slot_order(op: LiftedOperator) -> list[list[Atom]]:
+def _slot_order(op: LiftedOperator) -> list[list[tuple[str, tuple[int, ...]]]]:
     """The operator's precondition atoms by the last slot they bind, so a binding is
-    checked as soon as its slots are filled."""
-    by_slot: list[list[Atom]] = [[] for _ in range(op.n_params)]
+    checked as soon as its slots are filled: (predicate, slots) per atom."""
+    by_slot: list[list[tuple[str, tuple[int, ...]]]] = [[] for _ in range(op.n_params)]
     for atom in op.pre:
-        by_slot[max(atom[1:])].append(atom)
+        by_slot[max(atom[1:])].append((atom[0], tuple(atom[1:])))
     return by_slot
 
 
-def _bindings(op: LiftedOperator, by_slot: list[list[Atom]], objects: Sequence[str],
-              facts: set) -> Iterable[tuple[str, ...]]:
-    """Every binding of the operator's slots to distinct objects under which its
-    preconditions are in `facts`."""
+def _bindings(n_params: int, by_slot: list[list[tuple[str, tuple[int, ...]]]],
+              objects: Sequence[str], facts: set) -> Iterable[tuple[str, ...]]:
+    """Every binding of an operator's slots to distinct objects under which its
+    preconditions (`by_slot`, _slot_order) are in `facts`."""
     args: list[str] = []
 
     def extend(i: int):
-        if i == op.n_params:
+        if i == n_params:
             yield tuple(args)
             return
         for obj in objects:
             if obj in args:
                 continue
             args.append(obj)
-            if all(a.ground(args) in facts for a in by_slot[i]):
+            # a plain tuple hashes and compares as the Atom it grounds
+            if all((p, *[args[j] for j in slots]) in facts for p, slots in by_slot[i]):
                 yield from extend(i + 1)
             args.pop()
 
     yield from extend(0)
+
+
+def _grounder(atoms: Sequence[Atom]):
+    """args -> the frozenset of `atoms` with their slots bound to args (Atom.ground)."""
+    spec = [(a[0], a[1:]) for a in atoms]
+    make = tuple.__new__
+    return lambda args: frozenset([make(Atom, (p, *[args[i] for i in slots]))
+                                   for p, slots in spec])
+
+
+@lru_cache(maxsize=8)
+def _reachable(operators: tuple[LiftedOperator, ...], objects: tuple[str, ...],
+               init: frozenset) -> tuple[dict, frozenset]:
+    """({(operator, args): (pre, add, delete)} of the actions reachable from `init` in the
+    delete relaxation, the facts reached). The skeletons of one plan ground the same task
+    twice (with other penalties): cached."""
+    ops = [(op, _slot_order(op), _grounder(op.pre), _grounder(op.add), _grounder(op.delete))
+           for op in operators if op.n_params <= len(objects)]
+    facts = set(init)
+    found: dict[tuple[LiftedOperator, tuple[str, ...]], tuple] = {}
+    grown = True
+    while grown:  # relaxed reachability to a fixpoint
+        grown = False
+        for op, by_slot, pre, add, delete in ops:
+            for args in list(_bindings(op.n_params, by_slot, objects, facts)):
+                if (op, args) in found:
+                    continue
+                adds = add(args)
+                found[op, args] = (pre(args), adds, delete(args) - adds)
+                grown |= not adds <= facts
+                facts |= adds
+    return found, frozenset(facts)
 
 
 def ground(operators: Sequence[LiftedOperator], task: Task,
@@ -87,34 +121,18 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
     move of the pair whatever its offsets, longer keys for those that also name the
     others (a carry's riders)."""
     penalties = penalties or {}
-    ops = [(op, _slot_order(op)) for op in operators if op.n_params <= len(task.objects)]
-    facts = set(task.init)
-    found: dict[tuple[str, tuple[str, ...]], GroundAction] = {}
-    grown = True
-    while grown:  # relaxed reachability to a fixpoint
-        grown = False
-        for op, by_slot in ops:
-            for args in list(_bindings(op, by_slot, task.objects, facts)):
-                if (op.name, args) in found:
-                    continue
-                add = frozenset(a.ground(args) for a in op.add)
-                found[op.name, args] = GroundAction(
-                    f"{op.name} {' '.join(args)}", frozenset(a.ground(args) for a in op.pre),
-                    add, frozenset(a.ground(args) for a in op.delete) - add,
-                    op.cost + sum(cost for key, cost in penalties.items()
-                                  if args[:len(key)] == key))
-                grown |= not add <= facts
-                facts |= add
-    actions = list(found.values())
-    changing = set().union(*(a.add | a.delete for a in actions)) & facts
-    variables = sorted(changing)
+    lengths = sorted({len(key) for key in penalties})
+    found, facts = _reachable(tuple(operators), tuple(task.objects), frozenset(task.init))
+    changing = set().union(*(add | delete for _, add, delete in found.values())) & facts
     kept = []
-    for a in actions:
-        act = GroundAction(a.name, a.pre & changing, a.add - a.pre, a.delete & changing,
-                           a.cost)
+    for (op, args), (pre, add, delete) in found.items():
+        act = GroundAction(f"{op.name} {' '.join(args)}", pre & changing, add - pre,
+                           delete & changing,
+                           op.cost + sum(penalties.get(args[:n], 0) for n in lengths
+                                             if n <= len(args)))
         if act.add or act.delete:
             kept.append(act)
-    return GroundTask(variables, kept, frozenset(task.init) & changing,
+    return GroundTask(sorted(changing), kept, frozenset(task.init) & changing,
                       frozenset(task.goal) & changing, frozenset(task.goal) - facts)
 
 
