@@ -119,13 +119,27 @@ def _clear_point(src: ObjectState, load: list[ObjectState], want: float) -> floa
 def _tops_under(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarray,
                 yaw: float, half: tuple) -> dict[str, float]:
     """The believed boxes (not in `skip`) under a footprint (centre xy, yaw, half
-    extents), by the height of their top."""
+    extents), by the height of their top: those whose footprint holds one of a 5 x 5 grid
+    of the footprint's points."""
     u = np.linspace(-1.0, 1.0, 5)
-    grid = np.array([(a * half[0], b * half[1]) for a in u for b in u])
-    points = [centre[:2] + _turn(g, yaw) for g in grid]
-    return {name: float(o.position[2] + HALF_EXTENTS[o.type][2])
-            for name, o in objects.items()
-            if name not in skip and any(_covers(o, p, 0.0) for p in points)}
+    g = np.array([(a * half[0], b * half[1]) for a in u for b in u])
+    c, s = np.cos(yaw), np.sin(yaw)
+    points = np.stack([centre[0] + (c * g[:, 0] - s * g[:, 1]),
+                       centre[1] + (s * g[:, 0] + c * g[:, 1])], axis=1)
+    reach = float(np.hypot(half[0], half[1]))
+    out = {}
+    for name, o in objects.items():
+        if name in skip:
+            continue
+        hx, hy, hz = HALF_EXTENTS[o.type]
+        v = points - o.position[:2]
+        if np.hypot(*(centre[:2] - o.position[:2])) > reach + np.hypot(hx, hy) + 1e-6:
+            continue  # no point of the footprint can lie over it
+        c, s = np.cos(-o.yaw), np.sin(-o.yaw)  # the points in the box's frame, as _local
+        if np.any((np.abs(c * v[:, 0] - s * v[:, 1]) <= hx)
+                  & (np.abs(s * v[:, 0] + c * v[:, 1]) <= hy)):
+            out[name] = float(o.position[2] + hz)
+    return out
 
 
 def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarray,
