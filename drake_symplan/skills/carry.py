@@ -132,12 +132,12 @@ def _tops_under(objects: dict[str, ObjectState], skip: set[str], centre: np.ndar
         if name in skip:
             continue
         hx, hy, hz = HALF_EXTENTS[o.type]
-        v = points - o.position[:2]
         if np.hypot(*(centre[:2] - o.position[:2])) > reach + np.hypot(hx, hy) + 1e-6:
             continue  # no point of the footprint can lie over it
-        c, s = np.cos(-o.yaw), np.sin(-o.yaw)  # the points in the box's frame, as _local
-        if np.any((np.abs(c * v[:, 0] - s * v[:, 1]) <= hx)
-                  & (np.abs(s * v[:, 0] + c * v[:, 1]) <= hy)):
+        v = points - o.position[:2]
+        co, so = np.cos(-o.yaw), np.sin(-o.yaw)  # the points in the box's frame, as _local
+        if np.any((np.abs(co * v[:, 0] - so * v[:, 1]) <= hx)
+                  & (np.abs(so * v[:, 0] + co * v[:, 1]) <= hy)):
             out[name] = float(o.position[2] + hz)
     return out
 
