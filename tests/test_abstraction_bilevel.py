@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import torch
 
+from drake_symplan.abstraction import bilevel
 from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.bilevel import (
     PENALTY,
@@ -483,6 +484,28 @@ def test_when_nothing_reaches_the_goal_the_steps_predicted_nearest_it_run():
     # Nothing nearer than the start: the empty plan stands (the agent then fails honestly).
     assert not plan_bilevel(Skeletons(Plan("solved", [])), refiner, observed(START),
                             observed(START), Budget(10.0, 30.0)).steps
+
+
+STACKED = boxes(a=(0.7, 0.0, 0.125), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
+BUILT = [Action("b", "center", "c", "center"), Action("a", "center", "b", "center")]
+
+
+def test_a_goal_more_moves_away_than_a_skeleton_is_checked_for_is_searched_first(monkeypatch):
+    monkeypatch.setattr(bilevel, "LONG_GOAL", 1)  # the tower is 2 moves away by its order
+    skeleton = Plan("solved", [Step(STACK["center"], ("b", "c")),
+                               Step(STACK["center"], ("a", "b"))])
+    planner = Skeletons(skeleton)
+    found = solve(planner, STACKED)
+    assert found.level == "continuous" and [s.action for s in found.steps] == BUILT
+    assert [c.source for c in found.candidates] == ["continuous"] and planner.plans
+    # Where the search finds nothing the skeletons come after it, in what is left.
+    refiner = Refiner(list(STACK.values()), Stacking(), max_depth=1)
+    found = plan_bilevel(Skeletons(skeleton), refiner, observed(START), observed(STACKED),
+                         Budget(10.0, 30.0))
+    assert found.level == "bilevel" and [s.action for s in found.steps] == BUILT
+    assert [c.source for c in found.candidates] == ["continuous", "skeleton 1"]
+    # A receding horizon keeps the skeletons first (its subgoals are theirs).
+    assert solve(Skeletons(skeleton), STACKED, horizon=1).level == "receding"
 
 
 class Seen:

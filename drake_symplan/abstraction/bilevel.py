@@ -21,10 +21,12 @@ perceives, and plans again from what it sees. When
 no skeleton refines (or the planner finds none) a weighted best-first search over all
 pick/place actions, with the same model, the summed predicted distance to the goal and
 the moves the goal's order asks for (goal_order.py) as its heuristic, those moves predicted
-first, is the fallback. Budgets are CPU seconds with a wall-clock cap
+first, is the fallback. A goal more than LONG_GOAL moves away by the goal's order, whose
+skeletons the model cannot check, is searched first and its skeletons are the fallback
+(without a receding horizon). Budgets are CPU seconds with a wall-clock cap
 (planning/budget.py), so a problem gets the same answer on a busy host as on a quiet one:
 one budget per plan, of which the skeletons (planner calls and refinement) may use half,
-the continuous search the rest.
+the continuous search the rest (a long goal: the search 60 %, the skeletons the rest).
 
 `plan_bilevel(abstraction, refiner, start, goal, budget, Search(...))` plans from one
 Observation (abstraction.py: a perceived scene, its symbols, its boxes) to another;
@@ -65,6 +67,10 @@ PENALTY = 1000  # cost added to a move for each skeleton before that made it and
 LEANS = 0.06  # m: a source set down with its bottom this low leans on the table if it tips
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
 SEARCH = "continuous"  # the Candidate.source of the continuous search
+# Goals more moves away than this (the goal's order, goal_order.py) are searched before any
+# skeleton: beyond it none of 31 six-box first plans refined a skeleton (docs/goals.md).
+LONG_GOAL = 4
+SEARCH_FIRST = 0.6  # the share of a long goal's budget the search has before the skeletons
 
 
 @dataclass(frozen=True)
@@ -433,9 +439,19 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
     target = goal.boxes.where()
     looked_at = _LookedAt()
     unverified = None  # the first skeleton, run on its symbols if nothing else is found
+    searched = None  # the search's (plan, nearest), where it went before the skeletons
+    if search.skeletons and search.horizon is None \
+            and refiner.moves_left(start.boxes, target) > LONG_GOAL:
+        searched = refiner.search(start.boxes, target, budget.share(SEARCH_FIRST))
+        looked_at(_candidate(SEARCH, [], searched[0], refiner, start.boxes, target))
+        if searched[0] is not None:
+            return Plan("solved", searched[0].steps, time.perf_counter() - t0, "",
+                        search.planner, level=SEARCH, predicted=searched[0].predicted,
+                        candidates=looked_at.candidates)
     if search.skeletons:
-        refined, unverified = _refine_skeletons(abstraction, refiner, start, goal, budget,
-                                                search, looked_at, penalties)
+        refined, unverified = _refine_skeletons(
+            abstraction, refiner, start, goal, budget, search, looked_at, penalties,
+            share=1.0 if searched else 1 - SEARCH_SHARE)
         if refined is not None:
             shorter = _shorter(refiner, refined, start.boxes, target, budget, looked_at)
             if shorter is not None:
@@ -447,8 +463,11 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
                         level=level, predicted=refined.predicted,
                         candidates=looked_at.candidates)
     looked_at.restart()  # a planner call that gave no new skeleton is not counted
-    refined, nearest = refiner.search(start.boxes, target, budget)
-    looked_at(_candidate(SEARCH, [], refined, refiner, start.boxes, target))
+    if searched is None:
+        refined, nearest = refiner.search(start.boxes, target, budget)
+        looked_at(_candidate(SEARCH, [], refined, refiner, start.boxes, target))
+    else:
+        refined, nearest = searched
     seconds, candidates = time.perf_counter() - t0, looked_at.candidates
 
     def found(steps, message: str, level: str, predicted=(), status="solved") -> Plan:
@@ -482,14 +501,14 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
 
 def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: Observation,
                       budget: Budget, search: Search, looked_at: _LookedAt,
-                      penalties: dict[tuple[str, ...], int] | None = None
-                      ) -> tuple[Refined | None, Plan | None]:
-    """The skeletons' part of `plan_bilevel`, in its share of `budget`: (the first
-    skeleton refined or None, the first skeleton the planner found or None)."""
+                      penalties: dict[tuple[str, ...], int] | None = None,
+                      share: float = 1 - SEARCH_SHARE) -> tuple[Refined | None, Plan | None]:
+    """The skeletons' part of `plan_bilevel`, in `share` of what is left of `budget`:
+    (the first skeleton refined or None, the first skeleton the planner found or None)."""
     believed = abstraction.believed(start.reading)
     goal_atoms = abstraction.goal_atoms(goal.reading)
     target = goal.boxes.where()
-    symbolic = budget.share(1 - SEARCH_SHARE)
+    symbolic = budget.share(share)
     unverified = None
     for i, found in enumerate(skeletons(abstraction, start.reading, goal.reading,
                                         search.planner, symbolic, search.alternatives,
