@@ -430,7 +430,8 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
                  penalties: dict[tuple[str, ...], int] | None = None) -> Plan:
     """A plan from the perceived `start` to `goal` (abstraction.Observation) within
     `budget`: with `search.skeletons` the symbolic planner's skeletons refined, then the
-    continuous search; else the search alone (Search). An abstraction.Plan whose `level`
+    continuous search (a goal more than LONG_GOAL moves away: the search, then the
+    skeletons); else the search alone (Search). An abstraction.Plan whose `level`
     says which found it, with the scene predicted after each step and the candidates
     looked at (the rejected ones with why). `penalties`: costs added to the skeletons'
     moves of (source, target) pairs (planning/grounding.py)."""
@@ -451,7 +452,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
     if search.skeletons:
         refined, unverified = _refine_skeletons(
             abstraction, refiner, start, goal, budget, search, looked_at, penalties,
-            share=1.0 if searched else 1 - SEARCH_SHARE)
+            share=1.0 if searched is not None else 1 - SEARCH_SHARE)
         if refined is not None:
             shorter = _shorter(refiner, refined, start.boxes, target, budget, looked_at)
             if shorter is not None:
