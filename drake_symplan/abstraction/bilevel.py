@@ -445,11 +445,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
             and refiner.moves_left(start.boxes, target) > LONG_GOAL:
         searched = refiner.search(start.boxes, target, budget.share(SEARCH_FIRST))
         looked_at(_candidate(SEARCH, [], searched[0], refiner, start.boxes, target))
-        if searched[0] is not None:
-            return Plan("solved", searched[0].steps, time.perf_counter() - t0, "",
-                        search.planner, level=SEARCH, predicted=searched[0].predicted,
-                        candidates=looked_at.candidates)
-    if search.skeletons:
+    if search.skeletons and (searched is None or searched[0] is None):
         refined, unverified = _refine_skeletons(
             abstraction, refiner, start, goal, budget, search, looked_at, penalties,
             share=1.0 if searched is not None else 1 - SEARCH_SHARE)
