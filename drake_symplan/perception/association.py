@@ -23,7 +23,10 @@ GRASP_SLACK = 0.01  # m: a grasp point this far outside a footprint may still ho
 SHARED_MOVES = 1.0  # 1/m: weight of the squared distance (0.0025 m-equivalent at 5 cm)
 # A box the hand did not hold moves at most about a push of the fingers; farther, each
 # metre costs STRAY_COST more. Without it, a stack put on its own rider (three blocks)
-# was read as nothing held and every block moved 10 cm under another's name.
+# was read as nothing held and every block moved 10 cm under another's name. A fall is not
+# a push: only the sideways move and a rise count (a cube knocked off a tower's top drops
+# 10 cm; counted whole, the tower below was read as slid out from under itself, a box
+# under each other's name, and the plan went on with the names swapped).
 PUSH_REACH = 0.06  # m
 STRAY_COST = 2.0  # m-equivalent per m beyond PUSH_REACH
 
@@ -85,11 +88,13 @@ def _assign(before, after, pred: np.ndarray, carried: np.ndarray
     if not after.objects:
         return UNMATCHED_COST * len(before.objects), {}
     obs = np.stack([o.position for o in after.objects])
-    dist = np.linalg.norm(pred[:, None, :] - obs[None, :, :], axis=2)
+    moves = obs[None, :, :] - pred[:, None, :]
+    dist = np.linalg.norm(moves, axis=2)
     # The squared term breaks ties toward moves shared out: a push that shifts two
     # touching cubes 5 cm each is not one cube left and the other moved 10 cm.
     cost = dist + SHARED_MOVES * dist ** 2
-    cost[~carried] += STRAY_COST * np.maximum(dist[~carried] - PUSH_REACH, 0.0)
+    pushed = np.hypot(np.linalg.norm(moves[..., :2], axis=2), np.maximum(moves[..., 2], 0.0))
+    cost[~carried] += STRAY_COST * np.maximum(pushed[~carried] - PUSH_REACH, 0.0)
     types_b = np.array([o.type for o in before.objects])
     types_a = np.array([o.type for o in after.objects])
     cost = cost + TYPE_MISMATCH_COST * (types_b[:, None] != types_a[None, :])
