@@ -127,3 +127,21 @@ def test_a_row_of_points_along_an_edge_is_no_surface():
     assert len(surfaces) == 1
     assert surfaces[0].normal[2] > 0.999
     assert np.allclose(surfaces[0].centroid[:2], [0.7, 0.0], atol=0.002)
+
+
+@pytest.mark.parametrize("lower_after, upper_after", [
+    ((0.872, -0.092, 0.025), (0.864, 0.020, 0.075)),  # a six-box goal's step, simulated
+    ((0.70, 0.02, 0.025), (0.70, 0.10, 0.075)),
+])
+def test_a_block_pushed_along_under_one_set_on_its_old_place_is_seen_where_it_went(
+        camera_station, lower_after, upper_after):
+    # A block set down on another's end pushed the lower one 8-12 cm along, to right under
+    # where it lay: its old top is hidden, and its own side faces are seen inside its old
+    # pose. Anchored there, it was perceived 12 cm from where it is.
+    lower_before = (lower_after[0], upper_after[1], 0.025)
+    before, _ = _perceive(camera_station, [("a", "long", lower_before),
+                                           ("b", "long", (0.55, -0.25, 0.025))])
+    after, report = _perceive(camera_station, [("a", "long", lower_after),
+                                               ("b", "long", upper_after)], before)
+    assert report["count_ok"] and report["missed"] == 0, [o.to_json() for o in after.objects]
+    assert all(e["position_mm"] < 5.0 for e in report["errors"].values()), report["errors"]

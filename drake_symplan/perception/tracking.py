@@ -54,8 +54,8 @@ def supported(box: FittedBox, hm: seg.HeightMap, others: list[FittedBox] = ()
     """`box` where the depth data still supports it, or None. Almost none of its top face
     may be contradicted, where it was or nudged by up to NUDGE (a placement pushes what it
     lands on), and some of the box must be seen: part of its top at its height, or points
-    on its sides that no other prior box (`others`) can claim. A box held right above its
-    old place hides that place without being there."""
+    on its sides that no other box (`others`: the other prior boxes, fresh fits) can
+    claim. A box held right above its old place hides that place without being there."""
     top = top_face_samples(box)
     for shift in _NUDGES:
         if hm.contradicts(top + shift, ANCHOR_TOL).mean() <= MAX_CONTRADICTED:
@@ -91,7 +91,11 @@ def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
     anchors look like."""
     kept, every = [], []
     for box in prior:
-        box = supported(box, hm, [b for b in prior if b is not box])
+        # Points a fresh fit seen from above explains are not the prior box's own: a block
+        # set on another's end pushed it 12 cm along, right under where it lay, and its
+        # side faces, seen there, held its old pose while its seen end was fitted apart.
+        seen_fits = [b for b in fresh if not b.from_side and not _same_box(b, box)]
+        box = supported(box, hm, [b for b in prior if b is not box] + seen_fits)
         if box is None:
             continue
         match = [b for b in fresh if _same_box(b, box)]
