@@ -259,3 +259,19 @@ def test_association_when_a_cube_is_knocked_off_a_towers_top():
                     ("e", "cube", (0.769, -0.180, 0.026))], {("b", "c")})
     mapping = associate(before, after, Action("o5", "left", "o4", "left"))
     assert mapping == {"o3": "a", "o2": "b", "o0": "c", "o4": "d", "o5": "e"}
+
+
+def test_association_when_a_block_set_on_anothers_end_shoves_it_along():
+    """Block o5 set down on block o3's end shoved o3 12 cm along its axis (a long six-box
+    goal, perceived poses): read as o3 risen 5 cm onto o5's place and o5 landed 12 cm off
+    on the table, the two blocks' names swapped for the rest of the solve."""
+    before = _scene([("o2", "cube", (0.773, -0.118, 0.026)), ("o1", "cube", (0.773, -0.026, 0.025)),
+                     ("o5", "long", (0.775, 0.007, 0.073)), ("o3", "long", (0.871, 0.031, 0.026)),
+                     ("o4", "cube", (0.917, 0.209, 0.026)), ("o0", "cube", (0.917, 0.263, 0.026))],
+                    {("o1", "o5")})
+    after = _scene([("a", "cube", (0.773, -0.111, 0.026)), ("b", "cube", (0.774, -0.037, 0.026)),
+                    ("c", "long", (0.864, 0.031, 0.076)), ("d", "long", (0.872, -0.093, 0.026)),
+                    ("e", "cube", (0.917, 0.211, 0.026)), ("f", "cube", (0.917, 0.263, 0.026))],
+                   {("c", "d")})
+    mapping = associate(before, after, Action("o5", "right", "o3", "right"))
+    assert mapping == {"o2": "a", "o1": "b", "o5": "c", "o3": "d", "o4": "e", "o0": "f"}
