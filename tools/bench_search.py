@@ -6,7 +6,7 @@ torch's default threads, in the same run.
                                  [--model DIR] [--out bench_search.json]
 
 Per problem: perceive the start and the goal once, then run the weighted best-first search
-of abstraction/bilevel.py (Refiner.search) from the start to the goal positions until it
+of abstraction/refiner.py (Refiner.search) from the start to the goal positions until it
 finds a plan or spends --budget CPU seconds, once per thread setting. The rate is the
 model's predictions over the CPU seconds the search took (this process; both settings
 count every thread's time, which is what a CPU-second planning budget pays for).
@@ -54,8 +54,8 @@ def main(argv=None) -> int:
 
     import torch
 
-    from drake_symplan.abstraction.bilevel import Refiner
     from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
+    from drake_symplan.abstraction.refiner import Refiner
     from drake_symplan.agent.solve import Agent
     from drake_symplan.cli.options import load_bundle
     from drake_symplan.evaluation.problems import load_problems

@@ -2,31 +2,21 @@
 continuous search when no skeleton refines. No simulator: every check is a prediction.
 
 As predicators' SeSamE and the paper's successor (Dogangun et al. 2026): the symbolic
-planner proposes a skeleton (the focus objects' plan, then the plan over every object);
-refining it chooses what the symbols leave open, depth first: each step's offsets among
-its offset variants (abstraction/offsets.py with its PredictedScorer: the learned
-operators over the same objects after which the rest of the skeleton still reaches the
-goal's atoms, ordered by the predicted distance to the goal), then up to `extra_moves`
-moves that put a box down at its goal spot.
-A refinement is accepted when every box is predicted within the tolerance less a margin
-of its goal position; otherwise the search backtracks over choices, then skeletons.
-With a receding `horizon` (`--planning receding`), a skeleton longer than it is refined
-only over its first `horizon` steps, to the skeleton's subgoal there (SeSamE's expected
-atoms, with positions: `Refiner.subgoal_reached`): the rest still reaches the goal's atoms,
-every box the rest leaves alone and the first steps placed is predicted at its goal, and
-no box the rest leaves alone is predicted farther from its goal than before. The learned
-model checks one or two steps well and ten badly (its error after five actions is several
-centimetres), so a long plan is checked piecewise: the agent runs the first steps,
-perceives, and plans again from what it sees. When
-no skeleton refines (or the planner finds none) a weighted best-first search over all
-pick/place actions, with the same model, the summed predicted distance to the goal and
-the moves the goal's order asks for (goal_order.py) as its heuristic, those moves predicted
-first, is the fallback. A goal more than LONG_GOAL moves away by the goal's order, whose
-skeletons the model cannot check, is searched first and its skeletons are the fallback
-(without a receding horizon). Budgets are CPU seconds with a wall-clock cap
-(planning/budget.py), so a problem gets the same answer on a busy host as on a quiet one:
-one budget per plan, of which the skeletons (planner calls and refinement) may use half,
-the continuous search the rest (a long goal: the search 60 %, the skeletons the rest).
+planner proposes a skeleton (the focus objects' plan, then the plan over every object,
+then, asked for, alternatives that avoid the moves of those before); the continuous level
+(refiner.py) refines it, choosing the offsets the symbols leave open, or rejects it, and
+the next skeleton is tried. With a receding `horizon` (`--planning receding`) a skeleton
+longer than it is refined only over its first steps, to the skeleton's subgoal there
+(SeSamE's expected atoms, with positions): the learned model checks one or two steps well
+and ten badly, so a long plan is checked piecewise, and the agent plans again from what it
+sees. When no skeleton refines (or the planner finds none) the refiner's weighted
+best-first search over every pick/place move is the fallback. A goal more than LONG_GOAL
+moves away by the goal's order (goal_order.py), whose skeletons the model cannot check,
+is searched first and its skeletons are the fallback (without a receding horizon).
+Budgets are CPU seconds with a wall-clock cap (planning/budget.py), so a problem gets the
+same answer on a busy host as on a quiet one: one budget per plan, of which the skeletons
+(planner calls and refinement) may use half, the continuous search the rest (a long goal:
+the search 60 %, the skeletons the rest).
 
 `plan_bilevel(abstraction, refiner, start, goal, budget, Search(...))` plans from one
 Observation (abstraction.py: a perceived scene, its symbols, its boxes) to another;
@@ -35,8 +25,6 @@ agent/planning_modes.py's bilevel and continuous modes call it.
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -44,28 +32,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_symplan.abstraction.abstraction import Observation, Plan
-from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout, tips
-from drake_symplan.abstraction.goal_order import GoalOrder
-from drake_symplan.abstraction.offsets import PredictedScorer, ranked
-from drake_symplan.abstraction.refusals import Refusals, allows
-from drake_symplan.actions import OFFSETS, Action, grasp_on_box
-from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS, goal_reached
+from drake_symplan.abstraction.continuous import Boxes, goal_errors
+from drake_symplan.abstraction.refiner import Refined, Refiner, nearer
+from drake_symplan.abstraction.refusals import allows
 from drake_symplan.planning.budget import Budget
-from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Reposition, Step
+from drake_symplan.symbolic.structs import Step
 
-MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
 # Of the CPU budget left: the symbolic planner's call for a skeleton, then the share kept for
 # the continuous search when no skeleton refines (so a planner timeout leaves it time).
 SKELETON_SHARE = 0.5
 SEARCH_SHARE = 0.5
-STEP_SCALE = 0.15  # m: about how far one action moves a box, for the search's heuristic
-MOVE_LEFT = 1.0  # the search's heuristic per move the goal's order asks for (goal_order.py)
-DEFER = 3.0  # the search's f added to the moves the goal's order does not ask for next
-MISSED = 3.0  # the search's cost added to a move each time the arm missed it in this solve
-NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
-LEANS = 0.06  # m: a source set down with its bottom this low leans on the table if it tips
-SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
 SEARCH = "continuous"  # the Candidate.source of the continuous search
 # Goals more moves away than this (the goal's order, goal_order.py) are searched before any
 # skeleton: beyond it none of 31 six-box first plans refined a skeleton (docs/goals.md).
@@ -121,292 +98,6 @@ class Candidate:
                "seconds": round(self.seconds, 4)}
         return {**out, "rest": self.rest} if self.rest else out
 
-
-@dataclass
-class Refined:
-    """A plan of typed steps with the scene predicted after each; `subgoal`: the first
-    steps of a longer skeleton, refined to its subgoal (Refiner.refine's horizon)."""
-
-    steps: list[PlanStep]
-    predicted: list[Boxes]
-    subgoal: bool = False
-
-
-def _asked_first(options: list[Reposition], boxes: Boxes, order: GoalOrder,
-                 goal: dict[str, np.ndarray], limit: float, missed: Counter,
-                 in_the_way: set[str] = frozenset()
-                 ) -> tuple[list[Reposition], list[Reposition]]:
-    """`options` split into the moves the goal's order asks for next (GoalOrder.next_moves:
-    FD's preferred operators, in kind; and any move of a box `in_the_way` of a refused
-    grasp) and the rest, with every move in `missed`."""
-    asked = order.next_moves(boxes.where(), goal_errors(boxes, goal), limit,
-                             {n for n in boxes.names if boxes.riding(n)})
-    asked.update({n: None for n in in_the_way})
-    first, later = [], []
-    for option in options:
-        a = option.action
-        targets = asked.get(a.source, set())
-        ok = a not in missed and (a.source in asked and targets is None or a.target in targets)
-        (first if ok else later).append(option)
-    return first, later
-
-
-def reaches_goal(boxes: Boxes, goal: dict[str, np.ndarray], limit: float) -> bool:
-    """Is every box predicted within `limit` of its goal, its spread counted against it
-    (boxes.goal_reached)?"""
-    return goal_reached(goal_errors(boxes, goal), limit)
-
-
-def moved(before: Boxes, after: Boxes) -> set[str]:
-    """The boxes predicted more than MOVED from where they were."""
-    then = before.where()
-    return {n for n, p in after.where().items() if np.linalg.norm(p - then[n]) > MOVED}
-
-
-def moves(names, sources, half_length, kind: str = "reposition", riding=None,
-          covered=frozenset()) -> list[Reposition]:
-    """Every pick/place of a box in `sources` onto another of `names`, at a grasp point on
-    the box (actions.grasp_on_box; `half_length(name)`: the box's half length along the
-    offsets' axis, as the caller measures it), in the order of `names` and OFFSETS.
-    `riding(name)`: the boxes on a box; with it a box is placed only on a box with nothing
-    on it, and never on what it carries. The arm releases a box at the height of the
-    target's own top, so a box placed on one under a stack is driven into the stack (a
-    tower knocked over, the box flung 40 cm); the model, which saw few such actions,
-    predicts the box on the stack's top. `covered`: boxes with another resting on them in
-    part (a block's end over a cube: Boxes.covered), barred as targets too."""
-    out = []
-    on = {n: riding(n) for n in names} if riding is not None else {}
-    covered = set(covered) | {n for n, above in on.items() if above}
-    for src in names:
-        if src not in sources:
-            continue
-        length = half_length(src)
-        barred = covered | on.get(src, set())
-        for tgt, grasp, release in itertools.product(names, OFFSETS, OFFSETS):
-            if tgt != src and tgt not in barred and grasp_on_box(grasp, length):
-                out.append(Reposition(Action(src, grasp, tgt, release), kind))
-    return out
-
-
-def set_down_tips(boxes: Boxes, action: Action) -> bool:
-    """Would `action`'s source topple where the action sets it down by its own points
-    (skills/pick_place.set_down_at; continuous.tips), its riders aside, from higher than
-    LEANS (one box on the table: a block with its end on a cube leans on the table, as
-    goals have it)? A block grasped at its end and released over the centre of a cube
-    atop a tower comes down with its centre 7.5 cm off it, and falls; the model, which
-    saw few such steps, may predict it resting there."""
-    from drake_symplan.skills.pick_place import set_down_at  # the skill's geometry
-
-    objects = boxes.object_states()
-    centre = set_down_at(action, objects)
-    if centre[2] - HALF_EXTENTS[objects[action.source].type][2] <= LEANS:
-        return False
-    positions = boxes.positions.copy()
-    positions[boxes.names.index(action.source)] = centre
-    return tips(boxes.moved(positions), action.source)
-
-
-class Refiner:
-    """The continuous level: refines skeletons and searches (module docstring).
-    `operators`: the learned operators (a list, or symbolic/structs.py's
-    PlanningOperators); `continuous` has `predict(boxes, actions) -> [Boxes]`
-    (abstraction/continuous.py)."""
-
-    def __init__(self, operators, continuous, tolerance: float = GOAL_TOLERANCE,
-                 margin: float = MARGIN, extra_moves: int = 2, max_depth: int = 12,
-                 weight: float = 1.5, defer: float | None = DEFER):
-        # the planning operators whose offset variants a skeleton's steps choose among
-        self.operators = operators if isinstance(operators, PlanningOperators) \
-            else PlanningOperators(operators)
-        self.continuous = continuous
-        self.limit = tolerance - margin
-        self.extra_moves, self.max_depth, self.weight = extra_moves, max_depth, weight
-        self.defer = defer
-        # the moves the arm was seen to miss in this solve, with how often: no longer
-        # asked for, and a move's cost in the search is 1 + MISSED per miss
-        self.missed: Counter = Counter()
-        # what the arm refused in the scene as it stands (abstraction/refusals.py): no
-        # step of the plans from it takes them (Refusals.barred)
-        self.refusals = Refusals()
-        self.predictions = 0
-
-    def clears_way(self, start: Boxes, plan: Refined) -> bool:
-        """Does `plan` move a box in the way of a refused step (Refusals.in_the_way)?"""
-        return bool(plan.steps) and bool(self.refusals.in_the_way(start)
-                                         - self.refusals.in_the_way(plan.predicted[-1]))
-
-    @staticmethod
-    def topples(before: Boxes, after: Boxes) -> bool:
-        """Is a box the step moved predicted to rest where it topples (continuous.tips)? No
-        plan goes through such a scene: the model predicts where such a box was released,
-        not where it falls."""
-        return any(tips(after, n) for n in moved(before, after))
-
-    def unsafe(self, before: Boxes, after: Boxes, action: Action) -> bool:
-        """Does the step topple a box, where the model predicts it (topples) or where the
-        action sets its source down (set_down_tips), or drive its source into a box at the
-        release (Refusals.sets_down_into, which the arm refuses)?"""
-        return self.topples(before, after) or set_down_tips(before, action) \
-            or self.refusals.sets_down_into(before, action)
-
-    def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
-        self.predictions += len(steps)
-        return self.continuous.predict(boxes, [s.action for s in steps])
-
-    def rollout(self, boxes: Boxes, steps: list[PlanStep]) -> Boxes:
-        """The scene predicted after `steps`, one after the other, from `boxes`."""
-        return rollout(self._predict, boxes, steps)[-1] if steps else boxes
-
-    def refine(self, skeleton: list[Step], start: Boxes, believed, goal_atoms,
-               goal: dict[str, np.ndarray], budget: Budget, horizon: int | None = None
-               ) -> Refined | None:
-        """The skeleton's offsets chosen and extra moves added so that the predicted end
-        reaches `goal` (positions by name), or None. A skeleton longer than `horizon`:
-        its first `horizon` steps' offsets, chosen so that they reach its subgoal."""
-        before = goal_errors(start, goal)
-
-        def extend(i: int, boxes: Boxes, state, done: Refined) -> Refined | None:
-            if i == len(skeleton):
-                return self.finish(boxes, done, goal, budget)
-            if i == horizon:
-                placed = {s.action.source for s in done.steps}
-                later = moved(boxes, self.rollout(boxes, skeleton[i:]))
-                return done if self.subgoal_reached(boxes, goal, before, placed, later) \
-                    else None
-            scorer = PredictedScorer(self._predict, boxes, goal)
-            barred, covered = self.refusals.barred(boxes), boxes.covered()
-            for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
-                                 goal_atoms, scorer):
-                after, step = option.predicted, option.step
-                if not allows(step.action, barred) \
-                        or step.action.target in covered \
-                        or self.unsafe(boxes, after, step.action):
-                    continue
-                found = extend(i + 1, after, step.apply(state),
-                               Refined(done.steps + [step], done.predicted + [after]))
-                if found is not None or budget.spent():
-                    return found
-            return None
-
-        return extend(0, start, frozenset(believed), Refined([], []))
-
-    def subgoal_reached(self, boxes: Boxes, goal: dict[str, np.ndarray],
-                        before: dict[str, float], placed: set[str], later: set[str]) -> bool:
-        """Does the predicted scene `boxes` reach a skeleton's subgoal? Of the boxes the
-        rest of the skeleton does not move (`later`: predicted to move, riders too), those `placed` by the
-        steps so far and those at their goal `before` them (errors by name) are predicted
-        within the limit of their goal, and the others no farther from it than before
-        (SLACK)."""
-        for name, error in goal_errors(boxes, goal).items():
-            if name in later:
-                continue
-            if name in placed or before[name] <= self.limit:
-                if error > self.limit:
-                    return False
-            elif error > before[name] + SLACK:
-                return False
-        return True
-
-    def finish(self, boxes: Boxes, done: Refined, goal, budget: Budget,
-               depth: int = 0) -> Refined | None:
-        """`done` if its end reaches the goal, else with up to `extra_moves` moves of the
-        boxes that are off their goal (the best three predicted first at each depth)."""
-        if reaches_goal(boxes, goal, self.limit):
-            return done
-        if depth >= self.extra_moves or budget.spent():
-            return None
-        off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
-        barred = self.refusals.barred(boxes)
-        options = [m for m in moves(boxes.names, off, boxes.half_length, "reposition",
-                                    boxes.riding, boxes.covered())
-                   if allows(m.action, barred)]
-        scored = sorted(((after, option) for after, option in
-                         zip(self._predict(boxes, options), options, strict=True)
-                         if not self.unsafe(boxes, after, option.action)),
-                        key=lambda pair: max(goal_errors(pair[0], goal).values()))
-        for after, option in scored[:3]:
-            found = self.finish(after, Refined(done.steps + [option],
-                                               done.predicted + [after]),
-                                goal, budget, depth + 1)
-            if found is not None or budget.spent():
-                return found
-        return None
-
-    def moves_left(self, boxes: Boxes, goal: dict[str, np.ndarray],
-                   order: GoalOrder | None = None) -> int:
-        """The moves `boxes` is at least from `goal` by the goal's order
-        (goal_order.GoalOrder, made here unless given)."""
-        order = order or GoalOrder(goal, boxes.kinds())
-        return order.moves_left(boxes.where(), goal_errors(boxes, goal), self.limit)
-
-    def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget,
-               max_depth: int | None = None) -> tuple[Refined | None, Refined]:
-        """Weighted best-first search over pick/place moves in predicted space: f = g
-        + weight * h, g the steps (a move the arm missed in this solve dearer: `missed`),
-        h = (summed distance to the goal) / STEP_SCALE + MOVE_LEFT per move the goal's
-        order asks for. A node's moves the order asks for next (a box onto its
-        supports in place, what is in the way off: GoalOrder.next_moves) are predicted
-        first; the rest wait in the frontier `defer` dearer (None: all at once), so the
-        ~500 moves of an 8-box scene cost a prediction only where the asked ones lead
-        nowhere. (the plan that reaches the goal or None, the plan predicted to end
-        nearest it, by h; where that is not nearer than the start (_nearer), the one
-        nearest it of those that move a box in the way of a refused grasp, if any).
-        `max_depth`: plans at most this long (default the refiner's)."""
-        depth = self.max_depth if max_depth is None else max_depth
-
-        order = GoalOrder(goal, start.kinds())
-
-        def h(boxes):
-            errors = goal_errors(boxes, goal)
-            return sum(errors.values()) / STEP_SCALE + MOVE_LEFT * order.moves_left(
-                boxes.where(), errors, self.limit)
-
-        tie = itertools.count()
-        frontier = [(self.weight * h(start), next(tie), 0.0, h(start), start, Refined([], []),
-                     None)]
-        nearest = (h(start), Refined([], []))
-        clearing = None  # the node nearest the goal among those that clear a refused grasp
-        blocking = self.refusals.in_the_way(start)
-        seen = set()
-        while frontier and not budget.spent():
-            f, _, g, distance, boxes, done, deferred = heapq.heappop(frontier)
-            if deferred is None:
-                if reaches_goal(boxes, goal, self.limit):
-                    return done, done
-                nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
-                in_the_way = self.refusals.in_the_way(boxes)
-                if blocking and done.steps and blocking - in_the_way:
-                    clearing = min(clearing or (distance, done), (distance, done),
-                                   key=lambda pair: pair[0])
-                key = tuple(np.round(boxes.positions, 2).ravel())
-                if key in seen or len(done.steps) >= depth:
-                    continue
-                seen.add(key)
-                barred = self.refusals.barred(boxes)
-                options = [m for m in moves(boxes.names, set(boxes.names), boxes.half_length,
-                                            "move", boxes.riding, boxes.covered())
-                           if allows(m.action, barred)]
-                if self.defer is not None:
-                    options, later = _asked_first(options, boxes, order, goal, self.limit,
-                                                  self.missed, in_the_way)
-                    if later and options:
-                        heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
-                                                  boxes, done, later))
-                    options = options or later
-            else:
-                options = deferred
-            for after, option in zip(self._predict(boxes, options), options, strict=True):
-                if self.unsafe(boxes, after, option.action):
-                    continue
-                distance = h(after)
-                cost = g + 1 + MISSED * self.missed[option.action]
-                heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,
-                                          distance, after, Refined(done.steps + [option],
-                                                                   done.predicted + [after]),
-                                          None))
-        if clearing is not None and not _nearer(nearest[1], start, goal):
-            return None, clearing[1]
-        return None, nearest[1]
 
 
 class _LookedAt:
@@ -481,7 +172,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
         # refuses its first step (a skeleton with no other way found it again and again).
         return found(unverified.steps, f"{missed}; the first skeleton runs on its symbols",
                      "symbolic")
-    if _nearer(nearest, start.boxes, target):
+    if nearer(nearest, start.boxes, target):
         # Nothing reaches the goal, but these steps are predicted to bring the boxes
         # nearer it; the monitor replans from what is perceived at their end.
         return found(nearest.steps, f"{missed}; the steps predicted nearest it run, then "
@@ -547,14 +238,6 @@ def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, n
                                         f"skeleton takes {len(refined.steps)}")
     return found
 
-
-def _nearer(plan: Refined, start: Boxes, goal: dict[str, np.ndarray]) -> bool:
-    """Is `plan` predicted to end at least NEARER (summed over the boxes) closer to the
-    goal than `start` is?"""
-    if not plan.steps:
-        return False
-    before = sum(goal_errors(start, goal).values())
-    return sum(goal_errors(plan.predicted[-1], goal).values()) <= before - NEARER
 
 
 def skeletons(abstraction, start, goal, planner: str, budget: Budget,

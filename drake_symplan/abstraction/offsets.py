@@ -19,7 +19,7 @@ A scorer is called with the candidates and returns a `Scored` for each (lower is
   released over the target's release point (actions.release_shift); relative to the
   target where the two touch in the goal scene (the target may move later), else
   absolute. `keep` MIN_GAIN.
-- `PredictedScorer` (bilevel planning, abstraction/bilevel.py's Refiner, while it refines
+- `PredictedScorer` (bilevel planning, abstraction/refiner.py's Refiner, while it refines
   a skeleton): the summed distance of the boxes to their goal positions in the scene the
   learned continuous model predicts after the step (continuous.goal_errors); it keeps
   the prediction for the search to go on from. `keep` 0.

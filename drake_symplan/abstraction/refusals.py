@@ -2,7 +2,7 @@
 refuse in a scene (a stack it will not lift, a box its palm would strike), the releases
 that would drive a box into another, and the steps it refused in this solve, by the side
 it refused at and the boxes it named in its way. Rules on the believed and predicted
-boxes only (abstraction/bilevel.py's Refiner asks them); no simulator.
+boxes only (abstraction/refiner.py's Refiner asks them); no simulator.
 
 A refusal key is (side, box, offset): ("grasp", source, grasp) bars that source at that
 grasp; ("release", target, release) bars setting anything down on that target at that

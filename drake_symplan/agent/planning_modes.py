@@ -3,7 +3,7 @@ mode, all in the PLANNING_MODES registry, which the CLI's choices, SolveConfig's
 the evaluation and the reproduction read.
 
 - `bilevel` (the default): the symbolic planner's skeletons refined with the learned
-  continuous model, its search as the fallback (abstraction/bilevel.py);
+  continuous model, its search as the fallback (abstraction/bilevel.py, refiner.py);
 - `symbolic`: plans from the symbols alone;
 - `receding`: bilevel over a receding horizon: a skeleton longer than HORIZON steps is
   refined only over its first steps, to its subgoal, and the agent plans again from what
@@ -185,8 +185,8 @@ class _ContinuousModelMode(PlanningMode):
     def __init__(self, abstraction: Abstraction, config: SolveConfig,
                  given: list[Action] | None = None):
         super().__init__(abstraction, config, given)
-        from drake_symplan.abstraction.bilevel import Refiner
         from drake_symplan.abstraction.continuous import ContinuousModel
+        from drake_symplan.abstraction.refiner import Refiner
 
         self.refiner = Refiner(abstraction.bundle.planning,
                                ContinuousModel(abstraction.bundle.continuous))
@@ -251,7 +251,7 @@ class _ContinuousModelMode(PlanningMode):
         the goal check decides. A skeleton run on its symbols: as a symbolic plan."""
         if not self.predicts_positions:
             return super().departs(step, predicted, seen, rest, believed, goal_atoms, goal)
-        from drake_symplan.abstraction.bilevel import reaches_goal
+        from drake_symplan.abstraction.refiner import reaches_goal
 
         if predicted is None or not rest:
             return False

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.abstraction.bilevel import moves
+from drake_symplan.abstraction.refiner import moves
 from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.skills.pick_place import grasp_refused
