@@ -25,8 +25,8 @@ SHARED_MOVES = 1.0  # 1/m: weight of the squared distance (0.0025 m-equivalent a
 # metre costs STRAY_COST more. Without it, a stack put on its own rider (three blocks)
 # was read as nothing held and every block moved 10 cm under another's name. A fall is not
 # a push: only the sideways move and a rise count (a cube knocked off a tower's top drops
-# 10 cm; counted whole, the tower below was read as slid out from under itself, a box
-# under each other's name, and the plan went on with the names swapped).
+# 10 cm; counted whole, the tower below was read as slid out from under itself, three
+# cubes under each other's names, and the plan went on with the names swapped).
 PUSH_REACH = 0.06  # m
 STRAY_COST = 2.0  # m-equivalent per m beyond PUSH_REACH
 # Nor does a box the hand did not hold rise, beyond a lean or a see-saw's tilt: a block set
