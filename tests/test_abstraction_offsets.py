@@ -80,6 +80,19 @@ def test_the_release_offset_follows_the_goal_position_on_the_target():
     assert geometric(now, positions(0.005), contact) == STEP
 
 
+def test_offsets_that_would_set_the_source_down_to_topple_are_passed_over():
+    now = {"a": np.array([0.3, 0.2, 0.025]), "b": np.zeros(3)}
+    goal = positions(-0.15)  # best: grasped right, released left (op5)
+
+    def choose_safe(unsafe):
+        return str(choose(PlanningOperators(OPERATORS), STEP, [], STATE, GOAL_ATOMS,
+                          GeometricScorer(now, goal, {("a", "b")}), unsafe))
+
+    assert choose_safe(lambda a: a.grasp == "right") == "(pick_center_place_left_n10_op2 a b)"
+    # where every candidate is unsafe the best still runs (the monitor sees what comes)
+    assert choose_safe(lambda a: True) == "(pick_right_place_left_n10_op5 a b)"
+
+
 def test_without_goal_contact_the_absolute_goal_position_counts():
     now = {"a": np.array([0.3, 0.2, 0.025]), "b": np.array([0.0, -0.075, 0.025])}
     goal = {"a": np.array([0.0, 0.0, 0.3]), "b": np.array([0.5, 0.5, 0.025])}

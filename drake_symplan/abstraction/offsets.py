@@ -106,6 +106,8 @@ def ranked(operators: PlanningOperators, step: Step, rest: list[PlanStep], state
 
 
 def choose(operators: PlanningOperators, step: Step, rest: list[PlanStep], state,
-           goal_atoms, scorer) -> Step:
-    """The best of `ranked`: `step` with the offsets that score best."""
-    return ranked(operators, step, rest, state, goal_atoms, scorer)[0].step
+           goal_atoms, scorer, unsafe: Callable | None = None) -> Step:
+    """The best of `ranked`: `step` with the offsets that score best, of those whose
+    action is not `unsafe(action)` where any is not."""
+    order = [s.step for s in ranked(operators, step, rest, state, goal_atoms, scorer)]
+    return next((s for s in order if unsafe is None or not unsafe(s.action)), order[0])

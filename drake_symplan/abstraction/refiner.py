@@ -24,6 +24,7 @@ from drake_symplan.abstraction.offsets import PredictedScorer, ranked
 from drake_symplan.abstraction.refusals import Refusals, allows
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS, goal_reached
+from drake_symplan.features import FEATURE_NAMES
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Reposition, Step
 
@@ -109,16 +110,22 @@ def set_down_tips(boxes: Boxes, action: Action) -> bool:
     LEANS (one box on the table: a block with its end on a cube leans on the table, as
     goals have it)? A block grasped at its end and released over the centre of a cube
     atop a tower comes down with its centre 7.5 cm off it, and falls; the model, which
-    saw few such steps, may predict it resting there."""
+    saw few such steps, may predict it resting there. The source is judged as it comes
+    down, level in the hand: one picked up leaning (a block with its end on a cube) is set
+    down on a face, and tips where its centre is beyond its supports."""
     from drake_symplan.skills.pick_place import set_down_at  # the skill's geometry
 
     objects = boxes.object_states()
     centre = set_down_at(action, objects)
     if centre[2] - HALF_EXTENTS[objects[action.source].type][2] <= LEANS:
         return False
+    i = boxes.names.index(action.source)
     positions = boxes.positions.copy()
-    positions[boxes.names.index(action.source)] = centre
-    return tips(boxes.moved(positions), action.source)
+    positions[i] = centre
+    down = boxes.moved(positions)
+    down.features[i, FEATURE_NAMES.index("cos_tilt")] = 1.0
+    down.features[i, FEATURE_NAMES.index("long_axis_up")] = 0.0
+    return tips(down, action.source)
 
 
 class Refiner:

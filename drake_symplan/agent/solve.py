@@ -43,6 +43,7 @@ from contextlib import contextmanager
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.offsets import GeometricScorer, choose
+from drake_symplan.abstraction.refiner import set_down_tips
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
@@ -306,15 +307,17 @@ class _Run:
 
     def _offsets(self, step: PlanStep) -> PlanStep:
         """`step` with the offsets the geometric scorer chooses, completing a plan on
-        symbols (abstraction/offsets.py), else as planned."""
+        symbols (abstraction/offsets.py), else as planned: the best that does not set its
+        source down to topple (refiner.set_down_tips), where one does not."""
         if not (self._completes() and isinstance(step, Step)):
             return step
         with self.clock("symbols"):
             scorer = GeometricScorer(beliefs.positions(self.scene),
                                      beliefs.positions(self.goal_scene),
                                      self.goal_scene.contacts)
+            boxes = Boxes.of(self.scene)
             return choose(self.abs.bundle.planning, step, self.rest, self.believed,
-                          self.goal_atoms, scorer)
+                          self.goal_atoms, scorer, lambda a: set_down_tips(boxes, a))
 
     def _execute(self, planned: _Planned) -> None:
         """Runs a step with the robot (its offsets chosen first), perceives the result."""
