@@ -189,27 +189,18 @@ class ContinuousModel:
     def _positions(boxes: Boxes, action: Action, row: list[int], effect: np.ndarray
                    ) -> np.ndarray:
         """Positions after `action`: the effects of the involved objects `row` [m, 6]
-        added to where they were, the carry added to those that rose with the hand. A box
-        carried comes down where the hand released it unless the model predicts it moving
-        SNAP or more from there (it slides or falls): the arm sets a box down within
-        millimetres of its release, and a smaller predicted shift is the regression's
-        error (about 6 mm, `docs/goals.md`), which a tower of four adds up."""
+        added to where they were, the carry added to those that rose with the hand."""
         where = boxes.where()
         land = release_centre(where[action.target][:2], action)
         carry = np.array([*(land - where[action.source][:2]), 0.0])
         out = boxes.positions.astype(float).copy()
         for i, e in zip(row, effect, strict=True):
-            shift = e[:3] + e[3:]
-            if e[2] > LIFT_TOL:
-                if np.linalg.norm(shift[:2]) < SNAP:
-                    shift[:2] = 0.0
-                shift = shift + carry
-            out[i] = out[i] + shift
+            lifted = e[2] > LIFT_TOL
+            out[i] = out[i] + e[:3] + e[3:] + (carry if lifted else 0.0)
         moved = [i for i in row if np.linalg.norm(out[i] - boxes.positions[i]) > SETTLE_MOVED]
         return rest(out, boxes.features, moved)
 
 
-SNAP = 0.03  # m: a carried box predicted to land nearer its release lands at it (_positions)
 SETTLE_MOVED = 0.01  # m: a box predicted to move this far comes to rest (`rest`)
 MOVED = 0.02  # m: a box predicted to go this far has moved (a rider too)
 
