@@ -216,6 +216,8 @@ class ContinuousModel:
                 if np.linalg.norm(shift[:2]) < snap:
                     shift[:2] = 0.0
                 shift = shift + carry
+            elif snap > 0 and np.linalg.norm(shift) <= SETTLE_MOVED:
+                continue  # not moved: a shift this small is the regression's jitter
             out[i] = out[i] + shift
         moved = [i for i in row if np.linalg.norm(out[i] - boxes.positions[i]) > SETTLE_MOVED]
         return rest(out, boxes.features, moved, carried)

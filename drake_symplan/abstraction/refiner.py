@@ -171,6 +171,12 @@ class Refiner:
         return self.topples(before, after) or set_down_tips(before, action) \
             or self.refusals.sets_down_into(before, action)
 
+    def _allowed(self, boxes: Boxes, options: list[Reposition]) -> list[Reposition]:
+        """The `options` no refusal bars in `boxes`, the arm's rules asked of their
+        sources' grasps only (Refusals.barred)."""
+        barred = self.refusals.barred(boxes, {m.action.source for m in options})
+        return [m for m in options if allows(m.action, barred)]
+
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
         self.predictions += len(steps)
         return self.continuous.predict(boxes, [s.action for s in steps])
@@ -196,7 +202,9 @@ class Refiner:
                 return done if self.subgoal_reached(boxes, goal, before, placed, later) \
                     else None
             scorer = PredictedScorer(self._predict, boxes, goal)
-            barred, covered = self.refusals.barred(boxes), boxes.covered()
+            # every offset variant of the step moves its source (one box's grasp rules)
+            barred = self.refusals.barred(boxes, {skeleton[i].action.source})
+            covered = boxes.covered()
             for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
                                  goal_atoms, scorer):
                 after, step = option.predicted, option.step
@@ -238,10 +246,8 @@ class Refiner:
         if depth >= self.extra_moves or budget.spent():
             return None
         off = {n for n, e in goal_errors(boxes, goal).items() if e > self.limit}
-        barred = self.refusals.barred(boxes)
-        options = [m for m in moves(boxes.names, off, boxes.half_length, "reposition",
-                                    boxes.riding, boxes.covered())
-                   if allows(m.action, barred)]
+        options = self._allowed(boxes, moves(boxes.names, off, boxes.half_length,
+                                             "reposition", boxes.riding, boxes.covered()))
         scored = sorted(((after, option) for after, option in
                          zip(self._predict(boxes, options), options, strict=True)
                          if not self.unsafe(boxes, after, option.action)),
@@ -304,19 +310,19 @@ class Refiner:
                 if key in seen or len(done.steps) >= depth:
                     continue
                 seen.add(key)
-                barred = self.refusals.barred(boxes)
-                options = [m for m in moves(boxes.names, set(boxes.names), boxes.half_length,
-                                            "move", boxes.riding, boxes.covered())
-                           if allows(m.action, barred)]
+                options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
+                                boxes.riding, boxes.covered())
                 if self.defer is not None:
                     options, later = _asked_first(options, boxes, order, goal, self.limit,
                                                   self.missed, in_the_way)
+                    options = self._allowed(boxes, options)
                     if later and options:
                         heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
                                                   boxes, done, later))
                     options = options or later
             else:
                 options = deferred
+            options = self._allowed(boxes, options)
             for after, option in zip(self._predict(boxes, options), options, strict=True):
                 if self.unsafe(boxes, after, option.action):
                     continue
