@@ -4,14 +4,17 @@ effect model the robot trained on its own exploration data, rolled forward.
 The effect model predicts, for the objects an action involves (its source and target and
 whatever touches them, as in training: data/exploration.py), each one's displacement at
 the end of the lift and after the release relative to where the carry put it (the effect,
-actions.py). A box predicted to rise with the hand is carried with it: the source's
-centre to the release point (the target's centre shifted along y, actions.release_centre),
-what rides on it by the same vector. A box that moved and whose centre is then over
-another comes to rest on it (`rest`: the network regresses a mean height, which for an
+actions.py). The source, and what rides on it, predicted to rise with the hand is carried
+with it: the source's centre to the release point (the target's centre shifted along y,
+actions.release_centre), its riders by the same vector, and it comes down there unless
+predicted to fall off (SNAP); a box the hand leaves keeps its place unless predicted
+pushed. A box that moved and whose centre is then over another comes to rest on it, one
+over no box on the table (`rest`: the network regresses a mean height, which for an
 outcome that goes either way is no height a box rests at). Orientations are kept (a
 tipped box is predicted lying as it was), positions change, and the predicted scene's
-contacts come from the box geometry (boxes.contact_graph). Objects out of the action's reach stay. No simulator: what
-the planner knows, the robot learned.
+contacts come from the box geometry (boxes.contact_graph). Objects out of the action's
+reach stay. No simulator: what the planner knows, the robot learned, and what its own hand
+does (what it holds, where it lets go).
 """
 
 from __future__ import annotations
