@@ -313,16 +313,17 @@ class Refiner:
                 options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
                                 boxes.riding, boxes.covered())
                 if self.defer is not None:
-                    options, later = _asked_first(options, boxes, order, goal, self.limit,
-                                                  self.missed, in_the_way)
-                    options = self._allowed(boxes, options)
-                    if later and options:
+                    first, later = _asked_first(options, boxes, order, goal, self.limit,
+                                                self.missed, in_the_way)
+                    first = self._allowed(boxes, first)
+                    if later and first:
                         heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
                                                   boxes, done, later))
-                    options = options or later
+                    options = first or self._allowed(boxes, later)
+                else:
+                    options = self._allowed(boxes, options)
             else:
-                options = deferred
-            options = self._allowed(boxes, options)
+                options = self._allowed(boxes, deferred)
             for after, option in zip(self._predict(boxes, options), options, strict=True):
                 if self.unsafe(boxes, after, option.action):
                     continue
