@@ -117,6 +117,20 @@ def test_a_cube_put_at_a_blocks_end_is_told_apart_with_the_prior(camera_station,
     assert report["contacts_ok"]
 
 
+def test_a_cube_put_on_a_tower_of_four_makes_five_cubes_with_the_prior(camera_station):
+    # Alone, five stacked cubes look like an upright block (the uncertain fit above); the
+    # prior's four cubes, still where they were, keep their own side points from it.
+    tower = [(f"c{k}", "cube", (0.48, -0.22, 0.025 + 0.05 * k)) for k in range(4)]
+    before, _ = _perceive(camera_station, [*tower, ("top", "cube", (0.63, 0.15, 0.025))])
+    after, report = _perceive(camera_station, [*tower, ("top", "cube", (0.48, -0.22, 0.225))],
+                              before)
+    assert [o.type for o in after.objects].count("cube") == 5, \
+        [o.to_json() for o in after.objects]
+    assert report["count_ok"] and report["missed"] == 0
+    assert all(e["type_ok"] and e["position_mm"] < 5.0 for e in report["errors"].values()), \
+        report["errors"]
+
+
 def test_a_row_of_points_along_an_edge_is_no_surface():
     # One camera row along a box edge: a flat run of cells whose points are collinear, so
     # a plane fit through them has no normal (it used to give a sideways one, then NaNs).

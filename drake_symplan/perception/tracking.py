@@ -94,7 +94,8 @@ def anchor(prior: list[FittedBox], fresh: list[FittedBox], hm: seg.HeightMap
         # Points a fresh fit seen from above explains are not the prior box's own: a block
         # set on another's end pushed it 12 cm along, right under where it lay, and its
         # side faces, seen there, held its old pose while its seen end was fitted apart.
-        seen_fits = [b for b in fresh if not b.from_side and not _same_box(b, box)]
+        seen_fits = [b for b in fresh
+                     if not (b.from_side or b.uncertain) and not _same_box(b, box)]
         box = supported(box, hm, [b for b in prior if b is not box] + seen_fits)
         if box is None:
             continue
