@@ -18,6 +18,8 @@ HALF_EXTENTS: dict[str, tuple[float, float, float]] = {
     "long": (SIDE / 2, LONG / 2, SIDE / 2),
 }
 OBJECT_TYPES = tuple(HALF_EXTENTS)
+# kg, per object type: the catalogue's boxes (models/objects), for where a load's weight is
+MASS: dict[str, float] = {"cube": 0.1, "long": 0.4}
 
 # The smallest yaw turn that maps a box onto itself: 90 deg for a cube, 180 for a block.
 YAW_PERIOD: dict[str, float] = {"cube": np.pi / 2, "long": np.pi}

@@ -14,7 +14,7 @@ import torch
 from drake_symplan.abstraction import bilevel
 from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.bilevel import PENALTY, Search, plan_bilevel
-from drake_symplan.abstraction.continuous import Boxes, ContinuousModel, tips
+from drake_symplan.abstraction.continuous import Boxes, ContinuousModel, overloaded, tips, unstable
 from drake_symplan.abstraction.refiner import Refiner, moves, set_down_tips
 from drake_symplan.abstraction.refusals import allows
 from drake_symplan.actions import Action, release_shift
@@ -293,6 +293,34 @@ def test_a_block_grasped_at_its_end_and_released_over_a_cube_would_topple():
     scene = Boxes(scene.names, leaning, frozenset()).moved(leaning[:, :3])
     assert set_down_tips(scene, Action("l", "right", "c", "center"))
     assert not set_down_tips(scene, Action("l", "center", "c", "center"))
+
+
+def test_a_load_near_its_one_supports_edge_falls_and_no_step_puts_it_there():
+    # settled in full physics for 2 s from these positions: each `fell` scene toppled,
+    # each `stood` one stood
+    def scene(*where):  # (name, type, y, z) along one line
+        features = np.stack([object_features(kind, np.array([0.7, y, z]), np.eye(3))
+                             for _, kind, y, z in where])
+        return Boxes(tuple(w[0] for w in where), features, frozenset()).moved(features[:, :3])
+
+    c = ("c", "cube", 0.0, 0.025)
+    fell = [scene(c, ("l", "long", 0.018, 0.075)),  # a block centred 1.8 cm off a cube
+            scene(c, ("l", "long", 0.0, 0.075), ("t", "cube", -0.075, 0.125))]  # 1.5 cm
+    stood = [scene(c, ("l", "long", 0.01, 0.075)),
+             scene(c, ("l", "long", 0.0, 0.075), ("m", "long", 0.0, 0.125),
+                   ("t", "cube", -0.075, 0.175)),  # 0.8 cm off
+             scene(*[(f"c{k}", "cube", 0.003 * k, 0.025 + 0.05 * k) for k in range(5)])]
+    for s in fell:
+        assert unstable(s, ["t" if "t" in s.names else "l"]), s.names
+        assert unstable(s, ["l"]) and overloaded(s, "l") and not overloaded(s, "c")
+    for s in stood:
+        assert not unstable(s, [s.names[-1]]), s.names
+    # the first cube t on the end of the block on c: the step that puts it there is unsafe
+    before = scene(c, ("l", "long", 0.0, 0.075), ("t", "cube", 0.2, 0.025))
+    after = scene(c, ("l", "long", 0.0, 0.075), ("t", "cube", -0.075, 0.125))
+    assert Refiner.topples(before, after)
+    assert not Refiner.topples(before, scene(c, ("l", "long", 0.0, 0.075),
+                                             ("t", "cube", 0.0, 0.125)))
 
 
 def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_plan_goes_there():

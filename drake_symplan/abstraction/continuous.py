@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
-from drake_symplan.boxes import HALF_EXTENTS, contact_graph, goal_distances
+from drake_symplan.boxes import HALF_EXTENTS, MASS, contact_graph, goal_distances
 from drake_symplan.datasets import ObjectState
 from drake_symplan.features import box_of
 
@@ -97,6 +97,12 @@ class Boxes:
             out[name] = ObjectState(name, kind, centre, float(np.arctan2(R[1, 0], R[0, 0])))
         return out
 
+    @cached_property
+    def shapes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Each box's (type, centre, axes R) as features.box_of reads its row, read once:
+        the stability rules ask them of a scene over and over."""
+        return [box_of(row) for row in self.features]
+
     def half_length(self, name: str) -> float:
         """Half the length of box `name` along its long axis (local y), by its type."""
         return HALF_EXTENTS[box_of(self.features[self.names.index(name)])[0]][1]
@@ -107,11 +113,11 @@ class Boxes:
         found, frontier = set(), [name]
         while frontier:
             below = self.names.index(frontier.pop())
-            top = self.positions[below][2] + HALF_EXTENTS[box_of(self.features[below])[0]][2]
+            kind, centre, R = self.shapes[below]
+            top = centre[2] + HALF_EXTENTS[kind][2]
             for j, other in enumerate(self.names):
                 if other != name and other not in found and self.positions[j][2] > top \
-                        and _covers(self.features[below], self.positions[below],
-                                    self.positions[j]):
+                        and _inside(kind, R, centre, self.positions[j]):
                     found.add(other)
                     frontier.append(other)
         return found
@@ -264,6 +270,7 @@ STACK_GAP = 0.02  # m: a box's top this near another's bottom holds it up
 HULL_TOL = 0.005  # m: a centre this far outside where a box is held still stands
 COVER_INSET = 0.005  # m: a box over another's top this far inside its edges rests on it
 LEVEL = np.cos(np.radians(10))  # cos tilt: a box tilted more leans (on the table too)
+LOAD_INSET = 0.0105  # m: a load's centre of mass this far inside its one support's edges stands
 
 
 def _footprint(kind: str, spacing: float = 0.00625) -> np.ndarray:
@@ -306,19 +313,72 @@ def tips(boxes: Boxes, name: str) -> bool:
     return bool(np.any(centre @ _DIRECTIONS.T > reach + HULL_TOL))
 
 
+def overloaded(boxes: Boxes, name: str) -> bool:
+    """Does box `name`, level and resting on one box alone, hold a load with a block in it
+    (itself and what rides on it, by the catalogue's masses) with the load's centre of mass
+    less than LOAD_INSET inside that box's top face? The contacts give a little, and a
+    heavy load near an edge leans on them and falls where rigid boxes would stand: a block
+    centred 1.8 cm off a cube, and one centred on it with a cube at its end (the load 1.5
+    cm off), fell; a block 1.6 cm off stood, and so did towers of cubes 3 mm apart. Loads
+    1.0-1.25 cm off stand in five of the thirty eight-box goals, and one 1.1 cm off (a
+    cube at the end of two blocks on a cube) fell in a solve: statics cannot tell those
+    apart, and the rule leaves them."""
+    i = boxes.names.index(name)
+    under = _supports(boxes, i)
+    return len(under) == 1 and _overloaded(boxes, i, under[0])
+
+
+def _overloaded(boxes: Boxes, i: int, support) -> bool:
+    """overloaded, box i's one support given (as _under gives it)."""
+    if boxes.features[i][3] < LEVEL:
+        return False
+    load = [i] + [boxes.names.index(n) for n in boxes.riding(boxes.names[i])]
+    kinds = [boxes.shapes[k][0] for k in load]
+    if "long" not in kinds:
+        return False
+    mass = np.array([MASS[k] for k in kinds])
+    centre = mass @ boxes.positions[load, :2] / mass.sum()
+    return not _over_top(centre[None], support[1:], LOAD_INSET)[0]
+
+
+def unstable(boxes: Boxes, names) -> bool:
+    """Does one of `names` topple (tips), or it or a box it rests on, down to the table,
+    hold its load off its one support (overloaded)? Only a raised block loads a box."""
+    raised = any(k == "long" and c[2] - HALF_EXTENTS[k][2] >= RAISED
+                 for k, c, _ in boxes.shapes)
+    for name in names:
+        if tips(boxes, name):
+            return True
+        i, seen = boxes.names.index(name), set()
+        while raised and i not in seen:
+            seen.add(i)
+            under = _supports(boxes, i)
+            if len(under) != 1:
+                break
+            if _overloaded(boxes, i, under[0]):
+                return True
+            i = under[0][0]
+    return False
+
+
 def _under(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
     """The boxes whose top is within STACK_GAP of box i's bottom, i raised off the table:
     (index, centre xy, yaw's 2x2 rotation, top's half extents) each."""
-    kind, centre, _ = box_of(boxes.features[i])
+    kind, centre, _ = boxes.shapes[i]
     bottom = centre[2] - HALF_EXTENTS[kind][2]
     if bottom < RAISED:
         return []
     out = []
-    for j, row in enumerate(boxes.features):
-        kind_j, centre_j, R_j = box_of(row)
+    for j, (kind_j, centre_j, R_j) in enumerate(boxes.shapes):
         if j != i and abs(centre_j[2] + HALF_EXTENTS[kind_j][2] - bottom) <= STACK_GAP:
             out.append((j, centre_j[:2], R_j[:2, :2], np.asarray(HALF_EXTENTS[kind_j][:2])))
     return out
+
+
+def _supports(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """The boxes under box i (_under) that its footprint is over, in part."""
+    points = _footprint_points(boxes, i)
+    return [u for u in _under(boxes, i) if _over_top(points, u[1:]).any()]
 
 
 def _over_top(points: np.ndarray, top, inset: float = 0.0) -> np.ndarray:
@@ -330,7 +390,7 @@ def _over_top(points: np.ndarray, top, inset: float = 0.0) -> np.ndarray:
 
 def _footprint_points(boxes: Boxes, i: int) -> np.ndarray:
     """Points over box i's bottom face, world xy."""
-    kind, centre, R = box_of(boxes.features[i])
+    kind, centre, R = boxes.shapes[i]
     return centre[:2] + _FOOTPRINTS[kind] @ R[:2, :2].T
 
 
@@ -338,6 +398,11 @@ def _covers(row: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
     """Is `point`'s xy over the top face of the box of features `row` standing at
     `centre`?"""
     kind, _, R = box_of(row)
+    return _inside(kind, R, centre, point)
+
+
+def _inside(kind: str, R: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
+    """Is `point`'s xy over the top face of a box of type `kind`, axes R, at `centre`?"""
     local = R[:2, :2].T @ (point - centre)[:2]
     return bool(np.all(np.abs(local) <= np.asarray(HALF_EXTENTS[kind][:2])))
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout, tips
+from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout, unstable
 from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, ranked
 from drake_symplan.abstraction.refusals import Refusals, allows
@@ -125,7 +125,7 @@ def set_down_tips(boxes: Boxes, action: Action) -> bool:
     down = boxes.moved(positions)
     down.features[i, FEATURE_NAMES.index("cos_tilt")] = 1.0
     down.features[i, FEATURE_NAMES.index("long_axis_up")] = 0.0
-    return tips(down, action.source)
+    return unstable(down, [action.source])
 
 
 class Refiner:
@@ -159,10 +159,10 @@ class Refiner:
 
     @staticmethod
     def topples(before: Boxes, after: Boxes) -> bool:
-        """Is a box the step moved predicted to rest where it topples (continuous.tips)? No
-        plan goes through such a scene: the model predicts where such a box was released,
-        not where it falls."""
-        return any(tips(after, n) for n in moved(before, after))
+        """Is a box the step moved predicted to rest where it topples, or to load one under
+        it off its support (continuous.unstable)? No plan goes through such a scene: the
+        model predicts where such a box was released, not where it falls."""
+        return unstable(after, moved(before, after))
 
     def unsafe(self, before: Boxes, after: Boxes, action: Action) -> bool:
         """Does the step topple a box, where the model predicts it (topples) or where the
