@@ -137,3 +137,21 @@ def test_the_planner_sees_one_operator_per_precondition_and_effect():
     assert [op.index for op in planning.operators[0].variants] == [6, 0, 1, 2, 5]
     assert "pick_left_place_left_n10_op6" not in bundle().domain
     assert bundle().domain.count("(:action") == 3
+
+
+def test_of_the_moves_that_shift_a_source_alike_the_one_held_nearest_its_centre_is_kept():
+    from drake_symplan.abstraction.offsets import central
+    from drake_symplan.actions import Action
+    from drake_symplan.symbolic.structs import Reposition
+
+    moves = [Reposition(Action("l", g, t, r)) for t in ("c", "d")
+             for g, r in (("left", "left"), ("center", "center"), ("right", "right"),
+                          ("left", "center"), ("center", "right"), ("left", "right"))]
+    kept = central(moves, lambda name: set())
+    # per target: shift 0 (left-left, centre-centre, right-right), 7.5 cm (left-centre,
+    # centre-right), 15 cm (left-right): centre-centre in left-left's place, centre-right
+    assert [(m.action.grasp, m.action.release, m.action.target) for m in kept] == [
+        ("center", "center", "c"), ("center", "right", "c"), ("left", "right", "c"),
+        ("center", "center", "d"), ("center", "right", "d"), ("left", "right", "d")]
+    # a block with a box on it keeps every grasp (its centre may be under the load)
+    assert central(moves, lambda name: {"e"} if name == "l" else set()) == moves

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
-from drake_symplan.actions import release_shift
+from drake_symplan.actions import OFFSET_METRES, release_shift
 from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Step
 
 MIN_GAIN = 0.01  # m: the geometric scorer's change of offsets lands the source this much nearer
@@ -106,8 +106,42 @@ def ranked(operators: PlanningOperators, step: Step, rest: list[PlanStep], state
 
 
 def choose(operators: PlanningOperators, step: Step, rest: list[PlanStep], state,
-           goal_atoms, scorer, unsafe: Callable | None = None) -> Step:
+           goal_atoms, scorer, unsafe: Callable | None = None,
+           riding: Callable | None = None) -> Step:
     """The best of `ranked`: `step` with the offsets that score best, of those whose
-    action is not `unsafe(action)` where any is not."""
+    action is not `unsafe(action)` where any is not; `riding(name)` (the boxes on a box),
+    where given: each held nearest its centre (`central`)."""
     order = [s.step for s in ranked(operators, step, rest, state, goal_atoms, scorer)]
+    if riding is not None:
+        order = central(order, riding)
     return next((s for s in order if unsafe is None or not unsafe(s.action)), order[0])
+
+
+def central(items: list, riding: Callable, action: Callable = lambda s: s.action) -> list:
+    """`items` (steps, or anything `action(item)` reads an Action from), each in its place
+    replaced by the one that moves its source alike (the same target and release_shift)
+    grasped nearest its centre, where nothing rides on the source (`riding(name)`), and
+    without repeats. A block held at its end and set on a tower of four came down 1.5 cm
+    off, tilted, and the tower leaned 0.07 rad (knocked over in a solve); held at its
+    centre it landed level."""
+    def alike(item) -> tuple:
+        a = action(item)
+        return a.source, a.target, round(release_shift(a), 6)
+
+    best, loaded = {}, {}
+    for item in items:
+        a, key = action(item), alike(item)
+        if a.source not in loaded:
+            loaded[a.source] = bool(riding(a.source))
+        if loaded[a.source]:
+            continue
+        if key not in best or abs(OFFSET_METRES[a.grasp]) < abs(
+                OFFSET_METRES[action(best[key]).grasp]):
+            best[key] = item
+    out, seen = [], set()
+    for item in items:
+        chosen = best.get(alike(item), item)
+        if id(chosen) not in seen:
+            seen.add(id(chosen))
+            out.append(chosen)
+    return out

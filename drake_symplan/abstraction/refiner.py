@@ -20,7 +20,7 @@ import numpy as np
 
 from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout, unstable
 from drake_symplan.abstraction.goal_order import GoalOrder
-from drake_symplan.abstraction.offsets import PredictedScorer, ranked
+from drake_symplan.abstraction.offsets import PredictedScorer, central, ranked
 from drake_symplan.abstraction.refusals import Refusals, allows
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS, goal_reached
@@ -173,9 +173,10 @@ class Refiner:
 
     def _allowed(self, boxes: Boxes, options: list[Reposition]) -> list[Reposition]:
         """The `options` no refusal bars in `boxes`, the arm's rules asked of their
-        sources' grasps only (Refusals.barred)."""
+        sources' grasps only (Refusals.barred), of those that move a source alike the one
+        held nearest its centre (offsets.central)."""
         barred = self.refusals.barred(boxes, {m.action.source for m in options})
-        return [m for m in options if allows(m.action, barred)]
+        return central([m for m in options if allows(m.action, barred)], boxes.riding)
 
     def _predict(self, boxes: Boxes, steps: list[PlanStep]) -> list[Boxes]:
         self.predictions += len(steps)
@@ -205,12 +206,12 @@ class Refiner:
             # every offset variant of the step moves its source (one box's grasp rules)
             barred = self.refusals.barred(boxes, {skeleton[i].action.source})
             covered = boxes.covered()
-            for option in ranked(self.operators, skeleton[i], skeleton[i + 1:], state,
-                                 goal_atoms, scorer):
+            options = [o for o in ranked(self.operators, skeleton[i], skeleton[i + 1:],
+                                         state, goal_atoms, scorer)
+                       if allows(o.step.action, barred) and o.step.action.target not in covered]
+            for option in central(options, boxes.riding, lambda o: o.step.action):
                 after, step = option.predicted, option.step
-                if not allows(step.action, barred) \
-                        or step.action.target in covered \
-                        or self.unsafe(boxes, after, step.action):
+                if self.unsafe(boxes, after, step.action):
                     continue
                 found = extend(i + 1, after, step.apply(state),
                                Refined(done.steps + [step], done.predicted + [after]))

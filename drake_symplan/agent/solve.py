@@ -308,7 +308,8 @@ class _Run:
     def _offsets(self, step: PlanStep) -> PlanStep:
         """`step` with the offsets the geometric scorer chooses, completing a plan on
         symbols (abstraction/offsets.py), else as planned: the best that does not set its
-        source down to topple (refiner.set_down_tips), where one does not."""
+        source down to topple (refiner.set_down_tips), where one does not, held nearest
+        its centre (offsets.central)."""
         if not (self._completes() and isinstance(step, Step)):
             return step
         with self.clock("symbols"):
@@ -317,7 +318,8 @@ class _Run:
                                      self.goal_scene.contacts)
             boxes = Boxes.of(self.scene)
             return choose(self.abs.bundle.planning, step, self.rest, self.believed,
-                          self.goal_atoms, scorer, lambda a: set_down_tips(boxes, a))
+                          self.goal_atoms, scorer, lambda a: set_down_tips(boxes, a),
+                          boxes.riding)
 
     def _execute(self, planned: _Planned) -> None:
         """Runs a step with the robot (its offsets chosen first), perceives the result."""
