@@ -58,6 +58,20 @@ CASES = {
     "block on a block, its end clear": ([("a", "long", (0.84, -0.20, 0.025)),
                                          ("b", "long", (0.84, -0.1275, 0.075))],
                                         {("a", "b")}),
+    # Towers of blocks and cubes (eight-box goals): hidden under a block, a cube's side
+    # faces run on into the block's under it, and a cube was read as a block; from under
+    # two boxes the same hidden one was fitted twice.
+    "a cube between blocks": ([("a", "long", (0.65, 0.1, 0.025)),
+                               ("b", "long", (0.65, 0.1, 0.075)),
+                               ("c", "cube", (0.65, 0.1, 0.125)),
+                               ("d", "long", (0.65, 0.1, 0.175))],
+                              {("a", "b"), ("b", "c"), ("c", "d")}),
+    "cubes and blocks in turn": ([("a", "cube", (0.65, 0.1, 0.025)),
+                                  ("b", "long", (0.65, 0.1, 0.075)),
+                                  ("c", "cube", (0.65, 0.1, 0.125)),
+                                  ("d", "long", (0.65, 0.1, 0.175)),
+                                  ("e", "cube", (0.65, 0.1, 0.225))],
+                                 {("a", "b"), ("b", "c"), ("c", "d"), ("d", "e")}),
 }
 
 

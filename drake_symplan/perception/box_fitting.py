@@ -29,6 +29,7 @@ LEANING_TILT = np.radians(5.0)  # a box tilted more than this leans on something
 ON_TABLE = 0.02  # m: a bottom lower than this rests on the table
 STACK_TOL = 0.012  # m: cubes this close to a column's axis and height are in it
 SUPPORT_SEARCH = 0.03  # m: look for support points this far around a box's footprint
+SUPPORT_LAYER = 0.005  # m: a support's own layer: from this above a box's height under its top
 EXPLAINED_MARGIN = 0.006  # m: points this close to a fitted box are its own
 MIN_SIDE_POINTS = 40  # points in a cluster to fit a box to its side faces
 UNDER_MARGIN = 0.01  # m: a support's points lie under the box it holds, within this
@@ -88,14 +89,20 @@ def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBo
         # A support already seen under it does not end the search: a block may rest on
         # two (one seen, a cube under its middle seen only from the side); what the seen
         # one explains is left out below.
-        lo, hi = footprint.min(axis=0) - SUPPORT_SEARCH, footprint.max(axis=0) + SUPPORT_SEARCH
+        # A level box's support, its top at the box's bottom, may be a block reaching
+        # farther than the search's margin (a block under a cube).
+        reach = SUPPORT_SEARCH if tilted else LONG / 2
+        lo, hi = footprint.min(axis=0) - reach, footprint.max(axis=0) + reach
         sel = ((points[:, 2] < box.center[2]) & np.all(points[:, :2] >= lo, axis=1)
                & np.all(points[:, :2] <= hi, axis=1))
         cand = points[sel]
         for other in boxes + found:
             if len(cand):
                 cand = cand[~other.contains(cand, EXPLAINED_MARGIN)]
-        new = _fit_side_clusters(cand, None if tilted else bottom, box)
+        new = [b for b in _fit_side_clusters(cand, None if tilted else bottom, box)
+               if not any(k.tilt <= LEANING_TILT and k.contains(b.center[None],
+                                                               -DUPLICATE_DEPTH)[0]
+                          for k in [*boxes, *found])]  # a box fitted again from under another
         found.extend(new)
         queue.extend(new)
     return found
@@ -103,7 +110,9 @@ def hidden_supports(boxes: list[FittedBox], points: np.ndarray) -> list[FittedBo
 
 def _fit_side_clusters(cand: np.ndarray, top: float | None,
                        above: FittedBox) -> list[FittedBox]:
-    """Upright boxes for point clusters under `above`; `top` None: from the points."""
+    """Upright boxes for point clusters under `above`; `top` None: from the points. With
+    a `top`, a cluster's type is read from its points in the support's own layer (under a
+    block, the side faces of a cube on a block are one cluster with the block's)."""
     if len(cand) < MIN_SIDE_POINTS:
         return []
     lo = cand[:, :2].min(axis=0)
@@ -125,9 +134,12 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
         axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
         uv = pts[:, :2] @ axes.T
         ext = np.ptp(uv, axis=0)
+        layer = uv if top is None else uv[pts[:, 2] > top - SIDE + SUPPORT_LAYER]
+        if len(layer) < MIN_SIDE_POINTS:
+            layer = uv
         # The type from the extent without its tails: a noisy sensor's stray points (a
         # leaning block's own underside, flying pixels) stretched a cube's 5 cm past 8.
-        core = np.subtract(*np.percentile(uv, [CLUSTER_CORE, 100 - CLUSTER_CORE], axis=0))
+        core = np.subtract(*np.percentile(layer, [CLUSTER_CORE, 100 - CLUSTER_CORE], axis=0))
         kind = "long" if core.max() > LONG_CLUSTER else "cube"
         dims = np.array([SIDE, LONG if kind == "long" else SIDE])
         if kind == "long" and ext[0] > ext[1]:
