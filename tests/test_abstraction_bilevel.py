@@ -323,6 +323,20 @@ def test_a_load_near_its_one_supports_edge_falls_and_no_step_puts_it_there():
                                              ("t", "cube", 0.0, 0.125)))
 
 
+def test_a_block_carrying_a_block_is_judged_where_both_come_down():
+    # traced (eight boxes): pick(o4:left) place(o5:right), a block with a block on it
+    # released 15 cm off a cube atop a tower (its end on the cube's edge: half a block and
+    # half a cube), and block, rider and tower fell. The rider comes down with the block
+    # (left where it was, it can read as a second support), the edge holds the block's end.
+    where = {"c0": ("cube", (0.65, -0.16, 0.025)), "c1": ("cube", (0.65, -0.16, 0.075)),
+             "l": ("long", (0.65, 0.18, 0.025)), "r": ("long", (0.65, 0.18, 0.075))}
+    features = np.stack([object_features(kind, np.array(p), np.eye(3))
+                         for kind, p in where.values()])
+    scene = Boxes(tuple(where), features, frozenset()).moved(features[:, :3])
+    assert set_down_tips(scene, Action("l", "left", "c1", "right"))
+    assert not set_down_tips(scene, Action("l", "center", "c1", "center"))
+
+
 def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_plan_goes_there():
     def scene(**where):  # name -> (type, position)
         features = np.stack([object_features(kind, np.array(p, float), np.eye(3))

@@ -268,6 +268,7 @@ def rest(positions: np.ndarray, features: np.ndarray, moved: list[int],
 RAISED = 0.01  # m: a box whose bottom is this far above the table stands on something
 STACK_GAP = 0.02  # m: a box's top this near another's bottom holds it up
 HULL_TOL = 0.005  # m: a centre this far outside where a box is held still stands
+EDGE_TOL = 0.001  # m: a footprint this near a top's edge rests on it (a block 15 cm off a cube)
 COVER_INSET = 0.005  # m: a box over another's top this far inside its edges rests on it
 LEVEL = np.cos(np.radians(10))  # cos tilt: a box tilted more leans (on the table too)
 LOAD_INSET = 0.0105  # m: a load's centre of mass this far inside its one support's edges stands
@@ -306,7 +307,7 @@ def tips(boxes: Boxes, name: str) -> bool:
     points = _footprint_points(boxes, i)
     held = np.zeros(len(points), bool)
     for _, *top in under:
-        held |= _over_top(points, top)
+        held |= _over_top(points, top, -EDGE_TOL)
     if not held.any():
         return False
     reach = (points[held] @ _DIRECTIONS.T).max(axis=0)

@@ -106,7 +106,7 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
 
 def set_down_tips(boxes: Boxes, action: Action) -> bool:
     """Would `action`'s source topple where the action sets it down by its own points
-    (skills/pick_place.set_down_at; continuous.tips), its riders aside, from higher than
+    (skills/pick_place.set_down_at; continuous.unstable), its riders with it, from higher than
     LEANS (one box on the table: a block with its end on a cube leans on the table, as
     goals have it)? A block grasped at its end and released over the centre of a cube
     atop a tower comes down with its centre 7.5 cm off it, and falls; the model, which
@@ -121,7 +121,11 @@ def set_down_tips(boxes: Boxes, action: Action) -> bool:
         return False
     i = boxes.names.index(action.source)
     positions = boxes.positions.copy()
-    positions[i] = centre
+    # what rides on the source comes down with it (left where it was, a rider as high as
+    # the source's new bottom was read as its second support: a block released 15 cm off
+    # a cube, a block on it, and the tower under it fell)
+    carried = [i] + [boxes.names.index(n) for n in boxes.riding(action.source)]
+    positions[carried] += centre - positions[i]
     down = boxes.moved(positions)
     down.features[i, FEATURE_NAMES.index("cos_tilt")] = 1.0
     down.features[i, FEATURE_NAMES.index("long_axis_up")] = 0.0
