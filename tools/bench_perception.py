@@ -1,13 +1,15 @@
 """Benchmark: perception accuracy and speed against the simulator's ground truth.
 
     python tools/bench_perception.py --json [--scenes 200] [--transitions 100] [--out FILE]
-        [--camera-noise none|realsense|heavy]
+        [--camera-noise none|realsense|heavy] [--problems DIR]
 
 Scenes of 2-8 objects built from arrangement units (single boxes with yaw jitter, towers,
 cubes on one or both ends of a long block, bridges, touching pairs, blocks that tip), each
 settled by physics before it is perceived. Identity association is measured on pick/place
 transitions executed by the arm on perceived beliefs. `--camera-noise` picks the depth
 sensor's model (world/depth_sensor.py; its calibration error is drawn from --seed).
+`--problems DIR` perceives the start and goal scenes of a problem set (`symplan problems
+make`) instead of sampled ones: tall towers of blocks and cubes, as the solves see them.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import json
 import os
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -29,17 +32,20 @@ from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.depth_sensor import CAMERA_NOISE
-from drake_symplan.world.scenes import sample_structured_scene
+from drake_symplan.world.scenes import load_scene, sample_structured_scene
 from drake_symplan.world.station import Station, StationConfig
 
 
-def bench_scenes(station, perceiver, n_scenes: int, seed: int, noise: DepthNoise) -> dict:
+def bench_scenes(station, perceiver, n_scenes: int, seed: int, noise: DepthNoise,
+                 scenes: list | None = None) -> dict:
+    """`scenes`, where given, are perceived instead of `n_scenes` sampled ones."""
     rng = np.random.default_rng(seed)
+    n_scenes = len(scenes) if scenes else n_scenes
     pos, yaw, type_ok, count_ok, contacts_ok, wall, cpu = [], [], [], [], [], [], []
     invented = missed = 0
     failures = []
     for i in tqdm(range(n_scenes), desc="scenes"):
-        scene = sample_structured_scene(rng, 2 + i % 7)
+        scene = scenes[i] if scenes else sample_structured_scene(rng, 2 + i % 7)
         station.reset(scene)
         station.settle(0.8)
         t, c = time.perf_counter(), time.process_time()
@@ -138,7 +144,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--out", default="bench_perception.json")
+    parser.add_argument("--problems", help="perceive this problem set's start and goal scenes")
     args = parser.parse_args()
+    problems = [load_scene(f) for d in sorted(Path(args.problems).rglob("problem.json"))
+                for f in (d.parent / "start.yaml", d.parent / "goal.yaml")] \
+        if args.problems else None
     station = Station(StationConfig(cameras=default_cameras(), camera_noise=args.camera_noise,
                                     camera_seed=args.seed))
     perceiver = Perceiver()
@@ -153,7 +163,7 @@ def main() -> None:
     }
     if args.scenes:
         result["scenes"] = bench_scenes(station, perceiver, args.scenes, args.seed,
-                                        DepthNoise(args.noise, args.dropout))
+                                        DepthNoise(args.noise, args.dropout), problems)
     if args.transitions:
         result["association"] = bench_association(station, perceiver, args.transitions,
                                                   args.seed)
