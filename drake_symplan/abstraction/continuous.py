@@ -57,10 +57,8 @@ class Boxes:
     def contacts(self) -> frozenset:
         """The sorted name pairs in contact."""
         if self.known_contacts is None:
-            geometry = {}
-            for name, row in zip(self.names, self.features, strict=True):
-                kind, centre, R = box_of(row)
-                geometry[name] = (centre, R, np.asarray(HALF_EXTENTS[kind]))
+            geometry = {name: (centre, R, np.asarray(HALF_EXTENTS[kind]))
+                        for name, (kind, centre, R) in zip(self.names, self.shapes, strict=True)}
             object.__setattr__(self, "known_contacts", frozenset(contact_graph(geometry)))
         return self.known_contacts
 
@@ -82,7 +80,7 @@ class Boxes:
 
     def kinds(self) -> dict[str, str]:
         """Each box's type by name."""
-        return {n: box_of(row)[0] for n, row in zip(self.names, self.features, strict=True)}
+        return {n: shape[0] for n, shape in zip(self.names, self.shapes, strict=True)}
 
     def object_states(self) -> dict[str, ObjectState]:
         """The boxes as the skills read them (type, centre, yaw; upright)."""
@@ -91,21 +89,19 @@ class Boxes:
     @cached_property
     def _states(self) -> dict[str, ObjectState]:
         # the planner asks the skills' rules of a scene once per step it predicts from it
-        out = {}
-        for name, row in zip(self.names, self.features, strict=True):
-            kind, centre, R = box_of(row)
-            out[name] = ObjectState(name, kind, centre, float(np.arctan2(R[1, 0], R[0, 0])))
-        return out
+        return {name: ObjectState(name, kind, centre, float(np.arctan2(R[1, 0], R[0, 0])))
+                for name, (kind, centre, R) in zip(self.names, self.shapes, strict=True)}
 
     @cached_property
     def shapes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
         """Each box's (type, centre, axes R) as features.box_of reads its row, read once:
-        the stability rules ask them of a scene over and over."""
+        the skills' rules, the contacts and the stability rules ask them of a scene over
+        and over."""
         return [box_of(row) for row in self.features]
 
     def half_length(self, name: str) -> float:
         """Half the length of box `name` along its long axis (local y), by its type."""
-        return HALF_EXTENTS[box_of(self.features[self.names.index(name)])[0]][1]
+        return HALF_EXTENTS[self.shapes[self.names.index(name)][0]][1]
 
     def riding(self, name: str) -> set[str]:
         """The boxes on box `name`: those whose centre is over its top face and higher than
