@@ -270,6 +270,26 @@ def test_no_step_sets_a_block_down_into_a_taller_tower_beside_its_target():
         assert not refiner.refusals.sets_down_into(scene, clear)
 
 
+def test_no_step_sets_a_load_down_whose_rider_comes_down_into_a_tower():
+    # traced (eight boxes): pick(o5:center) place(o4:right), a cube carrying a block (25 cm
+    # along y) lowered beside a tower of four, brought the block's end down into the tower,
+    # which fell. The cube's own footprint is clear; the rider's is not. The arm refuses
+    # it, and the planner takes no such step.
+    where = {**{f"t{i}": ("cube", (0.736, 0.151, 0.025 + 0.05 * i)) for i in range(4)},
+             "b": ("cube", (0.946, 0.332, 0.025)), "c": ("cube", (0.946, 0.332, 0.075)),
+             "l": ("long", (0.946, 0.332, 0.125)), "d": ("cube", (0.6, -0.2, 0.025))}
+    features = np.stack([object_features(kind, np.array(p), np.eye(3))
+                         for kind, p in where.values()])
+    scene = Boxes(tuple(where), features, frozenset()).moved(features[:, :3])
+    refusals = Refiner(list(STACK.values()), Stacking()).refusals
+    assert refusals.sets_down_into(scene, Action("c", "center", "t3", "right"))
+    assert refusals.sets_down_into(scene, Action("c", "center", "t3", "left"))
+    for clear in (Action("c", "center", "t3", "center"),  # on the tower's top
+                  Action("c", "center", "d", "right"),  # beside a lone cube
+                  Action("l", "center", "t3", "right")):  # the block alone, 7.5 cm beside
+        assert not refusals.sets_down_into(scene, clear), clear
+
+
 def test_a_block_grasped_at_its_end_and_released_over_a_cube_would_topple():
     # traced (eight boxes): pick(o3:right) place(o6:center) brought the block's centre down
     # 7.5 cm off a cube atop a tower, and block and tower fell; the model predicted the

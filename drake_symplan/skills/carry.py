@@ -193,18 +193,27 @@ def landing_height(objects: dict[str, ObjectState], source: str, grasp: np.ndarr
 
 def release_strikes(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
                     release: np.ndarray, yaw_turn: float) -> list[str]:
-    """The boxes (not the source's load) that the source, held at the TCP point `grasp`
-    and lowered to `release` (the gripper turned by `yaw_turn` between them), would be
-    driven into: under where it lands, their top more than STRIKE_DEPTH above its bottom
-    (a long block set on a cube beside a taller tower). The arm refuses such a release."""
+    """The boxes (not the source's load) that the source or a rider on it, held at the TCP
+    point `grasp` and lowered to `release` (the gripper turned by `yaw_turn` between them),
+    would be driven into: under where each lands, their top more than STRIKE_DEPTH above
+    its bottom (a long block set on a cube beside a taller tower; a cube carrying a block,
+    set down beside a tower of four that the block's end came down into, traced with
+    eight boxes). The arm refuses such a release."""
     src = objects[action.source]
     if not holds(src, grasp):  # nothing is carried
         return []
-    skip = {action.source, *riders(action.source, objects)}
-    bottom = release[2] - (grasp[2] - src.position[2]) - HALF_EXTENTS[src.type][2]
-    tops = _tops_under(objects, skip, landing(src, grasp, release, yaw_turn),
-                       src.yaw + yaw_turn, HALF_EXTENTS[src.type])
-    return [n for n, top in tops.items() if top > bottom + STRIKE_DEPTH]
+    load = riders(action.source, objects)
+    skip = {action.source, *load}
+    drop = release[2] - grasp[2]  # how far the load comes down, as its source does
+    centre = landing(src, grasp, release, yaw_turn)
+    struck = []
+    for box in [src] + [objects[n] for n in load]:
+        bottom = box.position[2] + drop - HALF_EXTENTS[box.type][2]
+        at = centre + _turn(box.position[:2] - src.position[:2], yaw_turn)
+        tops = _tops_under(objects, skip, at, box.yaw + yaw_turn, HALF_EXTENTS[box.type])
+        struck += [n for n, top in tops.items() if top > bottom + STRIKE_DEPTH
+                   and n not in struck]
+    return struck
 
 
 def _onto_support(support: ObjectState, com: np.ndarray) -> np.ndarray:

@@ -293,7 +293,15 @@ def set_down_at(action: Action, objects: dict[str, ObjectState]) -> np.ndarray:
 def set_down_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
     """The boxes the source would be driven into at `action`'s release by its nominal
     points (_refuse_strikes tests the arm's own); [] at once where no box near the
-    release rises past the source's bottom there."""
+    release rises past the source's bottom there. A source with riders by the careful
+    carry's points: it lowers a load beside the target, riders and all."""
+    if riders(action.source, objects):
+        try:
+            g, _ = arm_geometry(action, objects)
+        except InfeasibleAction:
+            return []  # the arm refuses its grasp (grasp_refused)
+        return release_strikes(action, objects, g.grasp, g.release,
+                               g.yaw_release - g.yaw_grasp)
     grasp, release, turn = nominal_points(action, objects)
     bottom = release[2] - HALF_EXTENTS[objects[action.source].type][2]
     if not any(n not in (action.source, action.target)
