@@ -14,7 +14,14 @@ import torch
 from drake_symplan.abstraction import bilevel
 from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.bilevel import PENALTY, Search, plan_bilevel
-from drake_symplan.abstraction.continuous import Boxes, ContinuousModel, overloaded, tips, unstable
+from drake_symplan.abstraction.continuous import (
+    Boxes,
+    ContinuousModel,
+    on_overhang,
+    overloaded,
+    tips,
+    unstable,
+)
 from drake_symplan.abstraction.refiner import Refiner, moves, set_down_tips
 from drake_symplan.abstraction.refusals import allows
 from drake_symplan.actions import Action, release_shift
@@ -341,6 +348,29 @@ def test_a_load_near_its_one_supports_edge_falls_and_no_step_puts_it_there():
     assert Refiner.topples(before, after)
     assert not Refiner.topples(before, scene(c, ("l", "long", 0.0, 0.075),
                                              ("t", "cube", 0.0, 0.125)))
+
+
+def test_a_box_set_on_the_free_end_of_a_block_balanced_on_a_cube_topples_it():
+    # traced (eight boxes): a cube let down on the end of a block balanced on a cube atop a
+    # tower, a cube centred on the block, brought the tower down; its load is 1.25 cm off
+    # the cube's centre, which stands where it is built without the blow
+    def scene(*where):  # (name, type, y, z) along one line
+        features = np.stack([object_features(kind, np.array([0.79, y, z]), np.eye(3))
+                             for _, kind, y, z in where])
+        return Boxes(tuple(w[0] for w in where), features, frozenset()).moved(features[:, :3])
+
+    tower = [("c0", "cube", 0.14, 0.075), ("c1", "cube", 0.14, 0.125),
+             ("l", "long", 0.14, 0.175), ("top", "cube", 0.14, 0.225),
+             ("base", "long", 0.216, 0.025)]
+    end = scene(*tower, ("s", "cube", 0.214, 0.225))
+    assert on_overhang(end, "s") and unstable(end, ["s"])
+    assert not overloaded(end, "l")  # not by statics alone
+    centred = scene(*tower[:3], ("s", "cube", 0.14, 0.225), tower[4])
+    assert not on_overhang(centred, "s") and not unstable(centred, ["s"])
+    # across two cubes (a bridge) the block's end is held: no overhang
+    bridge = scene(("a", "cube", 0.04, 0.025), ("b", "cube", 0.24, 0.025),
+                   ("l", "long", 0.14, 0.075), ("s", "cube", 0.21, 0.125))
+    assert not on_overhang(bridge, "s") and not unstable(bridge, ["s"])
 
 
 def test_a_block_carrying_a_block_is_judged_where_both_come_down():

@@ -338,13 +338,31 @@ def _overloaded(boxes: Boxes, i: int, support) -> bool:
     return not _over_top(centre[None], support[1:], LOAD_INSET)[0]
 
 
+def on_overhang(boxes: Boxes, name: str) -> bool:
+    """Does box `name` rest on a level block held up by one box alone, its centre beyond
+    that box's top: on the block's free end? Set down there, its weight comes onto the
+    end of a lever: a cube let down on the end of a block balanced on a cube, atop a
+    tower, brought the tower down (traced, eight boxes), its load 1.25 cm off centre,
+    which stands where it is built without the blow (overloaded)."""
+    i = boxes.names.index(name)
+    centre = boxes.positions[i, :2][None].astype(float)
+    for j, *_ in _supports(boxes, i):
+        if boxes.shapes[j][0] != "long" or boxes.features[j][3] < LEVEL:
+            continue
+        under = _supports(boxes, j)
+        if len(under) == 1 and not _over_top(centre, under[0][1:])[0]:
+            return True
+    return False
+
+
 def unstable(boxes: Boxes, names) -> bool:
-    """Does one of `names` topple (tips), or it or a box it rests on, down to the table,
-    hold its load off its one support (overloaded)? Only a raised block loads a box."""
+    """Does one of `names` topple (tips), rest on a block's free end (on_overhang), or it
+    or a box it rests on, down to the table, hold its load off its one support
+    (overloaded)? Only a raised block loads a box."""
     raised = any(k == "long" and c[2] - HALF_EXTENTS[k][2] >= RAISED
                  for k, c, _ in boxes.shapes)
     for name in names:
-        if tips(boxes, name):
+        if tips(boxes, name) or raised and on_overhang(boxes, name):
             return True
         i, seen = boxes.names.index(name), set()
         while raised and i not in seen:
