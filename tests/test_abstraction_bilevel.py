@@ -14,16 +14,10 @@ import torch
 from drake_symplan.abstraction import bilevel
 from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.bilevel import PENALTY, Search, plan_bilevel
-from drake_symplan.abstraction.continuous import (
-    Boxes,
-    ContinuousModel,
-    on_overhang,
-    overloaded,
-    tips,
-    unstable,
-)
+from drake_symplan.abstraction.continuous import Boxes, ContinuousModel
 from drake_symplan.abstraction.refiner import Refiner, moves, set_down_tips
 from drake_symplan.abstraction.refusals import allows
+from drake_symplan.abstraction.stability import on_overhang, overloaded, tips, unstable
 from drake_symplan.actions import Action, release_shift
 from drake_symplan.agent.planning_modes import (
     BilevelMode,

@@ -25,8 +25,19 @@ from functools import cached_property
 import numpy as np
 import torch
 
+from drake_symplan.abstraction.stability import (
+    COVER_INSET,
+    FOOTPRINTS,
+    LEVEL,
+    covers,
+    covers_any,
+    footprint_points,
+    inside,
+    over_top,
+    under_of,
+)
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
-from drake_symplan.boxes import HALF_EXTENTS, MASS, contact_graph, goal_distances
+from drake_symplan.boxes import HALF_EXTENTS, contact_graph, goal_distances
 from drake_symplan.datasets import ObjectState
 from drake_symplan.features import box_of
 
@@ -113,7 +124,7 @@ class Boxes:
             top = centre[2] + HALF_EXTENTS[kind][2]
             for j, other in enumerate(self.names):
                 if other != name and other not in found and self.positions[j][2] > top \
-                        and _inside(kind, R, centre, self.positions[j]):
+                        and inside(kind, R, centre, self.positions[j]):
                     found.add(other)
                     frontier.append(other)
         return found
@@ -123,11 +134,11 @@ class Boxes:
         over a cube, more than COVER_INSET inside its edges): nothing is set down on them."""
         out = set()
         for i in range(len(self.names)):
-            under = _under(self, i)
+            under = under_of(self, i)
             if under:
-                points = _footprint_points(self, i)
+                points = footprint_points(self, i)
                 out |= {self.names[j] for j, *top in under
-                        if _over_top(points, top, COVER_INSET).any()}
+                        if over_top(points, top, COVER_INSET).any()}
         return out
 
     def involved(self, action: Action) -> list[int]:
@@ -249,185 +260,16 @@ def rest(positions: np.ndarray, features: np.ndarray, moved: list[int],
     settled = [i for i in range(len(out)) if i not in moved]
     for i in sorted(moved, key=lambda k: (k in carried, out[k][2])):
         kind, _, R = box_of(features[i])
-        under = [j for j in settled if _covers(features[j], out[j], out[i])]
+        under = [j for j in settled if covers(features[j], out[j], out[i])]
         if under:
             top = max(out[j][2] + HALF_EXTENTS[box_of(features[j])[0]][2] for j in under)
             out[i][2] = top + HALF_EXTENTS[kind][2]
         elif features[i][3] >= LEVEL and not any(
-                _covers_any(features[j], out[j], out[i][:2] + _FOOTPRINTS[kind] @ R[:2, :2].T)
+                covers_any(features[j], out[j], out[i][:2] + FOOTPRINTS[kind] @ R[:2, :2].T)
                 for j in settled):
             out[i][2] = HALF_EXTENTS[kind][2]
         settled.append(i)
     return out
-
-
-RAISED = 0.01  # m: a box whose bottom is this far above the table stands on something
-STACK_GAP = 0.02  # m: a box's top this near another's bottom holds it up
-HULL_TOL = 0.005  # m: a centre this far outside where a box is held still stands
-EDGE_TOL = 0.001  # m: a footprint this near a top's edge rests on it (a block 15 cm off a cube)
-COVER_INSET = 0.005  # m: a box over another's top this far inside its edges rests on it
-LEVEL = np.cos(np.radians(10))  # cos tilt: a box tilted more leans (on the table too)
-LOAD_INSET = 0.0105  # m: a load's centre of mass this far inside its one support's edges stands
-
-
-def _footprint(kind: str, spacing: float = 0.00625) -> np.ndarray:
-    """Points over a box's bottom face (local xy, m), `spacing` apart, its edges included."""
-    hx, hy = HALF_EXTENTS[kind][:2]
-    u = np.linspace(-hx, hx, int(round(2 * hx / spacing)) + 1)
-    v = np.linspace(-hy, hy, int(round(2 * hy / spacing)) + 1)
-    return np.array([(a, b) for a in u for b in v])
-
-
-_FOOTPRINTS = {kind: _footprint(kind) for kind in HALF_EXTENTS}
-
-
-# Directions in which a centre is compared with where a box is held: a hull of 32 sides
-_DIRECTIONS = np.stack([np.cos(np.arange(32) * np.pi / 16), np.sin(np.arange(32) * np.pi / 16)],
-                       axis=1)
-
-
-def tips(boxes: Boxes, name: str) -> bool:
-    """Does box `name`, as predicted, rest partly on boxes under it with its centre beyond
-    where they hold it (outside the convex hull of its footprint's points over their tops,
-    by more than HULL_TOL): a block released at its end over one cube, which topples? A box
-    on the table, one held across two supports (a bridge) or centred over one, and one held
-    up by nothing predicted (its height a regression's mean) are not judged, nor one that
-    leans (tilted beyond LEVEL: held by the table or a side too)."""
-    i = boxes.names.index(name)
-    if boxes.features[i][3] < LEVEL:
-        return False
-    centre = boxes.features[i][:2].astype(float)
-    under = _under(boxes, i)
-    if any(_over_top(centre[None], top)[0] for _, *top in under):
-        return False  # centred over a support
-    points = _footprint_points(boxes, i)
-    held = np.zeros(len(points), bool)
-    for _, *top in under:
-        held |= _over_top(points, top, -EDGE_TOL)
-    if not held.any():
-        return False
-    reach = (points[held] @ _DIRECTIONS.T).max(axis=0)
-    return bool(np.any(centre @ _DIRECTIONS.T > reach + HULL_TOL))
-
-
-def overloaded(boxes: Boxes, name: str) -> bool:
-    """Does box `name`, level and resting on one box alone, hold a load with a block in it
-    (itself and what rides on it, by the catalogue's masses) with the load's centre of mass
-    less than LOAD_INSET inside that box's top face? The contacts give a little, and a
-    heavy load near an edge leans on them and falls where rigid boxes would stand: a block
-    centred 1.8 cm off a cube, and one centred on it with a cube at its end (the load 1.5
-    cm off), fell; a block 1.6 cm off stood, and so did towers of cubes 3 mm apart. Loads
-    1.0-1.25 cm off stand in five of the thirty eight-box goals, and one 1.1 cm off (a
-    cube at the end of two blocks on a cube) fell in a solve: statics cannot tell those
-    apart, and the rule leaves them."""
-    i = boxes.names.index(name)
-    under = _supports(boxes, i)
-    return len(under) == 1 and _overloaded(boxes, i, under[0])
-
-
-def _overloaded(boxes: Boxes, i: int, support) -> bool:
-    """overloaded, box i's one support given (as _under gives it)."""
-    if boxes.features[i][3] < LEVEL:
-        return False
-    load = [i] + [boxes.names.index(n) for n in boxes.riding(boxes.names[i])]
-    kinds = [boxes.shapes[k][0] for k in load]
-    if "long" not in kinds:
-        return False
-    mass = np.array([MASS[k] for k in kinds])
-    centre = mass @ boxes.positions[load, :2] / mass.sum()
-    return not _over_top(centre[None], support[1:], LOAD_INSET)[0]
-
-
-def on_overhang(boxes: Boxes, name: str) -> bool:
-    """Does box `name` rest on a level block held up by one box alone, its centre beyond
-    that box's top: on the block's free end? Set down there, its weight comes onto the
-    end of a lever: a cube let down on the end of a block balanced on a cube, atop a
-    tower, brought the tower down (traced, eight boxes), its load 1.25 cm off centre,
-    which stands where it is built without the blow (overloaded)."""
-    i = boxes.names.index(name)
-    centre = boxes.positions[i, :2][None].astype(float)
-    for j, *_ in _supports(boxes, i):
-        if boxes.shapes[j][0] != "long" or boxes.features[j][3] < LEVEL:
-            continue
-        under = _supports(boxes, j)
-        if len(under) == 1 and not _over_top(centre, under[0][1:])[0]:
-            return True
-    return False
-
-
-def unstable(boxes: Boxes, names) -> bool:
-    """Does one of `names` topple (tips), rest on a block's free end (on_overhang), or it
-    or a box it rests on, down to the table, hold its load off its one support
-    (overloaded)? Only a raised block loads a box."""
-    raised = any(k == "long" and c[2] - HALF_EXTENTS[k][2] >= RAISED
-                 for k, c, _ in boxes.shapes)
-    for name in names:
-        if tips(boxes, name) or raised and on_overhang(boxes, name):
-            return True
-        i, seen = boxes.names.index(name), set()
-        while raised and i not in seen:
-            seen.add(i)
-            under = _supports(boxes, i)
-            if len(under) != 1:
-                break
-            if _overloaded(boxes, i, under[0]):
-                return True
-            i = under[0][0]
-    return False
-
-
-def _under(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-    """The boxes whose top is within STACK_GAP of box i's bottom, i raised off the table:
-    (index, centre xy, yaw's 2x2 rotation, top's half extents) each."""
-    kind, centre, _ = boxes.shapes[i]
-    bottom = centre[2] - HALF_EXTENTS[kind][2]
-    if bottom < RAISED:
-        return []
-    out = []
-    for j, (kind_j, centre_j, R_j) in enumerate(boxes.shapes):
-        if j != i and abs(centre_j[2] + HALF_EXTENTS[kind_j][2] - bottom) <= STACK_GAP:
-            out.append((j, centre_j[:2], R_j[:2, :2], np.asarray(HALF_EXTENTS[kind_j][:2])))
-    return out
-
-
-def _supports(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-    """The boxes under box i (_under) that its footprint is over, in part."""
-    points = _footprint_points(boxes, i)
-    return [u for u in _under(boxes, i) if _over_top(points, u[1:]).any()]
-
-
-def _over_top(points: np.ndarray, top, inset: float = 0.0) -> np.ndarray:
-    """Which xy `points` [m, 2] lie over a top face `top` (centre xy, yaw's 2x2 rotation,
-    half extents: as _under gives), at least `inset` inside its edges."""
-    centre, R, half = top
-    return np.all(np.abs((points - centre) @ R) <= half - inset, axis=1)
-
-
-def _footprint_points(boxes: Boxes, i: int) -> np.ndarray:
-    """Points over box i's bottom face, world xy."""
-    kind, centre, R = boxes.shapes[i]
-    return centre[:2] + _FOOTPRINTS[kind] @ R[:2, :2].T
-
-
-def _covers(row: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
-    """Is `point`'s xy over the top face of the box of features `row` standing at
-    `centre`?"""
-    kind, _, R = box_of(row)
-    return _inside(kind, R, centre, point)
-
-
-def _inside(kind: str, R: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
-    """Is `point`'s xy over the top face of a box of type `kind`, axes R, at `centre`?"""
-    local = R[:2, :2].T @ (point - centre)[:2]
-    return bool(np.all(np.abs(local) <= np.asarray(HALF_EXTENTS[kind][:2])))
-
-
-def _covers_any(row: np.ndarray, centre: np.ndarray, points: np.ndarray) -> bool:
-    """Is any of the xy `points` [m, 2] over the top face of the box of features `row`
-    standing at `centre`?"""
-    kind, _, R = box_of(row)
-    local = (points - centre[:2]) @ R[:2, :2]
-    return bool(np.any(np.all(np.abs(local) <= np.asarray(HALF_EXTENTS[kind][:2]), axis=1)))
 
 
 def rollout(predict, boxes: Boxes, actions: list) -> list[Boxes]:

@@ -18,10 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout, unstable
+from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout
 from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, central, ranked
 from drake_symplan.abstraction.refusals import Refusals, allows
+from drake_symplan.abstraction.stability import unstable
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS, goal_reached
 from drake_symplan.features import FEATURE_NAMES
@@ -110,7 +111,7 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
 
 def set_down_tips(boxes: Boxes, action: Action) -> bool:
     """Would `action`'s source topple where the action sets it down by its own points
-    (skills/pick_place.set_down_at; continuous.unstable), its riders with it, from higher than
+    (skills/pick_place.set_down_at; stability.unstable), its riders with it, from higher than
     LEANS (one box on the table: a block with its end on a cube leans on the table, as
     goals have it)? A block grasped at its end and released over the centre of a cube
     atop a tower comes down with its centre 7.5 cm off it, and falls; the model, which
@@ -168,7 +169,7 @@ class Refiner:
     @staticmethod
     def topples(before: Boxes, after: Boxes) -> bool:
         """Is a box the step moved predicted to rest where it topples, or to load one under
-        it off its support (continuous.unstable)? No plan goes through such a scene: the
+        it off its support (stability.unstable)? No plan goes through such a scene: the
         model predicts where such a box was released, not where it falls."""
         return unstable(after, moved(before, after))
 
