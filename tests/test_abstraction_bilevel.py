@@ -237,7 +237,7 @@ def test_no_plan_lifts_a_cube_from_under_a_stack_of_two_as_the_arm_would_not():
 def test_no_plan_grasps_a_cube_under_the_end_of_a_block_as_the_palm_would_strike_it():
     # traced (eight boxes): a block on two cubes, its end over a third cube (c) it does not
     # touch; the palm coming down to c struck the block and a tower of three fell. The
-    # planner reads the skill's rule (skills/pick_place.palm_struck) and moves the block off
+    # planner reads the skill's rule (skills/geometry.palm_struck) and moves the block off
     # first; the cube under the block's centre (a) carries it as a rider.
     features = np.stack([object_features("cube", np.array([0.816, y, 0.025]), np.eye(3))
                          for y in (0.036, 0.111, 0.182)]
@@ -255,7 +255,7 @@ def test_no_plan_grasps_a_cube_under_the_end_of_a_block_as_the_palm_would_strike
 def test_no_step_sets_a_block_down_into_a_taller_tower_beside_its_target():
     # traced (eight boxes): a block (25 cm along y) centred on a cube 7 cm from a tower of
     # three was lowered into the tower, which fell; the arm refuses it and the planner
-    # takes no such step (skills/pick_place.set_down_struck)
+    # takes no such step (skills/geometry.set_down_struck)
     where = {**{f"t{i}": ("cube", (0.83, 0.127, 0.025 + 0.05 * i)) for i in range(3)},
              "c": ("cube", (0.829, 0.197, 0.025)), "b": ("long", (0.938, 0.044, 0.025)),
              "d": ("cube", (0.6, 0.07, 0.025))}

@@ -8,7 +8,7 @@ from drake_symplan.actions import Action
 from drake_symplan.datasets import ObjectState
 from drake_symplan.evaluation.carry import Runner, suite_scene
 from drake_symplan.skills.carry import careful_points, riders
-from drake_symplan.skills.pick_place import action_geometry
+from drake_symplan.skills.geometry import action_geometry
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 

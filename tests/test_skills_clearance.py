@@ -7,7 +7,7 @@ import pytest
 from drake_symplan.actions import Action
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.arm_clearance import cylinder_points
-from drake_symplan.skills.pick_place import InfeasibleAction
+from drake_symplan.skills.geometry import InfeasibleAction
 
 
 def test_cylinder_points_lie_on_the_cylinder_and_reach_its_ends():

@@ -5,7 +5,8 @@ import pytest
 
 from drake_symplan.actions import Action
 from drake_symplan.datasets import ObjectState
-from drake_symplan.skills.pick_place import action_geometry, gripper_strikes, pick_place
+from drake_symplan.skills.geometry import action_geometry, gripper_strikes
+from drake_symplan.skills.pick_place import pick_place
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 
@@ -179,7 +180,7 @@ def test_a_block_released_beside_a_stack_lands_flat_and_leaves_it_standing(stati
 
 
 def test_the_arm_refuses_a_grasp_under_a_stack_of_two_and_pinches_one():
-    from drake_symplan.skills.pick_place import InfeasibleAction, arm_geometry
+    from drake_symplan.skills.geometry import InfeasibleAction, arm_geometry
 
     tower = {f"t{i}": ObjectState(f"t{i}", "cube", np.array([0.6, 0.0, 0.025 + 0.05 * i]))
              for i in range(3)}

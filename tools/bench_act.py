@@ -20,7 +20,8 @@ import numpy as np
 
 from drake_symplan.actions import OFFSET_METRES, OFFSETS, Action
 from drake_symplan.datasets import ObjectState
-from drake_symplan.skills.pick_place import PickPlaceMotions, action_geometry, pick_place
+from drake_symplan.skills.geometry import action_geometry
+from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
 from drake_symplan.world.scenes import sample_scene
 from drake_symplan.world.station import Station
 

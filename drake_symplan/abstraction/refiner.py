@@ -111,14 +111,14 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
 
 def set_down_tips(boxes: Boxes, action: Action) -> bool:
     """Would `action`'s source topple where the action sets it down by its own points
-    (skills/pick_place.set_down_at; stability.unstable), its riders with it, from higher than
+    (skills/geometry.set_down_at; stability.unstable), its riders with it, from higher than
     LEANS (one box on the table: a block with its end on a cube leans on the table, as
     goals have it)? A block grasped at its end and released over the centre of a cube
     atop a tower comes down with its centre 7.5 cm off it, and falls; the model, which
     saw few such steps, may predict it resting there. The source is judged as it comes
     down, level in the hand: one picked up leaning (a block with its end on a cube) is set
     down on a face, and tips where its centre is beyond its supports."""
-    from drake_symplan.skills.pick_place import set_down_at  # the skill's geometry
+    from drake_symplan.skills.geometry import set_down_at  # the skill's geometry
 
     objects = boxes.object_states()
     centre = set_down_at(action, objects)

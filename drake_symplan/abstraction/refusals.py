@@ -74,10 +74,10 @@ class Refusals:
         """The keys no step from `boxes` takes (`allows`): the refusals standing there, and
         the grasps the arm would refuse there by its own rules, under a stack it will not
         lift (skills/carry.unpinchable, with the skill's own riders and tolerances) or
-        where its palm would strike a box (skills/pick_place.palm_struck); the grasps of
+        where its palm would strike a box (skills/geometry.palm_struck); the grasps of
         `sources` only where given (the rules take 40 % of a search that asks all)."""
         # The skill's rules on beliefs, imported here: importing the planner loads no skill.
-        from drake_symplan.skills.pick_place import grasp_refused, palm_reach
+        from drake_symplan.skills.geometry import grasp_refused, palm_reach
 
         out = self.keys - self.cleared(boxes.where())
         objects = boxes.object_states()
@@ -99,9 +99,9 @@ class Refusals:
 
     def sets_down_into(self, boxes: Boxes, action: Action) -> bool:
         """Would `action`'s source be driven into a box at its release in `boxes`, which
-        the arm refuses (skills/pick_place.set_down_struck: a block set on a cube beside a
+        the arm refuses (skills/geometry.set_down_struck: a block set on a cube beside a
         taller tower)?"""
-        from drake_symplan.skills.pick_place import set_down_struck
+        from drake_symplan.skills.geometry import set_down_struck
 
         return bool(set_down_struck(action, boxes.object_states()))
 

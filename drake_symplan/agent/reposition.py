@@ -7,7 +7,7 @@ off its goal position (or carries one that is) and is moved by no later step, is
 down beside another box (the same pick/place action) so that it lands within the
 tolerance of its goal, on a free spot of the table; what rests on it rides along (a
 stack built in the wrong place moves as one, released relative to its own top if need
-be), by a grasp the arm does not refuse (skills/pick_place.grasp_refused). Its learned
+be), by a grasp the arm does not refuse (skills/geometry.grasp_refused). Its learned
 operators have no symbolic effect to predict; the monitor checks
 afterwards that the rest of the plan still applies. (Which offsets a step runs with is
 abstraction/offsets.py's choice.)
@@ -20,7 +20,7 @@ import numpy as np
 from drake_symplan.abstraction.refiner import moves
 from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.skills.pick_place import grasp_refused
+from drake_symplan.skills.geometry import grasp_refused
 from drake_symplan.symbolic.structs import PlanStep, Reposition
 
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)

@@ -58,7 +58,7 @@ from drake_symplan.actions import (
 from drake_symplan.perception.perceive import associate
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.robot.backends import PerceptionFailure
-from drake_symplan.skills.pick_place import action_geometry
+from drake_symplan.skills.geometry import action_geometry
 from drake_symplan.world.scenes import sample_scene
 
 NO_EFFECT_TOL = 0.01  # m: nothing moved more than this

@@ -26,7 +26,7 @@ from drake_symplan.perception.matching import match_by_position
 from drake_symplan.perception.perceive import associate
 from drake_symplan.robot.backends import make_backend
 from drake_symplan.skills.carry import riders
-from drake_symplan.skills.pick_place import action_geometry
+from drake_symplan.skills.geometry import action_geometry
 from drake_symplan.world.scenes import Scene, sample_scene, sample_structured_scene
 
 PLAY_LENGTH = 6  # random actions per played episode in `played_states`

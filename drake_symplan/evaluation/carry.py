@@ -22,8 +22,9 @@ from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.skills.arm_twin import ArmTwin
+from drake_symplan.skills.geometry import InfeasibleAction
 from drake_symplan.skills.hand_place import hand_pick_place
-from drake_symplan.skills.pick_place import InfeasibleAction, PickPlaceMotions, pick_place
+from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
 from drake_symplan.world.cameras import default_cameras
 from drake_symplan.world.scenes import ObjectSpec, Scene, validate_scene
 from drake_symplan.world.station import Station, StationConfig

@@ -29,8 +29,9 @@ from scipy.spatial import QhullError
 from drake_symplan.actions import Action
 from drake_symplan.perception.perceive import Perceiver
 from drake_symplan.skills.arm_twin import ArmTwin
+from drake_symplan.skills.geometry import InfeasibleAction
 from drake_symplan.skills.hand_place import hand_pick_place
-from drake_symplan.skills.pick_place import InfeasibleAction, PickPlaceMotions, run_motion
+from drake_symplan.skills.pick_place import PickPlaceMotions, run_motion
 from drake_symplan.world.cameras import DepthNoise, default_cameras
 from drake_symplan.world.scenes import Scene
 from drake_symplan.world.station import Station, StationConfig

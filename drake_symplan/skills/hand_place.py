@@ -39,7 +39,7 @@ from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.skills.arm_twin import ArmTwin
 from drake_symplan.skills.carry import release_strikes, riders
-from drake_symplan.skills.pick_place import action_geometry, arm_geometry
+from drake_symplan.skills.geometry import action_geometry, arm_geometry
 from drake_symplan.world.hand import (
     finger_strikes,
     grasp_catches,
