@@ -54,7 +54,7 @@ def test_unreadable_scene_and_model_directories(scenes, tmp_path, capsys):
     assert_bad_input(code, out, err, "--timeout")
     code, out, err = run(["solve", "--start", start, "--goal", goal, "--alternatives", "-1"],
                          capsys)
-    assert_bad_input(code, out, err, "--alternatives must be 0 or more")
+    assert_bad_input(code, out, err, "argument --alternatives: must be a non-negative integer")
 
 
 def test_a_model_without_operators(scenes, tmp_path, capsys):

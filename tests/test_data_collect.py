@@ -205,3 +205,17 @@ def test_hand_and_arm_agree_on_a_fixed_set():
     assert report["effect_diff_median_m"] <= 0.01
     assert {r["hand"] for r in report["rows"]} == {"placed", "tipped", "no_effect",
                                                    "carried_along"}
+
+
+@pytest.mark.parametrize("field, value, rule", [
+    ("seed", -1, "seed must be an integer in [0, 2**32), got -1"),
+    ("long_fraction", 1.5, "long_fraction must be a probability in [0, 1], got 1.5"),
+    ("noise_sigma", float("nan"), "noise_sigma must be a finite number >= 0 (m), got nan"),
+    ("noise_dropout", 1.0, "noise_dropout must be a fraction in [0, 1), got 1.0"),
+])
+def test_a_config_out_of_range_is_refused_before_anything_is_written(field, value, rule):
+    from drake_symplan.data.collect import CollectConfig
+
+    with pytest.raises(ValueError) as caught:
+        CollectConfig(**{field: value})
+    assert str(caught.value) == rule

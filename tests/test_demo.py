@@ -57,7 +57,7 @@ def test_other_bad_input(tmp_path, capsys):
     code, out, err = run_main(["--seed", "0", "--start", DEMO, "--goal", DEMO], capsys)
     assert_bad_input(code, out, err, "give --seed (a sampled problem) or --start/--goal")
     code, out, err = run_main(["--timeout", "0"], capsys)
-    assert_bad_input(code, out, err, "--timeout must be positive")
+    assert_bad_input(code, out, err, "argument --timeout: must be a positive number")
     code, out, err = run_main(["--start", tmp_path / "s.yaml", "--goal", tmp_path / "g.yaml"],
                               capsys)
     assert_bad_input(code, out, err, "s.yaml")

@@ -81,7 +81,7 @@ def _register_problems(subparsers) -> None:
     p.add_argument("--k", required=True, type=positive_int, nargs="+",
                    help="actions per problem; several values are taken in turn")
     p.add_argument("--count", required=True, type=positive_int, help="problems to keep")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=nonnegative_int, default=0,
                    help="seed of the set: attempt i samples from (seed, i)")
     add_robot_argument(p)
     add_camera_noise_argument(p)

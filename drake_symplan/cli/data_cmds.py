@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from drake_symplan.cli.main import positive_float, positive_int
 from drake_symplan.cli.options import (
     add_camera_noise_argument,
     add_device_argument,
@@ -12,6 +11,12 @@ from drake_symplan.cli.options import (
     add_robot_argument,
     check_device,
     check_output_dir,
+    fraction_lost,
+    nonnegative_float,
+    positive_float,
+    positive_int,
+    probability,
+    seed,
 )
 
 
@@ -19,7 +24,7 @@ def register(subparsers) -> None:
     collect = subparsers.add_parser(
         "collect", help="collect exploration transitions (random or active; resumable, parallel)")
     add_robot_argument(collect, default="hand")
-    collect.add_argument("--transitions", type=int, required=True, help="how many in all (exactly); rerun with a larger N to extend a collection")
+    collect.add_argument("--transitions", type=positive_int, required=True, help="how many in all (exactly); rerun with a larger N to extend a collection")
     collect.add_argument("--workers", type=positive_int, default=None,
                          help="worker processes (default: one per CPU; with --ray, one per "
                          "CPU of the Ray cluster)")
@@ -27,16 +32,16 @@ def register(subparsers) -> None:
                          help="run the workers on Ray: on this machine (no ADDRESS) or on "
                          "the cluster whose head is at ADDRESS (HOST:PORT); needs .[ray]")
     collect.add_argument("--out", required=True, help="data set directory")
-    collect.add_argument("--seed", type=int, default=0,
+    collect.add_argument("--seed", type=seed, default=0,
                          help="seed of scenes and actions (chunk c draws from seed and c)")
     collect.add_argument("--objects", default="2-4", help="objects per scene: N or MIN-MAX")
-    collect.add_argument("--episode-length", type=int, default=10,
+    collect.add_argument("--episode-length", type=positive_int, default=10,
                          help="actions per episode before a new scene")
-    collect.add_argument("--long-fraction", type=float, default=0.5,
+    collect.add_argument("--long-fraction", type=probability, default=0.5,
                          help="chance that an object is a long block rather than a cube")
-    collect.add_argument("--chunk-size", type=int, default=100, help="transitions per shard")
-    collect.add_argument("--noise-sigma", type=float, default=0.0, help="depth noise (m)")
-    collect.add_argument("--noise-dropout", type=float, default=0.0,
+    collect.add_argument("--chunk-size", type=positive_int, default=100, help="transitions per shard")
+    collect.add_argument("--noise-sigma", type=nonnegative_float, default=0.0, help="depth noise (m)")
+    collect.add_argument("--noise-dropout", type=fraction_lost, default=0.0,
                          help="fraction of depth pixels lost")
     add_camera_noise_argument(collect)
     collect.add_argument("--hand-twin", choices=("on", "off"), default="on",
@@ -62,7 +67,7 @@ def register(subparsers) -> None:
     explore.add_argument("--round-size", type=positive_int, default=1000,
                          help="active: transitions per round (the explorer is learned "
                          "again after each)")
-    explore.add_argument("--mix", type=float, nargs=2, default=(0.2, 0.4),
+    explore.add_argument("--mix", type=probability, nargs=2, default=(0.2, 0.4),
                          metavar=("P_RANDOM", "P_GOAL"),
                          help="active: shares of random actions and babbled goals; the "
                          "rest by ensemble disagreement")

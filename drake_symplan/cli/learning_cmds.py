@@ -9,8 +9,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from drake_symplan.cli.main import CommandError, positive_int
-from drake_symplan.cli.options import MODELS, add_device_argument, add_json_argument
+from drake_symplan.cli.main import CommandError
+from drake_symplan.cli.options import (
+    MODELS,
+    add_device_argument,
+    add_json_argument,
+    nonnegative_float,
+    positive_float,
+    positive_int,
+    seed,
+)
 
 
 def register(subparsers) -> None:
@@ -29,15 +37,15 @@ def register(subparsers) -> None:
                    "here or in --config")
     p.add_argument("--out", help="run directory to create (or resume); required, here or "
                    "in --config")
-    p.add_argument("--epochs", type=int, help="at most this many epochs")
-    p.add_argument("--batch-size", type=int, help="transitions per Adam step")
-    p.add_argument("--lr", type=float, help="Adam learning rate")
-    p.add_argument("--seed", type=int, help="model initialisation, shuffling and the split")
-    p.add_argument("--patience", type=int,
+    p.add_argument("--epochs", type=positive_int, help="at most this many epochs")
+    p.add_argument("--batch-size", type=positive_int, help="transitions per Adam step")
+    p.add_argument("--lr", type=positive_float, help="Adam learning rate")
+    p.add_argument("--seed", type=seed, help="model initialisation, shuffling and the split")
+    p.add_argument("--patience", type=positive_int,
                    help="stop after this many epochs without a better validation loss")
     p.add_argument("--threads", type=positive_int, help="torch.set_num_threads")
     add_device_argument(p, "where it trains", default=None)  # None: --config's, else auto
-    p.add_argument("--temperature", type=float,
+    p.add_argument("--temperature", type=positive_float,
                    help="Gumbel-sigmoid temperature (see learning/gumbel.py)")
     p.add_argument("--soft", dest="hard", action="store_const", const=False,
                    help="soft Gumbel-sigmoid samples (default: straight-through hard bits)")
@@ -68,7 +76,7 @@ def register(subparsers) -> None:
     p.add_argument("run", help="run directory")
     p.add_argument("--data", required=True, help="data set directory")
     p.add_argument("--out", required=True, help="output .npz file")
-    p.add_argument("--margin", type=float, default=None,
+    p.add_argument("--margin", type=nonnegative_float, default=None,
                    help="a bit is uncertain when |logit| < margin (default 3.0)")
     add_json_argument(p)
     p.set_defaults(func=cmd_symbols)

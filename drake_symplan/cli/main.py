@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 import os
 import re
 import select
@@ -117,25 +118,44 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    def _get_value(self, action, arg_string):
+        """A backstop under the options' types (cli/options.py: each says its range): no
+        option takes a number that is not finite or an integer past 64 bits, whatever
+        its type (`inf`, `nan`, `1e400`, a 400-digit integer): bad input naming it."""
+        value = super()._get_value(action, arg_string)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise argparse.ArgumentError(action, f"must be a finite number, got {shown(arg_string)}")
+        if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 2**63:
+            raise argparse.ArgumentError(action, "must be an integer within 64 bits (|n| < "
+                                         f"2**63), got {shown(arg_string)}")
+        return value
+
 
 def bounded(cast, within, what: str):
     """An argparse type: `cast(text)` where `within(value)` holds, else bad input saying
-    that it must be `what`."""
+    that it must be `what` (argparse names the option: `argument --x: must be ...`)."""
     def parse(text: str):
         try:
             value = cast(text)
-        except ValueError:
+        except (ValueError, OverflowError):  # not a number; past int()'s 4,300 digits
             value = None
         if value is None or not within(value):
-            raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {what}, got {shown(text)}")
         return value
 
     return parse
 
 
+def shown(text: str, width: int = 40) -> str:
+    """`text` quoted for a message, cut after `width` characters (a 400-digit number)."""
+    return repr(text) if len(text) <= width else repr(text[:width]) + "..."
+
+
+# The integer and positive types here; every other range, and these re-exported, in
+# cli/options.py (the options' one place for what a number may be).
 positive_int = bounded(int, lambda v: v >= 1, "a positive integer")
-nonnegative_int = bounded(int, lambda v: v >= 0, "a non-negative integer")  # a seed
-positive_float = bounded(float, lambda v: 0 < v < float("inf"), "a positive number")
+nonnegative_int = bounded(int, lambda v: v >= 0, "a non-negative integer")
+positive_float = bounded(float, lambda v: 0 < v < math.inf, "a positive number")
 
 
 def build_parser() -> argparse.ArgumentParser:

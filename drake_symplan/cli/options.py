@@ -6,12 +6,29 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 from pathlib import Path
 
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import PLANNING_MODES, mode_names
-from drake_symplan.cli.main import CommandError
+from drake_symplan.cli.main import CommandError, bounded, nonnegative_int, positive_float
+from drake_symplan.cli.main import positive_int as positive_int  # the options' types, all here
 from drake_symplan.planning.planners import WALL_FACTOR
+
+# --- numbers: each option's type says its range -----------------------------------------
+# A value out of range is a usage error naming the option and the rule, exit status 2:
+# `symplan collect: error: argument --noise-dropout: must be a fraction in [0, 1), got '2'`.
+# (Under them, main.Parser refuses a non-finite float or an integer past 64 bits whatever
+# an option's type.)
+
+SEED_LIMIT = 2**32  # numpy's legacy seeding, torch's and Drake's: seeds below it
+
+nonnegative_float = bounded(float, lambda v: 0 <= v < math.inf, "a finite number >= 0")
+probability = bounded(float, lambda v: 0 <= v <= 1, "a probability in [0, 1]")
+# A share of pixels lost: all of them is a camera that sees nothing.
+fraction_lost = bounded(float, lambda v: 0 <= v < 1, "a fraction in [0, 1)")
+degrees = bounded(float, lambda v: 0 <= v <= 180, "a number of degrees in [0, 180]")
+seed = bounded(int, lambda v: 0 <= v < SEED_LIMIT, "an integer seed in [0, 2**32)")
 
 
 class RegistryChoices:
@@ -76,7 +93,7 @@ def add_planner_arguments(p: argparse.ArgumentParser, per_plan: bool = False,
     what = ("CPU seconds per plan (bilevel and continuous: the whole search's)" + cap
             if per_plan else "CPU seconds per planner call" + cap if cpu
             else "planner seconds per call")
-    p.add_argument("--timeout", type=float, default=DEFAULT_SOLVE.cpu_seconds,
+    p.add_argument("--timeout", type=positive_float, default=DEFAULT_SOLVE.cpu_seconds,
                    help=f"{what} (default {DEFAULT_SOLVE.cpu_seconds:g})")
 
 
@@ -97,7 +114,7 @@ def add_robot_argument(p: argparse.ArgumentParser, default: str = "arm") -> None
 
 def add_goal_spec_argument(p, built: str) -> None:
     """--goal-spec SPEC ... on `p` (a parser or a mutually exclusive group): a goal written
-    in one line (evaluation/goals.py), `built` saying by whom and from what."""
+    in one line (goals/compiler.py), `built` saying by whom and from what."""
     p.add_argument("--goal-spec", nargs="+", metavar="SPEC", default=None,
                    help=f"a goal written in one line ('tower o3 o1 o0', docs/goals.md), {built}")
 
@@ -120,13 +137,13 @@ def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
     if monitor_flag:
         p.add_argument("--no-monitor", action="store_true",
                        help="run the first plan open loop (no replanning on a mismatch)")
-    p.add_argument("--max-replans", type=int, default=DEFAULT_SOLVE.max_replans,
+    p.add_argument("--max-replans", type=nonnegative_int, default=DEFAULT_SOLVE.max_replans,
                    help=f"replans per solve at most (default {DEFAULT_SOLVE.max_replans})")
     p.add_argument("--no-refine", action="store_true",
                    help="execute each step with the offsets the planner chose and put no box "
                    "down at its goal spot (default: an interchangeable operator's offsets that "
                    "land the box nearer its goal, and such repositionings)")
-    p.add_argument("--alternatives", type=int, default=DEFAULT_SOLVE.alternatives,
+    p.add_argument("--alternatives", type=nonnegative_int, default=DEFAULT_SOLVE.alternatives,
                    help="bilevel: when no skeleton refines, ask the symbolic planner for up "
                    "to this many more, each avoiding the moves of those before "
                    f"(default {DEFAULT_SOLVE.alternatives})")

@@ -4,17 +4,23 @@ from __future__ import annotations
 
 import argparse
 
-from drake_symplan.cli.options import add_camera_noise_argument, add_json_argument
+from drake_symplan.cli.options import (
+    add_camera_noise_argument,
+    add_json_argument,
+    fraction_lost,
+    nonnegative_float,
+    seed,
+)
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("perceive", help="perceive a scene with the depth cameras")
     p.add_argument("--scene", required=True, help="scene YAML")
-    p.add_argument("--noise", type=float, default=0.0, help="depth noise sigma (m)")
-    p.add_argument("--dropout", type=float, default=0.0, help="fraction of pixels lost")
-    p.add_argument("--settle", type=float, default=0.5, help="physics seconds before looking")
+    p.add_argument("--noise", type=nonnegative_float, default=0.0, help="depth noise sigma (m)")
+    p.add_argument("--dropout", type=fraction_lost, default=0.0, help="fraction of pixels lost")
+    p.add_argument("--settle", type=nonnegative_float, default=0.5, help="physics seconds before looking")
     add_camera_noise_argument(p)
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed, default=0,
                    help="seed of the depth noise and of the cameras' calibration error")
     add_json_argument(p)
     p.set_defaults(func=cmd_perceive)

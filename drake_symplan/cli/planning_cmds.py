@@ -12,14 +12,19 @@ from __future__ import annotations
 from pathlib import Path
 
 from drake_symplan.cli.learning_cmds import eval_subparsers
-from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
+from drake_symplan.cli.main import CommandError, NegativeAnswer
 from drake_symplan.cli.options import (
     LEARNERS,
     add_json_argument,
     add_planner_arguments,
     check_input_dir,
     check_output_file,
+    nonnegative_float,
+    nonnegative_int,
     planner_settings,
+    positive_int,
+    probability,
+    seed,
 )
 
 
@@ -42,9 +47,9 @@ def _register_operators(subparsers) -> None:
     p.add_argument("--data", type=Path, help="transition data directory (with RUN)")
     p.add_argument("--symbols", type=Path, help="a saved symbolic data set (symbols.npz)")
     p.add_argument("--out", type=Path, required=True, help="output directory")
-    p.add_argument("--min-count", type=int, default=50,
+    p.add_argument("--min-count", type=nonnegative_int, default=50,
                    help="drop operators seen fewer times (default 50, as in the paper)")
-    p.add_argument("--min-fraction", type=float, default=None,
+    p.add_argument("--min-fraction", type=probability, default=None,
                    help="threshold relative to the data size instead of --min-count")
     p.add_argument("--self-relations", action="store_true",
                    help="keep r_k(o, o) bits as (rK ?x ?x) literals (default: ignored)")
@@ -76,13 +81,13 @@ def _register_bundle(subparsers) -> None:
                    "reliabilities; paper, the paper's method as implemented (default effect)")
     b.add_argument("--min-count", type=positive_int, default=10,
                    help="transitions an operator needs (default 10)")
-    b.add_argument("--support", type=float, default=0.95,
+    b.add_argument("--support", type=probability, default=0.95,
                    help="effect learner: share of a group a precondition holds in (0.95)")
     b.add_argument("--contact-degree", choices=("on", "off"), default="on",
                    help="effect learner: states hold each object's contact degree "
                    "(touching0..3: 'nothing else touches ?o0'); off: more coverage and "
                    "precision, no operator can require that (default on)")
-    b.add_argument("--margin", type=float, default=3.0,
+    b.add_argument("--margin", type=nonnegative_float, default=3.0,
                    help="a bit is uncertain when |logit| < margin (default 3)")
     add_json_argument(b)
     b.set_defaults(func=cmd_bundle)
@@ -108,7 +113,7 @@ def _register_eval_operators(subparsers) -> None:
     e.add_argument("--max-problems", type=positive_int, default=50,
                    help="problems per k and object count (default 50)")
     add_planner_arguments(e, cpu=True)
-    e.add_argument("--seed", type=int, default=0,
+    e.add_argument("--seed", type=seed, default=0,
                    help="seed of the choice of problems among the held-out chains")
     e.add_argument("--familiar-data", type=Path, metavar="DIR",
                    help="the model's training data: determinism (held-out effects against its "
@@ -134,7 +139,7 @@ def _register_eval_rollout(subparsers) -> None:
                    "bundle's (its continuous.pt if it has one, else its model.pt)")
     e.add_argument("--max-starts", type=positive_int, default=200,
                    help="rollouts per k, sampled with --seed (default 200)")
-    e.add_argument("--seed", type=int, default=0, help="seed of the choice of rollouts")
+    e.add_argument("--seed", type=seed, default=0, help="seed of the choice of rollouts")
     add_json_argument(e)
     e.set_defaults(func=cmd_eval_rollout)
 

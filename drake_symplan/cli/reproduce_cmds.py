@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from drake_symplan.cli.main import CommandError, NegativeAnswer, positive_int
+from drake_symplan.cli.main import CommandError, NegativeAnswer
 from drake_symplan.cli.options import (
     add_camera_noise_argument,
     add_device_argument,
@@ -19,6 +19,7 @@ from drake_symplan.cli.options import (
     add_solve_arguments,
     check_device,
     check_output_dir,
+    positive_int,
     solve_config,
 )
 from drake_symplan.json_files import read_json

@@ -6,18 +6,25 @@ import argparse
 import sys
 
 from drake_symplan.cli.main import CommandError, NegativeAnswer
-from drake_symplan.cli.options import add_json_argument, check_output_file
+from drake_symplan.cli.options import (
+    add_json_argument,
+    check_output_file,
+    degrees,
+    positive_int,
+    probability,
+    seed,
+)
 
 
 def register(subparsers) -> None:
     scene = subparsers.add_parser("scene", help="scene files")
     scene_sub = scene.add_subparsers(dest="scene_command", required=True)
     sample = scene_sub.add_parser("sample", help="write a random valid scene")
-    sample.add_argument("--objects", type=int, required=True, help="number of objects (1-8)")
-    sample.add_argument("--seed", type=int, default=0, help="seed of the scene sampler")
-    sample.add_argument("--long-fraction", type=float, default=0.5,
+    sample.add_argument("--objects", type=positive_int, required=True, help="number of objects (1-8)")
+    sample.add_argument("--seed", type=seed, default=0, help="seed of the scene sampler")
+    sample.add_argument("--long-fraction", type=probability, default=0.5,
                         help="chance that an object is a long block rather than a cube")
-    sample.add_argument("--yaw-jitter-deg", type=float, default=0.0,
+    sample.add_argument("--yaw-jitter-deg", type=degrees, default=0.0,
                         help="random yaw of each object, uniform in +-this many degrees")
     sample.add_argument("--out", required=True, help="scene YAML to write")
     add_json_argument(sample)

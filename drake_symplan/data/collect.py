@@ -91,6 +91,17 @@ class CollectConfig:
         if not 0 < self.box_modulus < math.inf:
             raise ValueError(f"box_modulus must be a positive number (Pa), got "
                              f"{self.box_modulus}")
+        if not 0 <= self.seed < 2**32:
+            raise ValueError(f"seed must be an integer in [0, 2**32), got {self.seed}")
+        if not 0 <= self.long_fraction <= 1:
+            raise ValueError(f"long_fraction must be a probability in [0, 1], got "
+                             f"{self.long_fraction}")
+        if not 0 <= self.noise_sigma < math.inf:
+            raise ValueError(f"noise_sigma must be a finite number >= 0 (m), got "
+                             f"{self.noise_sigma}")
+        if not 0 <= self.noise_dropout < 1:  # 1: cameras that see nothing, episodes forever
+            raise ValueError(f"noise_dropout must be a fraction in [0, 1), got "
+                             f"{self.noise_dropout}")
         camera_noise(self.camera_noise)  # ValueError naming the choices
         self.hand_twin = self.hand_twin and self.backend == "hand"  # the arm has no twin
         if not 2 <= self.min_objects <= self.max_objects <= 8:
