@@ -30,6 +30,7 @@ import textwrap
 COMMAND_MODULES = [
     "drake_symplan.cli.world_cmds",
     "drake_symplan.cli.perception_cmds",
+    "drake_symplan.cli.frames_cmds",
     "drake_symplan.cli.data_cmds",
     "drake_symplan.cli.learning_cmds",
     "drake_symplan.cli.planning_cmds",

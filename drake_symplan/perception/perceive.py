@@ -1,9 +1,14 @@
-"""The perception system: station cameras -> perceived objects, features and contacts.
+"""The perception system: depth images -> perceived objects, features and contacts.
 
-`Perceiver.perceive(station)` renders the depth cameras, fuses their world-frame points,
-crops to the workspace, removes the table and the robot's own points (from its geometry at
-the current joint state, as a real robot self-filters), fits the known box models and
-builds the contact graph. Nothing here reads object poses from the simulator.
+Perception reads `DepthViews`: each camera's intrinsics and pose, its depth frames, the
+sensor model that made them and the robot's collision shapes. `station_views(station)`
+gives them from the simulator's cameras, perception/frames.py from frames on disk; either
+way `Perceiver.perceive_views` fuses the cameras' world-frame points (through the depth
+filter when the sensor has noise), crops to the workspace, removes the table and the
+robot's own points (from its geometry at the current joint state, as a real robot
+self-filters), fits the known box models and builds the contact graph.
+`Perceiver.perceive(station)` is the two together. Nothing here reads object poses from
+the simulator.
 """
 
 from __future__ import annotations
@@ -20,6 +25,8 @@ from drake_symplan.perception import tracking
 from drake_symplan.perception.box_fitting import fit_boxes
 from drake_symplan.perception.depth_filter import DepthFilter, filtered_clouds
 from drake_symplan.perception.fitted_box import FittedBox
+from drake_symplan.world.cameras import DepthCamera, depth_points, render_depths
+from drake_symplan.world.depth_sensor import CameraNoise
 
 
 @dc.dataclass
@@ -67,12 +74,35 @@ class PerceivedScene:
             np.zeros((0, 9), np.float32)
 
 
+@dc.dataclass
+class DepthViews:
+    """What perception reads of a scene, from the simulator or from frames on disk."""
+
+    cameras: list[DepthCamera]  # intrinsics (info) and the pose perception believes (X_WB)
+    frames: list[np.ndarray]  # each camera's depth images [F, H, W], float32 m (NaN, 0, inf: none)
+    sensor: CameraNoise  # the sensor model that made them; none active: used as they are
+    robot_shapes: list = dc.field(default_factory=list)  # cameras.robot_shapes, to cut out
+
+
+def station_views(station, frames: int = 1) -> DepthViews:
+    """What the station's cameras see now: `frames` frames of a sensor with noise, the
+    rendered depth (one frame) of a perfect one."""
+    if not station.cameras:
+        raise ValueError("the station has no cameras (StationConfig.cameras is empty)")
+    if station.sensor.active:
+        depth = station.depth_frames(frames)
+    else:
+        depth = [d[None] for d in render_depths(station.cameras, station.context)]
+    shapes = [s for s in station.robot_collision_shapes() if _near_workspace(s[1])]
+    return DepthViews(station.cameras, depth, station.sensor, shapes)
+
+
 class Perceiver:
-    """Turns the station's depth images into perceived objects.
+    """Turns depth images into perceived objects.
 
     With a `prior` (the scene perceived before the action that led here) the objects the
     action left alone anchor the fit (perception/tracking.py); without one every object
-    is fitted from the points alone. A station whose sensor has noise is read through
+    is fitted from the points alone. Frames of a sensor with noise are read through
     `depth_filter` (several frames, filtered, levelled on the table); `readings` says what
     each camera gave the last time.
     """
@@ -83,28 +113,36 @@ class Perceiver:
 
     def perceive(self, station, noise=None, rng=None, prior: PerceivedScene | None = None
                  ) -> PerceivedScene:
-        clouds = self.read_clouds(station, noise, rng)
-        points = seg.crop(np.vstack(clouds))
-        points = seg.remove_inside(points, [s for s in station.robot_collision_shapes()
-                                            if _near_workspace(s[1])])
+        """The station's scene now; `noise` (a cameras.DepthNoise) perturbs the points
+        further, drawn from `rng` (a noisy sensor's default: the station's own stream)."""
+        # The sensor's own noise comes from the station (its seed and the scene), so a
+        # scene is seen alike whatever the caller's stream has drawn before.
+        views = station_views(station, self.depth_filter.frames)
+        if rng is None and station.sensor.active:
+            rng = station.sensor_rng
+        return self.perceive_views(views, noise, rng, prior)
+
+    def perceive_views(self, views: DepthViews, noise=None, rng=None,
+                       prior: PerceivedScene | None = None) -> PerceivedScene:
+        """The scene `views` show."""
+        points = seg.crop(np.vstack(self.read_clouds(views, noise, rng)))
+        points = seg.remove_inside(points, views.robot_shapes)
         return self.perceive_points(points, prior)
 
-    def read_clouds(self, station, noise=None, rng=None) -> list[np.ndarray]:
+    def read_clouds(self, views: DepthViews, noise=None, rng=None) -> list[np.ndarray]:
         """Each camera's world-frame points above the table's crop; `noise` (a
         cameras.DepthNoise) perturbs them further."""
         z_min = seg.CROP_Z[0]
-        if not station.sensor.active:
+        if not views.sensor.active:
             self.readings = []
-            return station.point_clouds(noise=noise, rng=rng, z_min=z_min)
-        # The sensor's own noise comes from the station (its seed and the scene), so a
-        # scene is seen alike whatever the caller's stream has drawn before.
-        frames = station.depth_frames(self.depth_filter.frames)
-        clouds, self.readings = filtered_clouds(station.cameras, frames, station.sensor,
+            return [depth_points(cam, f[0], noise, rng, z_min)
+                    for cam, f in zip(views.cameras, views.frames, strict=True)]
+        clouds, self.readings = filtered_clouds(views.cameras, views.frames, views.sensor,
                                                 self.depth_filter, z_min)
         if noise is not None and noise.active:
-            rng = rng or station.sensor_rng
+            rng = rng or np.random.default_rng()
             clouds = [_above(noise.apply(c, cam.X_WB.translation(), rng), z_min)
-                      for cam, c in zip(station.cameras, clouds, strict=True)]
+                      for cam, c in zip(views.cameras, clouds, strict=True)]
         return clouds
 
     def perceive_points(self, points: np.ndarray, prior: PerceivedScene | None = None

@@ -1,7 +1,8 @@
 """Depth cameras around the table: RgbdSensors rendered headless by VTK (EGL) + point clouds.
 
 `AddDepthCameras` adds one RgbdSensor per camera config; `read_point_clouds` renders their
-depth images and back-projects them into world-frame xyz arrays, with optional noise;
+depth images (`render_depths`) and back-projects them into world-frame xyz arrays
+(`depth_points`), with optional noise;
 `read_depth_frames` gives the depth sensor's frames (world/depth_sensor.py) and
 `back_project` their points, from where perception believes the camera is;
 `robot_shapes` says where the robot is in them.
@@ -148,31 +149,44 @@ def read_point_clouds(
     rng: np.random.Generator | None = None,
     z_min: float | None = None,
 ) -> list[np.ndarray]:
-    """World-frame points [M, 3] per camera (invalid depths dropped).
+    """World-frame points [M, 3] per camera (invalid depths dropped): `depth_points` of
+    each camera's rendered depth."""
+    return [depth_points(cam, depth, noise, rng, z_min)
+            for cam, depth in zip(cameras, render_depths(cameras, root_context), strict=True)]
+
+
+def render_depths(cameras: list[DepthCamera], root_context) -> list[np.ndarray]:
+    """Each camera's rendered depth image [H, W] (float32, m; 0: nearer than depth_min,
+    inf: beyond depth_max) of the scene now."""
+    return [np.array(cam.sensor.depth_image_32F_output_port().Eval(
+        cam.sensor.GetMyContextFromRoot(root_context)).data[:, :, 0]) for cam in cameras]
+
+
+def depth_points(cam: DepthCamera, depth: np.ndarray, noise: DepthNoise | None = None,
+                 rng: np.random.Generator | None = None, z_min: float | None = None
+                 ) -> np.ndarray:
+    """World-frame points [M, 3] of a perfect sensor's depth image [H, W] (float32; NaN,
+    0 or inf: none), with optional noise.
 
     `z_min` drops points at or below that height (after noise) early, which saves most of
     the work when only what stands on the table matters: without noise, only the pixels
     that see something above z_min are back-projected.
     """
-    clouds = []
-    for cam in cameras:
-        ctx = cam.sensor.GetMyContextFromRoot(root_context)
-        depth = cam.sensor.depth_image_32F_output_port().Eval(ctx).data.reshape(-1)
-        origin = cam.X_WB.translation()
-        keep = depth > 0  # 0: nearer than depth_min; inf: beyond depth_max
-        noisy = noise is not None and noise.active
-        if z_min is not None and not noisy:
-            keep &= depth * cam.ray_z > np.float32(z_min - origin[2])  # false for inf
-        else:
-            keep &= np.isfinite(depth)
-        idx = np.flatnonzero(keep)
-        xyz = origin + depth[idx, None].astype(float) * cam.rays[idx]
-        if noisy:
-            xyz = noise.apply(xyz, origin, rng or np.random.default_rng())
-            if z_min is not None:
-                xyz = xyz[xyz[:, 2] > z_min]
-        clouds.append(xyz)
-    return clouds
+    depth = depth.reshape(-1)
+    origin = cam.X_WB.translation()
+    keep = depth > 0  # 0: nearer than depth_min; inf: beyond depth_max
+    noisy = noise is not None and noise.active
+    if z_min is not None and not noisy:
+        keep &= depth * cam.ray_z > np.float32(z_min - origin[2])  # false for inf
+    else:
+        keep &= np.isfinite(depth)
+    idx = np.flatnonzero(keep)
+    xyz = origin + depth[idx, None].astype(float) * cam.rays[idx]
+    if noisy:
+        xyz = noise.apply(xyz, origin, rng or np.random.default_rng())
+        if z_min is not None:
+            xyz = xyz[xyz[:, 2] > z_min]
+    return xyz
 
 
 def read_depth_frames(cameras: list[DepthCamera], root_context, noise: CameraNoise,
