@@ -391,7 +391,7 @@ def test_the_oracle_replays_a_recorded_problem(tmp_path):
 @pytest.mark.slow
 def test_eval_planning_on_local_workers_gives_the_in_process_records(tmp_path):
     from drake_symplan.evaluation.planning import evaluate_planning
-    from drake_symplan.evaluation.problems import make_problems
+    from drake_symplan.goals.problems import make_problems
     from drake_symplan.world.station import models_dir
 
     problems = tmp_path / "problems"

@@ -117,7 +117,7 @@ def test_a_manifest_from_before_the_sensor_model_extends_as_none(tmp_path):
 
 
 def test_a_problem_set_keeps_its_sensor_model(tmp_path):
-    from drake_symplan.evaluation.problems import make_problems
+    from drake_symplan.goals.problems import make_problems
 
     # A finished set made before the sensor model was recorded: made without noise.
     settings = {"n_objects": 2, "k": [1], "seed": 0, "backend": "hand"}

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from drake_symplan.evaluation.problems import (
+from drake_symplan.goals.problems import (
     displacement,
     is_nontrivial,
     load_problems,
@@ -111,7 +111,7 @@ def test_reproducible_problems_replay_from_their_files(tmp_path):
     from drake_symplan.agent import beliefs
     from drake_symplan.agent.solve import Agent
     from drake_symplan.boxes import GOAL_TOLERANCE
-    from drake_symplan.evaluation.problems import make_problems, replay
+    from drake_symplan.goals.problems import make_problems, replay
 
     agent = Agent("hand")
     summary = make_problems(tmp_path, 3, [2], 2, seed=7, backend="hand", agent=agent,

@@ -10,10 +10,10 @@ PACKAGE = Path(__file__).resolve().parents[1] / "drake_symplan"
 
 # Lowest first (docs/layout.md). A module may import its own layer and the ones before it.
 LAYERS = (
-    ("drake_symplan", "actions", "datasets", "boxes", "features", "atomic", "typed_yaml",
-     "json_files", "shards", "cluster"),
+    ("drake_symplan", "actions", "datasets", "boxes", "relations", "features", "atomic",
+     "typed_yaml", "json_files", "shards", "cluster"),
     ("world",), ("perception",), ("skills",), ("robot",), ("data",), ("learning",),
-    ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",), ("evaluation",),
+    ("symbolic",), ("planning",), ("abstraction",), ("explorers",), ("agent",), ("goals",), ("evaluation",),
     ("pipelines",), ("cli",),
 )
 RANK = {name: i for i, names in enumerate(LAYERS) for name in names}
@@ -66,7 +66,8 @@ class NoDrake:
 
 sys.meta_path.insert(0, NoDrake())
 names = ["drake_symplan.actions", "drake_symplan.datasets", "drake_symplan.shards", "drake_symplan.atomic",
-         "drake_symplan.typed_yaml", "drake_symplan.json_files", "drake_symplan.features", "drake_symplan.boxes"]
+         "drake_symplan.typed_yaml", "drake_symplan.json_files", "drake_symplan.features", "drake_symplan.boxes",
+         "drake_symplan.relations"]
 names += ["drake_symplan.evaluation.effects", "drake_symplan.evaluation.operators",
           "drake_symplan.evaluation.rollouts"]  # the Drake-free measurements
 for package in ("learning", "symbolic", "planning", "abstraction"):

@@ -127,7 +127,7 @@ def test_a_worker_killed_mid_run_loses_only_its_chunk(local_ray, reference, tmp_
 @pytest.mark.slow
 def test_eval_planning_on_ray_gives_the_local_records(local_ray, tmp_path):
     from drake_symplan.evaluation.planning import evaluate_planning
-    from drake_symplan.evaluation.problems import make_problems
+    from drake_symplan.goals.problems import make_problems
     from drake_symplan.world.station import models_dir
 
     problems = tmp_path / "problems"

@@ -191,7 +191,7 @@ def test_collect_on_two_nodes_gives_the_local_data(cluster, tmp_path):
 
 def test_eval_planning_on_two_nodes_gives_the_local_records(cluster, tmp_path):
     from drake_symplan.evaluation.planning import evaluate_planning
-    from drake_symplan.evaluation.problems import make_problems
+    from drake_symplan.goals.problems import make_problems
     from drake_symplan.world.station import models_dir
 
     address, env = cluster

@@ -7,7 +7,8 @@ import pytest
 from drake_symplan.actions import Action
 from drake_symplan.datasets import ObjectState
 from drake_symplan.evaluation.carry import Runner, suite_scene
-from drake_symplan.skills.carry import careful_points, riders
+from drake_symplan.relations import riders
+from drake_symplan.skills.carry import careful_points
 from drake_symplan.skills.geometry import action_geometry
 from drake_symplan.world.scenes import ObjectSpec, Scene
 

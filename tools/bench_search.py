@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     from drake_symplan.abstraction.refiner import Refiner
     from drake_symplan.agent.solve import Agent
     from drake_symplan.cli.options import load_bundle
-    from drake_symplan.evaluation.problems import load_problems
+    from drake_symplan.goals.problems import load_problems
     from drake_symplan.world.scenes import load_scene
 
     bundle = load_bundle(args.model)

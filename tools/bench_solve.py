@@ -133,7 +133,7 @@ def time_problems(args: argparse.Namespace, abstraction, planners) -> tuple[list
     """(a row per problem, the seconds the station took to build): the problems of
     args.problems, or args.count made here, each planned in every mode after a warm-up."""
     from drake_symplan.agent.solve import Agent
-    from drake_symplan.evaluation.problems import load_problems, make_problems
+    from drake_symplan.goals.problems import load_problems, make_problems
 
     t = time.perf_counter()
     agent = Agent("arm")

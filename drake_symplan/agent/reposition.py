@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from drake_symplan import relations
 from drake_symplan.abstraction.refiner import moves
 from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
@@ -25,7 +26,6 @@ from drake_symplan.symbolic.structs import PlanStep, Reposition
 
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
 CLEARANCE = 0.01  # m: free table between a repositioned box and every other box
-RESTS_ON = 0.03  # m: a box in contact with another and this much higher rests on it
 REPOSITIONS_PER_OBJECT = 2  # a solve's repositionings at most, per object
 
 
@@ -35,24 +35,16 @@ def footprint(obj) -> np.ndarray:
 
 
 def rests_on(scene, name: str) -> list[str]:
-    """The boxes `name` rests on in a perceived scene (in contact with them, and higher)."""
-    box = scene.object(name)
-    return [o for a, b in scene.contacts if name in (a, b)
-            for o in [b if a == name else a]
-            if box.position[2] - scene.object(o).position[2] > RESTS_ON]
+    """The boxes `name` rests on in a perceived scene (relations.rests_on)."""
+    states = scene.object_states()
+    return [o for o in scene.names if o != name and relations.rests_on(states[name], states[o])]
 
 
 def carried(scene, name: str) -> set[str]:
-    """The boxes that rest on `name` in a perceived scene, directly or on one that does:
-    they ride along when it is carried (skills/pick_place.py carries slowly enough)."""
-    load, todo = set(), [name]
-    while todo:
-        base = todo.pop()
-        for other in scene.names:
-            if other != name and other not in load and base in rests_on(scene, other):
-                load.add(other)
-                todo.append(other)
-    return load
+    """The boxes that rest on `name` in a perceived scene, directly or on one that does
+    (relations.riders): they ride along when it is carried (skills/pick_place.py carries
+    slowly enough)."""
+    return set(relations.riders(name, scene.object_states()))
 
 
 def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposition | None:

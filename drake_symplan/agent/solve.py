@@ -49,8 +49,8 @@ from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.reposition import REPOSITIONS_PER_OBJECT, reposition_step
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
+from drake_symplan.relations import riders
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
-from drake_symplan.skills.carry import riders
 from drake_symplan.symbolic.structs import PlanStep, Step
 from drake_symplan.world.visualization import StartMeshcat
 

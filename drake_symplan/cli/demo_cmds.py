@@ -9,7 +9,7 @@
    cubes and two long blocks, the goal two arm actions away), the same on every machine.
    `--seed N` samples a new one: a random scene with `--objects` boxes, then k = 2 or 3
    random pick/place actions executed by the UR10; the scene they leave is the goal
-   (evaluation/problems.py, as the planning evaluation makes them), kept only if the same
+   (goals/problems.py, as the planning evaluation makes them), kept only if the same
    actions replayed from the start as saved reach it again (`symplan problems make
    --reproducible`: a goal that a tenth of a millimetre turns into another is dropped).
    Sampled goals come from simulated physics, which differs slightly between machines, so

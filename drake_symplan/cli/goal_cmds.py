@@ -2,7 +2,7 @@
 
     symplan goal --start START "tower o3 o1 o0" "bridge o4 o2 o5" --out GOAL [--json]
 
-The specs (evaluation/goals.py: on, tower, bridge, row) are checked against the start
+The specs (goals/compiler.py: on, tower, bridge, row) are checked against the start
 scene before anything runs; a spec the world cannot give is one line on stderr, exit 2,
 nothing written. The robot then builds the goal with the structures' designed actions, the
 built scene is checked against them on the simulator's poses (the goal's author may look;
@@ -49,12 +49,13 @@ def register(subparsers) -> None:
 def checked_specs(start, specs: list[str]) -> list:
     """The structures of `specs`, checked against the start scene's file (before Drake
     loads); CommandError (one line, exit 2) naming what the start cannot give."""
-    from drake_symplan.evaluation import goals
+    from drake_symplan.goals.compiler import check
+    from drake_symplan.relations import SpecError, parse
 
     try:
-        structures = goals.parse(specs)
-        goals.check(structures, start.object_states())
-    except goals.SpecError as e:
+        structures = parse(specs)
+        check(structures, start.object_states())
+    except SpecError as e:
         raise CommandError(str(e)) from e
     return structures
 
@@ -63,13 +64,13 @@ def built_goal(start, structures: list, backend: str, camera_noise: str,
                reproducible: bool = True):
     """(goal scene, info) built by the `backend` robot from `start`, or why not (a string)."""
     from drake_symplan.agent.solve import Agent
-    from drake_symplan.evaluation import goals
-    from drake_symplan.evaluation.problems import build_goal
+    from drake_symplan.goals.problems import build_goal
+    from drake_symplan.relations import SpecError
 
     try:
         return build_goal(Agent(backend, camera_noise=camera_noise), start, structures,
                           reproducible)
-    except goals.SpecError as e:  # what was perceived cannot give it
+    except SpecError as e:  # what was perceived cannot give it
         raise CommandError(str(e)) from e
 
 

@@ -24,8 +24,8 @@ from drake_symplan.actions import Action, relevant_objects
 from drake_symplan.data.exploration import classify, effects, random_action
 from drake_symplan.perception.matching import match_by_position
 from drake_symplan.perception.perceive import associate
+from drake_symplan.relations import riders
 from drake_symplan.robot.backends import make_backend
-from drake_symplan.skills.carry import riders
 from drake_symplan.skills.geometry import action_geometry
 from drake_symplan.world.scenes import Scene, sample_scene, sample_structured_scene
 

@@ -18,9 +18,9 @@ import numpy as np
 
 from drake_symplan.actions import OFFSETS, Action
 from drake_symplan.agent.beliefs import name_by_file
-from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
 from drake_symplan.perception.perceive import Perceiver
+from drake_symplan.relations import Relation, unmet
 from drake_symplan.skills.arm_twin import ArmTwin
 from drake_symplan.skills.geometry import InfeasibleAction
 from drake_symplan.skills.hand_place import hand_pick_place
@@ -32,8 +32,6 @@ from drake_symplan.world.station import Station, StationConfig
 BASE_XY = np.array([0.70, -0.15])  # the base's centre (unrotated)
 TARGET_XY = np.array([0.70, 0.18])  # the target long block's centre
 PIVOT = (BASE_XY + TARGET_XY) / 2  # the rotated variants turn about this point
-KEPT_DZ = 0.01  # m: a rider's centre within this of resting height on the base
-KEPT_TILT = math.radians(10.0)  # rad: and tilted no more than this against the base
 
 # scene name -> [(name, type, offset along the base's long axis in m, level)]; level 0 is
 # the base's (on the table), 1 on the base, 2 on level 1 (on the box below it).
@@ -79,20 +77,10 @@ def supports(name: str) -> dict[str, str]:
             for obj, _, along, level in boxes if level > 0}
 
 
-def rests_on(poses: dict, top: str, below: str, types: dict[str, str]) -> bool:
-    """Does `top` rest upright on `below` (simulator poses): at the height of its top face,
-    its centre over the footprint and not tilted against it?"""
-    X_b, X_t = poses[below], poses[top]
-    local = X_b.inverse().multiply(X_t.translation())
-    hb, ht = np.array(HALF_EXTENTS[types[below]]), np.array(HALF_EXTENTS[types[top]])
-    z_axis = (X_b.rotation().inverse() @ X_t.rotation()).matrix()[:, 2]
-    return bool(abs(local[2] - hb[2] - ht[2]) <= KEPT_DZ and np.all(np.abs(local[:2]) <= hb[:2])
-                and abs(z_axis[2]) >= math.cos(KEPT_TILT))
-
-
-def kept(poses: dict, name: str, types: dict[str, str]) -> bool:
-    """Does every rider of suite scene `name` still rest on what it rested on?"""
-    return all(rests_on(poses, r, b, types) for r, b in supports(name).items())
+def kept(states: dict[str, ObjectState], name: str) -> bool:
+    """Does every rider of suite scene `name` still rest on what it rested on, upright
+    (relations.py's `on`, on the simulator's states)?"""
+    return not unmet([Relation("on", (r, b)) for r, b in supports(name).items()], states)
 
 
 class Runner:
@@ -144,7 +132,7 @@ class Runner:
         base = poses["base"].translation()
         moved = bool(np.linalg.norm(base[:2] - scene.object("base").position[:2]) > 0.05
                      or abs(base[2] - start["base"]) > 0.02)
-        row = {"status": status, "kept": kept(poses, name, station.types), "moved": moved,
+        row = {"status": status, "kept": kept(station.object_states(), name), "moved": moved,
                "cpu_s": round(cpu, 3), "seen": len(beliefs),
                "belief_error_mm": round(1000 * error, 2)}
         if backend == "hand":

@@ -30,7 +30,7 @@ from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
 from drake_symplan.boxes import goal_reached
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
-from drake_symplan.evaluation.problems import load_problems, recorded_actions
+from drake_symplan.goals.problems import load_problems, recorded_actions
 from drake_symplan.json_files import parse_json, type_name
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene

@@ -69,7 +69,7 @@ class DemoOutcome:
 
 def make_goal(agent, seed: int, objects: int, k: int | None, say):
     """(start, goal, info) of the first non-trivial reproducible random problem, or None."""
-    from drake_symplan.evaluation.problems import make_problem, problem_seed
+    from drake_symplan.goals.problems import make_problem, problem_seed
 
     k = k or int(np.random.default_rng(seed).integers(2, 4))
     for attempt in range(MAX_ATTEMPTS):
@@ -130,11 +130,11 @@ def scattered_start(seed: int, objects: int):
 
 def build_spec_goal(agent, settings: DemoSettings, start, demo: dict, say):
     """(start, goal) with the goal built from `start` by the arm after settings.goal_spec
-    (evaluation/goals.py); None when it could not be built (told)."""
-    from drake_symplan.evaluation import goals
-    from drake_symplan.evaluation.problems import build_goal
+    (goals/compiler.py); None when it could not be built (told)."""
+    from drake_symplan.goals.problems import build_goal
+    from drake_symplan.relations import parse
 
-    structures = goals.parse(settings.goal_spec)
+    structures = parse(settings.goal_spec)
     say(f"building the goal {'; '.join(s.text() for s in structures)} with the UR10 ...")
     made = build_goal(agent, start, structures)
     if isinstance(made, str):

@@ -18,7 +18,7 @@ from drake_symplan.evaluation.planning import (
     run_label,
     summarise,
 )
-from drake_symplan.evaluation.problems import load_problems
+from drake_symplan.goals.problems import load_problems
 from drake_symplan.json_files import read_json
 
 

@@ -33,13 +33,12 @@ import numpy as np
 from drake_symplan.actions import GRASP_SLACK, Action, grasp_point
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
+from drake_symplan.relations import FOOTPRINT_TOL, REST_TOL, covers, local_xy, riders, turn
 
 PAD_BELOW_TCP = 0.015  # m: the finger pads reach this far below the TCP
 PALM_HALF_WIDTH = 0.02  # m: the palm's half extent across the finger axis
 PALM_MARGIN = 0.008  # m between the palm's footprint and a rider's
 PAD_INSET = 0.015  # m: the pads' centre stays this far inside the source's end
-REST_TOL = 0.015  # m: a box whose bottom is this near the source's top rests on it
-FOOTPRINT_TOL = 0.01  # m outside the footprint that still counts as over it
 MASS = {"cube": 0.1, "long": 0.4}  # kg, models/objects
 RELEASE_GAP = 0.004  # m between the released source's bottom and what lies under it
 STRIKE_DEPTH = 0.01  # m a box's top may reach above a released source's bottom (beliefs)
@@ -53,45 +52,10 @@ CAREFUL_TCP_ACCELERATION = 2.0  # m/s^2 at the TCP while lifting, carrying, lowe
 MAX_PINCHED = 1
 
 
-def _turn(v: np.ndarray, yaw: float) -> np.ndarray:
-    """The xy vector `v` turned by `yaw` about world z."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
-
-
-def _local(src: ObjectState, p: np.ndarray) -> np.ndarray:
-    """World point `p` (xy) in the source's frame (xy)."""
-    return _turn(np.asarray(p[:2], float) - src.position[:2], -src.yaw)
-
-
-def _covers(o: ObjectState, p: np.ndarray, tol) -> bool:
-    """Does `o`'s footprint, grown by `tol` (m, or per local axis), hold the xy point `p`?"""
-    return bool(np.all(np.abs(_local(o, p)) <= np.array(HALF_EXTENTS[o.type][:2]) + tol))
-
-
-def _rests_on(top: ObjectState, below: ObjectState) -> bool:
-    hb, ht = HALF_EXTENTS[below.type], HALF_EXTENTS[top.type]
-    if abs((top.position[2] - ht[2]) - (below.position[2] + hb[2])) > REST_TOL:
-        return False
-    return _covers(below, top.position, FOOTPRINT_TOL)
-
-
-def riders(source: str, objects: dict[str, ObjectState]) -> list[str]:
-    """The believed objects resting on `source`, and on those, and so on (upright boxes)."""
-    found, frontier = [], [source]
-    while frontier:
-        below = objects[frontier.pop()]
-        for name, o in objects.items():
-            if name != source and name not in found and _rests_on(o, below):
-                found.append(name)
-                frontier.append(name)
-    return found
-
-
 def stacked_over(source: str, objects: dict[str, ObjectState], point: np.ndarray) -> list[str]:
     """The riders of `source` whose footprint holds the xy `point` (the grasp's): the
     stack the palm comes down on there."""
-    return [n for n in riders(source, objects) if _covers(objects[n], point, FOOTPRINT_TOL)]
+    return [n for n in riders(source, objects) if covers(objects[n], point, FOOTPRINT_TOL)]
 
 
 def _half_along_y(o: ObjectState, yaw: float) -> float:
@@ -108,7 +72,7 @@ def _clear_point(src: ObjectState, load: list[ObjectState], want: float) -> floa
     candidates = np.linspace(-limit, limit, int(round(2 * limit / 0.0025)) + 1)
     clear = np.ones(len(candidates), bool)
     for o in load:
-        y = _local(src, o.position)[1]
+        y = local_xy(src, o.position)[1]
         clear &= np.abs(candidates - y) >= _half_along_y(o, src.yaw) + PALM_HALF_WIDTH + PALM_MARGIN
     if not clear.any():
         return None
@@ -156,7 +120,7 @@ def _supports(objects: dict[str, ObjectState], skip: set[str], centre: np.ndarra
 def holds(src: ObjectState, grasp: np.ndarray) -> bool:
     """Do the fingers, closing at the TCP point `grasp`, hold the source (by the beliefs:
     the point within its footprint, give or take GRASP_SLACK)?"""
-    return _covers(src, grasp, GRASP_SLACK[:2])
+    return covers(src, grasp, GRASP_SLACK[:2])
 
 
 def unpinchable(action: Action, objects: dict[str, ObjectState]) -> list[str]:
@@ -177,7 +141,7 @@ def landing(src: ObjectState, grasp: np.ndarray, release: np.ndarray,
             yaw_turn: float) -> np.ndarray:
     """Where (xy) the centre of `src`, held at the TCP point `grasp` and released at
     `release` (the gripper turned by `yaw_turn` between them), comes down."""
-    return release[:2] + _turn(src.position[:2] - grasp[:2], yaw_turn)
+    return release[:2] + turn(src.position[:2] - grasp[:2], yaw_turn)
 
 
 def landing_height(objects: dict[str, ObjectState], source: str, grasp: np.ndarray,
@@ -209,7 +173,7 @@ def release_strikes(action: Action, objects: dict[str, ObjectState], grasp: np.n
     struck = []
     for box in [src] + [objects[n] for n in load]:
         bottom = box.position[2] + drop - HALF_EXTENTS[box.type][2]
-        at = centre + _turn(box.position[:2] - src.position[:2], yaw_turn)
+        at = centre + turn(box.position[:2] - src.position[:2], yaw_turn)
         tops = _tops_under(objects, skip, at, box.yaw + yaw_turn, HALF_EXTENTS[box.type])
         struck += [n for n, top in tops.items() if top > bottom + STRIKE_DEPTH
                    and n not in struck]
@@ -220,12 +184,12 @@ def _onto_support(support: ObjectState, com: np.ndarray) -> np.ndarray:
     """The xy shift that brings a load's centre of mass `com` (world xy), where it lies
     beyond the top of the one box it is released on or within STABLE_MARGIN of its edge,
     STABLE_MARGIN inside it (zero where it lies that far inside already)."""
-    local = _local(support, com)
+    local = local_xy(support, com)
     half = np.array(HALF_EXTENTS[support.type][:2])
     limit = np.maximum(half - STABLE_MARGIN, 0.0)
     if np.all(np.abs(local) <= limit):
         return np.zeros(2)
-    return _turn(np.clip(local, -limit, limit) - local, support.yaw)
+    return turn(np.clip(local, -limit, limit) - local, support.yaw)
 
 
 def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
@@ -244,19 +208,19 @@ def careful_points(action: Action, objects: dict[str, ObjectState], grasp: np.nd
         lifted[2] = max(grasp[2], top + PALM_MARGIN + PAD_BELOW_TCP)
         return lifted, release, True
     masses = np.array([MASS[o.type] for o in [src, *load]])
-    com = masses @ np.array([_local(src, o.position) for o in [src, *load]]) / masses.sum()
+    com = masses @ np.array([local_xy(src, o.position) for o in [src, *load]]) / masses.sum()
     y = _clear_point(src, load, float(com[1]))  # the load's centre of mass, source frame
     # the pads centred across the source at y; the release point moves with the grasp
     shift = np.zeros(2)
     if y is not None:
-        shift = src.position[:2] + _turn(np.array([0.0, y]), src.yaw) - grasp[:2]
+        shift = src.position[:2] + turn(np.array([0.0, y]), src.yaw) - grasp[:2]
     yaw = src.yaw + yaw_turn  # the source's yaw once released
     down = landing(src, grasp, release, yaw_turn)
     skip = {action.source, *(o.name for o in load)}
-    placed = release + np.array([*_turn(shift, yaw_turn), 0.0])
+    placed = release + np.array([*turn(shift, yaw_turn), 0.0])
     under, below = _supports(objects, skip, down, yaw, HALF_EXTENTS[src.type])
     if len(below) == 1:  # one box under the source: keep the load's centre of mass over it
-        move = _onto_support(objects[below[0]], down + _turn(com, yaw))
+        move = _onto_support(objects[below[0]], down + turn(com, yaw))
         if np.any(move):
             placed[:2] += move
             under, _ = _supports(objects, skip, down + move, yaw, HALF_EXTENTS[src.type])

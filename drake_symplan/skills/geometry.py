@@ -14,6 +14,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from drake_symplan.actions import Action, grasp_point, release_point
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.datasets import ObjectState
+from drake_symplan.relations import riders, top
 from drake_symplan.skills.carry import (
     STRIKE_DEPTH,
     careful_points,
@@ -21,7 +22,6 @@ from drake_symplan.skills.carry import (
     landing,
     landing_height,
     release_strikes,
-    riders,
     unpinchable,
 )
 from drake_symplan.world.hand import PALM_ABOVE_TCP, finger_strikes, palm_strikes
@@ -51,11 +51,6 @@ class InfeasibleAction(Exception):
     def __init__(self, message: str, obstacles: tuple[str, ...] = (), at: str = "grasp"):
         super().__init__(message)
         self.obstacles, self.at = tuple(obstacles), at
-
-
-def _top_z(o: ObjectState) -> float:
-    hx, hy, hz = HALF_EXTENTS[o.type]
-    return float(o.position[2] + hz * np.cos(o.tilt) + max(hx, hy) * np.sin(o.tilt))
 
 
 def grasp_yaw(o: ObjectState) -> float:
@@ -122,7 +117,7 @@ def action_geometry(action: Action, objects: dict[str, ObjectState],
             raise ValueError(f"unknown object {name!r} (objects: {sorted(objects)})")
     src = objects[action.source]
     grasp, release, turn_r = nominal_points(action, objects)
-    carry_z = max(MIN_CARRY_HEIGHT, max(_top_z(o) for o in objects.values()) + CARRY_CLEARANCE)
+    carry_z = max(MIN_CARRY_HEIGHT, max(top(o) for o in objects.values()) + CARRY_CLEARANCE)
     yaw_g = grasp_yaw(src)
     yaw_r = yaw_g + turn_r  # any quarter turn lines up faces
     plain = not riders(action.source, objects)
@@ -206,7 +201,7 @@ def nominal_points(action: Action, objects: dict[str, ObjectState]
     and a careful carry's shifts (action_geometry, arm_geometry)."""
     src, tgt = objects[action.source], objects[action.target]
     release = release_point(tgt.position, action)
-    release[2] = _top_z(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
+    release[2] = top(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
     return (grasp_point(src.position, action), release,
             fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"]))
 

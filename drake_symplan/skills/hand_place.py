@@ -37,8 +37,9 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_symplan.actions import Action
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
+from drake_symplan.relations import riders
 from drake_symplan.skills.arm_twin import ArmTwin
-from drake_symplan.skills.carry import release_strikes, riders
+from drake_symplan.skills.carry import release_strikes
 from drake_symplan.skills.geometry import action_geometry, arm_geometry
 from drake_symplan.world.hand import (
     finger_strikes,

@@ -20,12 +20,12 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_symplan.actions import Action
 from drake_symplan.datasets import ObjectState
+from drake_symplan.relations import riders
 from drake_symplan.skills.arm_clearance import link_strikes
 from drake_symplan.skills.carry import (
     CAREFUL_FINGER,
     CAREFUL_OPEN_SECONDS,
     CAREFUL_TCP_ACCELERATION,
-    riders,
 )
 from drake_symplan.skills.geometry import (
     ActionGeometry,

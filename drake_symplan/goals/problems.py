@@ -42,8 +42,9 @@ from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import write_atomic
 from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.data.exploration import left_workspace, random_action
-from drake_symplan.evaluation import goals
+from drake_symplan.goals import compiler, sampling
 from drake_symplan.json_files import read_json
+from drake_symplan.relations import SpecError, unmet
 from drake_symplan.world.scenes import (
     SceneError,
     as_saved,
@@ -81,7 +82,7 @@ def problem_seed(seed: int, attempt: int) -> int:
 def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float = 0.5,
                  reproducible: bool = False, task: str | None = None, start_k: int = 0):
     """(start, goal, info) for one random problem, or the reason it was dropped (a string);
-    with `task` (goals.TASKS) the goal is a structure k actions away, built by design, from
+    with `task` (sampling.TASKS) the goal is a structure k actions away, built by design, from
     a scattered scene, or (`start_k`) from two towers that start_k actions build there, any
     goal whose build takes one of the k (a tuple) actions, towers taken apart counted."""
     rng = np.random.default_rng(seed)
@@ -100,7 +101,7 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
     if isinstance(now, str):
         return now
     made = settle_goal(agent, start, first, now, actions, reproducible)
-    return made if isinstance(made, str) else (start, *made)
+    return made.split(":", 1)[0] if isinstance(made, str) else (start, *made)
 
 
 def _random_actions(agent, rng, now, k: int):
@@ -127,12 +128,12 @@ def _stacked_start(agent, rng, start, start_k: int):
     """The start scene (as its file reads back) with two towers that `start_k` designed
     actions build from the scattered `start` (what a goal then takes apart), or why not
     (a string, prefixed start_)."""
-    structures = goals.sample_structures(rng, start.object_states(), "towers", start_k)
+    structures = sampling.sample_structures(rng, start.object_states(), "towers", start_k)
     if isinstance(structures, str):
         return f"start_{structures}"
     try:
         made = build_goal(agent, start, structures, reproducible=False)
-    except goals.SpecError:
+    except SpecError:
         return "start_spec_refused"
     if isinstance(made, str):
         return "start_" + made.split(" ", 1)[0].removesuffix(":")
@@ -155,14 +156,14 @@ def _built_problem(agent, rng, start, task: str, k: int, reproducible: bool,
         objects = _perceived_objects(agent, start)
         if isinstance(objects, str):
             return objects
-        structures = goals.sample_goal(rng, objects, task, k)
+        structures = sampling.sample_goal(rng, objects, task, k)
     else:
-        structures = goals.sample_structures(rng, start.object_states(), task, k)
+        structures = sampling.sample_structures(rng, start.object_states(), task, k)
     if isinstance(structures, str):
         return structures
     try:
         made = build_goal(agent, start, structures, reproducible)
-    except goals.SpecError:
+    except SpecError:
         return "spec_refused"
     if isinstance(made, str):
         return made.split(" ", 1)[0].removesuffix(":")  # its class (not_built, ...), counted
@@ -180,8 +181,8 @@ def settle_goal(agent, start, first, now, actions: list[str], reproducible: bool
         return "trivial"
     try:  # as its file will read back
         goal = as_saved(scene_from_poses(*agent.robot.ground_truth_poses()))
-    except SceneError:
-        return "goal_invalid"
+    except SceneError as e:
+        return f"goal_invalid: {e}"
     shown = agent.look(goal)
     if shown.lost or displacement(end, beliefs.positions(shown.scene)) > GOAL_RERENDER_TOLERANCE:
         return "goal_unstable"
@@ -197,8 +198,8 @@ def settle_goal(agent, start, first, now, actions: list[str], reproducible: bool
 
 
 def build_goal(agent, start, structures: list, reproducible: bool = True):
-    """(goal, info) of the written goal `structures` (evaluation/goals.py) built by the
-    robot from the `start` scene, or why not (a string); goals.SpecError, before anything
+    """(goal, info) of the written goal `structures` (relations.py, compiled by goals/compiler.py) built by the
+    robot from the `start` scene, or why not (a string); SpecError, before anything
     moves, when the start cannot give them. The author checks the built scene against the
     structures on the simulator's poses (the goal's author may; a planner may not)."""
     seen = agent.look(start)
@@ -206,18 +207,14 @@ def build_goal(agent, start, structures: list, reproducible: bool = True):
         return "perception_start"
     objects = seen.scene.object_states()
     now, done = seen.scene, []
-    for action in goals.check(structures, objects):
+    for action in compiler.check(structures, objects):
         now = act(agent, now, action)
         if isinstance(now, str):
             return f"{now} at {action}"
         done.append(str(action))
-    truth = agent.robot.ground_truth_states()
-    positions = {n: o.position for n, o in truth.items()}
-    types = {n: o.type for n, o in truth.items()}
-    for structure in structures:
-        wrong = goals.holds(structure, positions, types)
-        if wrong is not None:
-            return f"not_built: {structure.text()!r}: {wrong}"
+    wrong = unmet(structures, agent.robot.ground_truth_states())
+    if wrong:
+        return f"not_built: {wrong[0]}"
     return settle_goal(agent, start, seen.scene, now, done, reproducible)
 
 

@@ -1,4 +1,4 @@
-"""Goals written in one line (evaluation/goals.py, `symplan goal`): each word's actions and
+"""Goals written in one line (goals/compiler.py, `symplan goal`): each word's actions and
 geometry, every spec the world cannot give refused in one line before anything runs, and a
 goal built by the robot holding what its spec names."""
 
@@ -8,7 +8,8 @@ import pytest
 from conftest import assert_bad_input, run
 
 from drake_symplan.actions import Action
-from drake_symplan.evaluation import goals
+from drake_symplan.goals import compiler, sampling
+from drake_symplan.relations import SpecError, parse, unmet
 from drake_symplan.world.scenes import ObjectSpec, Scene, load_scene, save_scene
 
 START = Scene([
@@ -23,62 +24,42 @@ START = Scene([
 
 def test_each_word_compiles_to_the_actions_that_build_it():
     objects = START.object_states()
-    build = goals.build_actions
-    assert build(goals.parse(["tower o3 o1 o0"]), objects) == [
+    build = compiler.build_actions
+    assert build(parse(["tower o3 o1 o0"]), objects) == [
         Action("o1", "center", "o0", "center"), Action("o3", "center", "o1", "center")]
-    assert build(goals.parse(["on o3 o4"]), objects) == [Action("o3", "center", "o4", "center")]
+    assert build(parse(["on o3 o4"]), objects) == [Action("o3", "center", "o4", "center")]
     # the long block lands 7.5 cm from the first support, towards the second
-    assert build(goals.parse(["bridge o4 o2 o5"]), objects) == [
+    assert build(parse(["bridge o4 o2 o5"]), objects) == [
         Action("o4", "center", "o2", "right")]
-    assert build(goals.parse(["bridge o4 o5 o2"]), objects) == [
+    assert build(parse(["bridge o4 o5 o2"]), objects) == [
         Action("o4", "center", "o5", "left")]
-    assert build(goals.parse(["row o0 o1 o3"]), objects) == [
+    assert build(parse(["row o0 o1 o3"]), objects) == [
         Action("o1", "center", "o0", "right"), Action("o3", "center", "o1", "right")]
-
-
-def test_each_word_names_its_geometry():
-    types = {"a": "cube", "b": "cube", "c": "cube", "L": "long"}
-    tower = goals.Structure("tower", ("a", "b", "c"))
-    stacked = {"a": [0.7, 0.0, 0.125], "b": [0.7, 0.0, 0.075], "c": [0.7, 0.0, 0.025]}
-    assert goals.holds(tower, stacked, types) is None
-    assert goals.holds(tower, {**stacked, "a": [0.7, 0.0, 0.175]}, types) == "a is not on b"
-    bridge = goals.Structure("bridge", ("L", "a", "b"))
-    spanned = {"L": [0.7, 0.075, 0.075], "a": [0.7, 0.0, 0.025], "b": [0.7, 0.15, 0.025]}
-    assert goals.holds(bridge, spanned, types) is None
-    assert goals.holds(bridge, {**spanned, "b": [0.7, 0.15, 0.075]}, types) == \
-        "L does not rest on b"
-    row = goals.Structure("row", ("a", "b", "c"))
-    spaced = {"a": [0.7, 0.0, 0.025], "b": [0.7, 0.075, 0.025], "c": [0.7, 0.15, 0.025]}
-    assert goals.holds(row, spaced, types) is None
-    assert "c is not 7.5 cm along y from b" in goals.holds(
-        row, {**spaced, "c": [0.7, 0.20, 0.025]}, types)
 
 
 def test_structures_build_on_what_the_ones_before_designed():
     objects = START.object_states()
-    specs = goals.parse(["row o0 o2", "tower o1 o0", "tower o3 o2", "bridge o4 o1 o3"])
-    goals.check(specs, objects)  # the supports stand 7.5 cm apart, tops level, by then
-    assert goals.build_actions(specs, objects) == [
+    specs = parse(["row o0 o2", "tower o1 o0", "tower o3 o2", "bridge o4 o1 o3"])
+    compiler.check(specs, objects)  # the supports stand 7.5 cm apart, tops level, by then
+    assert compiler.build_actions(specs, objects) == [
         Action("o2", "center", "o0", "right"), Action("o1", "center", "o0", "center"),
         Action("o3", "center", "o2", "center"), Action("o4", "center", "o1", "right")]
-    end = {n: o.position for n, o in goals.designed(specs[3], goals.designed(
-        specs[2], goals.designed(specs[1], goals.designed(specs[0], objects)))).items()}
+    designed = compiler.designed(specs[3], compiler.designed(
+        specs[2], compiler.designed(specs[1], compiler.designed(specs[0], objects))))
+    end = {n: o.position for n, o in designed.items()}
     assert end["o2"] == pytest.approx([0.60, -0.175, 0.025])  # 7.5 cm along y from o0
     assert end["o1"] == pytest.approx([0.60, -0.25, 0.075])
     assert end["o4"] == pytest.approx([0.60, -0.175, 0.125])  # across both towers' tops
-    types = {o.name: o.type for o in START.objects}
-    for structure in specs:
-        assert goals.holds(structure, end, types) is None, structure
-    with pytest.raises(goals.SpecError, match="supports' tops are not level"):
-        goals.check(goals.parse(["row o0 o2", "tower o1 o0", "bridge o4 o1 o2"]), objects)
-    with pytest.raises(goals.SpecError, match="o2 named twice"):  # moved by both
-        goals.check(goals.parse(["row o0 o2", "on o2 o3"]), objects)
+    assert unmet(specs, designed) == []
+    with pytest.raises(SpecError, match="supports' tops are not level"):
+        compiler.check(parse(["row o0 o2", "tower o1 o0", "bridge o4 o1 o2"]), objects)
+    with pytest.raises(SpecError, match="o2 named twice"):  # moved by both
+        compiler.check(parse(["row o0 o2", "on o2 o3"]), objects)
 
 
 @pytest.mark.parametrize("start, spec, why", [
     (START, "tower o0 o1 o0", "o0 named twice"),
     (START, "bridge o0 o2 o5", "o0 is a cube; a bridge needs a long block"),
-    (START, "bridge o4 o0 o5", "o0 and o5 stand 40 cm apart along y"),
     (START, "tower o9 o1", "o9 not in the start scene"),
     (START, "fly o1 o2", "unknown word 'fly'"),
     (START, "on o1", "on takes 2 objects, got 1"),
@@ -93,10 +74,45 @@ def test_a_spec_the_world_cannot_give_is_one_line_and_writes_nothing(tmp_path, c
     assert not out.exists()
 
 
-def test_an_unnamed_box_on_a_named_one_stays_so_the_spec_is_refused():
+def test_a_tower_above_the_arms_reach_is_refused_whatever_the_start():
+    import numpy as np
+
+    from drake_symplan.datasets import ObjectState
+
+    cubes = {f"c{i}": ObjectState(f"c{i}", "cube", np.array([0.5 + 0.06 * i, 0.0, 0.025]))
+             for i in range(9)}
+    with pytest.raises(SpecError, match="45 cm tall; the arm stacks up to 40 cm"):
+        compiler.check(parse([" ".join(["tower", *cubes])]), cubes)
+    assert len(compiler.check(parse([" ".join(["tower", *list(cubes)[:8]])]), cubes)) == 7
+
+
+def test_an_unnamed_box_on_a_named_one_is_set_down_first():
     rider = Scene([*START.objects[:5], ObjectSpec("o5", "cube", [0.60, 0.0, 0.075])])
-    with pytest.raises(goals.SpecError, match="o5 rests on o2 and is not named"):
-        goals.check(goals.parse(["tower o2 o3"]), rider.object_states())
+    assert compiler.check(parse(["tower o2 o3"]), rider.object_states()) == [
+        Action("o5", "center", "o2", "right"), Action("o2", "center", "o3", "center")]
+
+
+def test_a_bridge_whose_supports_stand_apart_brings_one_beside_the_other():
+    objects = START.object_states()  # o0 and o5 stand 40 cm apart along y
+    actions = compiler.check(parse(["bridge o4 o0 o5"]), objects)
+    assert actions == [Action("o5", "center", "o0", "right"), Action("o4", "center", "o0", "right")]
+    built = objects
+    for action in actions:
+        built = compiler._placed(built, action, beside=action.source == "o5")
+    assert unmet(parse(["bridge o4 o0 o5"]), built) == []
+
+
+def test_a_row_with_no_room_after_its_first_box_is_built_out_from_another():
+    edge = Scene([ObjectSpec("o0", "cube", [0.60, 0.36, 0.025]),
+                  ObjectSpec("o1", "cube", [0.75, 0.0, 0.025]),
+                  ObjectSpec("o2", "cube", [0.80, -0.20, 0.025])])
+    objects = edge.object_states()  # o0 stands 4 cm from the table's +y edge
+    actions = compiler.check(parse(["row o0 o1 o2"]), objects)
+    assert actions == [Action("o2", "center", "o1", "right"), Action("o0", "center", "o1", "left")]
+    built = objects
+    for action in actions:
+        built = compiler._placed(built, action, beside=True)
+    assert unmet(parse(["row o0 o1 o2"]), built) == []
 
 
 STACKED = Scene([*START.objects[:5], ObjectSpec("o5", "cube", [0.60, 0.0, 0.075])])  # on o2
@@ -104,19 +120,19 @@ STACKED = Scene([*START.objects[:5], ObjectSpec("o5", "cube", [0.60, 0.0, 0.075]
 
 def test_a_named_box_in_the_way_is_set_down_beside_the_nearest_free_box_first():
     objects = STACKED.object_states()
-    specs = goals.parse(["tower o2 o3", "on o5 o0"])
-    goals.check(specs, objects)
+    specs = parse(["tower o2 o3", "on o5 o0"])
+    compiler.check(specs, objects)
     # o5 rides on o2, which is to move: set down 7.5 cm along y from o2, then built as named
-    assert goals.build_actions(specs, objects) == [
+    assert compiler.build_actions(specs, objects) == [
         Action("o5", "center", "o2", "right"), Action("o2", "center", "o3", "center"),
         Action("o5", "center", "o0", "center")]
-    parked = goals._placed(objects, Action("o5", "center", "o2", "right"), beside=True)
+    parked = compiler._placed(objects, Action("o5", "center", "o2", "right"), beside=True)
     assert parked["o5"].position == pytest.approx([0.60, 0.075, 0.025])
     # a box that a structure built before stands on cannot be set down out of the way
     stacked = Scene([*START.objects[:1], ObjectSpec("o1", "cube", [0.60, -0.25, 0.075]),
                      *START.objects[2:]])  # o1 on o0
-    with pytest.raises(goals.SpecError, match="o2 rests on o0 or o4, which is built on before"):
-        goals.check(goals.parse(["on o2 o1", "on o0 o4"]), stacked.object_states())
+    with pytest.raises(SpecError, match="o2 rests on o0 or o4, which is built on before"):
+        compiler.check(parse(["on o2 o1", "on o0 o4"]), stacked.object_states())
 
 
 def test_a_goal_from_a_stacked_start_counts_the_boxes_set_down_in_its_k():
@@ -124,13 +140,13 @@ def test_a_goal_from_a_stacked_start_counts_the_boxes_set_down_in_its_k():
 
     objects, rng = STACKED.object_states(), np.random.default_rng(3)
     for k in (3, 4, 5):
-        structures = goals.sample_goal(rng, objects, "tower", (k,))
+        structures = sampling.sample_goal(rng, objects, "tower", (k,))
         assert not isinstance(structures, str), k
-        assert len(goals.build_actions(structures, objects)) == k
-    assert len(goals.build_actions(goals.sample_goal(rng, objects, "tower", (4, 6)),
+        assert len(compiler.build_actions(structures, objects)) == k
+    assert len(compiler.build_actions(sampling.sample_goal(rng, objects, "tower", (4, 6)),
                                    objects)) in (4, 6)
     # six boxes, five of them movable at most once, one in the way: six actions at most
-    assert isinstance(goals.sample_goal(rng, objects, "tower", (7,)), str)
+    assert isinstance(sampling.sample_goal(rng, objects, "tower", (7,)), str)
 
 
 @pytest.mark.slow
@@ -145,10 +161,7 @@ def test_the_hand_builds_what_the_specs_name(tmp_path, capsys, start, specs):
                         "--backend", "hand", "--json"], capsys)
     assert code == 0, err
     goal = load_scene(out)  # the written file, as a planner's goal would be read
-    positions = {o.name: o.position for o in goal.objects}
-    types = {o.name: o.type for o in goal.objects}
-    for structure in goals.parse(specs):
-        assert goals.holds(structure, positions, types) is None, structure
+    assert unmet(parse(specs), goal.object_states()) == []
     assert out.read_text().startswith(f"# goal: {'; '.join(specs)}\n")
 
 
@@ -156,23 +169,23 @@ def test_a_task_samples_a_structure_k_actions_away():
     import numpy as np
 
     objects, rng = START.object_states(), np.random.default_rng(0)
-    (tower,) = goals.sample_structures(rng, objects, "tower", 3)
+    (tower,) = sampling.sample_structures(rng, objects, "tower", 3)
     assert tower.word == "tower" and len(set(tower.objects)) == 4
-    assert len(goals.build_actions([tower], objects)) == 3
-    two = goals.sample_structures(rng, objects, "towers", 4)
+    assert len(compiler.build_actions([tower], objects)) == 3
+    two = sampling.sample_structures(rng, objects, "towers", 4)
     assert [s.word for s in two] == ["tower", "tower"] and min(len(s.objects) for s in two) >= 2
-    assert len(goals.build_actions(two, objects)) == 4
-    (row,) = goals.sample_structures(rng, objects, "row", 2)
+    assert len(compiler.build_actions(two, objects)) == 4
+    (row,) = sampling.sample_structures(rng, objects, "row", 2)
     assert all(objects[n].type == "cube" for n in row.objects)
-    assert goals.sample_structures(rng, objects, "row", 5) == "too_few_objects"  # 5 cubes
+    assert sampling.sample_structures(rng, objects, "row", 5) == "too_few_objects"  # 5 cubes
     for task, k, words in (("bridge", 2, ["row", "bridge"]),
                            ("bridge", 5, ["row", "tower", "tower", "bridge", "on"]),
                            ("mixed", 3, ["tower", "row", "bridge"])):
-        structures = goals.sample_structures(rng, objects, task, k)
+        structures = sampling.sample_structures(rng, objects, task, k)
         assert [s.word for s in structures] == words, task
-        goals.check(structures, objects)
-        assert len(goals.build_actions(structures, objects)) == k, (task, k)
-    assert goals.sample_structures(rng, objects, "bridge", 6) == "too_few_objects"  # 6 cubes
+        compiler.check(structures, objects)
+        assert len(compiler.build_actions(structures, objects)) == k, (task, k)
+    assert sampling.sample_structures(rng, objects, "bridge", 6) == "too_few_objects"  # 6 cubes
 
 
 @pytest.mark.slow
@@ -187,9 +200,7 @@ def test_problems_make_builds_a_tower_task(tmp_path, capsys):
     (spec,) = problem["spec"]
     assert spec.startswith("tower ") and len(problem["actions"]) == 2
     goal = load_scene(tmp_path / "p000" / "goal.yaml")
-    positions = {o.name: o.position for o in goal.objects}
-    types = {o.name: o.type for o in goal.objects}
-    assert goals.holds(goals.parse([spec])[0], positions, types) is None
+    assert unmet(parse([spec]), goal.object_states()) == []
 
 
 @pytest.mark.slow
@@ -207,10 +218,7 @@ def test_problems_make_takes_apart_a_start_of_towers(tmp_path, capsys):
     assert problem["k"] == len(problem["actions"]) == 4
     assert sum(" place(" in a and ":right)" in a for a in problem["actions"]) == 1
     goal = load_scene(tmp_path / "p000" / "goal.yaml")
-    positions = {o.name: o.position for o in goal.objects}
-    types = {o.name: o.type for o in goal.objects}
-    for spec in goals.parse(problem["spec"]):
-        assert goals.holds(spec, positions, types) is None
+    assert unmet(parse(problem["spec"]), goal.object_states()) == []
 
 
 @pytest.mark.parametrize("command, start", [("solve", "--start"), ("inspect", "--scene")])

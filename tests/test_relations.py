@@ -1,0 +1,99 @@
+"""The one geometry (relations.py): rests-on, riders, top, and each goal relation on scenes
+built to hold it and to miss it by a little."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drake_symplan.datasets import ObjectState
+from drake_symplan.relations import (
+    Relation,
+    SpecError,
+    parse,
+    rests_on,
+    riders,
+    top,
+    unmet,
+)
+
+
+def box(name, kind, x, y, z, yaw=0.0, tilt=0.0):
+    return ObjectState(name, kind, np.array([x, y, z], float), yaw, tilt)
+
+
+def scene(*boxes):
+    return {b.name: b for b in boxes}
+
+
+TOWER = scene(box("a", "cube", 0.7, 0.0, 0.125), box("b", "cube", 0.7, 0.0, 0.075),
+              box("c", "cube", 0.7, 0.0, 0.025))
+
+
+def test_top_rests_on_and_riders():
+    assert top(TOWER["c"]) == pytest.approx(0.05)
+    assert top(box("t", "long", 0.7, 0, 0.025, tilt=np.pi / 2)) == pytest.approx(0.15)
+    assert rests_on(TOWER["b"], TOWER["c"]) and not rests_on(TOWER["c"], TOWER["b"])
+    assert not rests_on(TOWER["a"], TOWER["c"])  # a rests on b, not on c
+    assert riders("c", TOWER) == ["b", "a"] and riders("a", TOWER) == []
+    # 1.4 cm above its support still rests (REST_TOL 1.5 cm); 2 cm does not
+    assert rests_on(box("u", "cube", 0.7, 0, 0.089), TOWER["c"])
+    assert not rests_on(box("u", "cube", 0.7, 0, 0.095), TOWER["c"])
+    # its centre 3.4 cm off a cube's centre: over the footprint grown by 1 cm; 3.6 cm: not
+    assert rests_on(box("u", "cube", 0.7, 0.034, 0.075), TOWER["c"])
+    assert not rests_on(box("u", "cube", 0.7, 0.036, 0.075), TOWER["c"])
+
+
+def test_on_and_tower_hold_wherever_they_stand_and_miss_by_a_little():
+    tower = parse(["tower a b c"])
+    assert unmet(tower, TOWER) == []
+    moved = {n: box(n, o.type, 0.5, -0.3, o.position[2]) for n, o in TOWER.items()}
+    assert unmet(tower, moved) == []  # anywhere on the table
+    lifted = {**TOWER, "a": box("a", "cube", 0.7, 0.0, 0.145)}
+    assert unmet(tower, lifted) == ["'tower a b c': a is not on b"]
+    tipped = {**TOWER, "a": box("a", "cube", 0.7, 0.0, 0.125, tilt=0.3)}
+    assert unmet(parse(["on a b"]), tipped) == ["'on a b': a is not on b"]
+    assert unmet(parse(["on a x"]), TOWER) == ["'on a x': x not seen"]
+
+
+def test_a_bridge_bears_on_both_supports():
+    supports = scene(box("a", "cube", 0.7, 0.0, 0.025), box("b", "cube", 0.7, 0.15, 0.025))
+    bridge = parse(["bridge L a b"])
+    assert unmet(bridge, {**supports, "L": box("L", "long", 0.7, 0.075, 0.075)}) == []
+    # slid 9 cm along y: its end overlaps a by 0.5 cm, under BEAR_OVERLAP (1 cm)
+    slid = {**supports, "L": box("L", "long", 0.7, 0.165, 0.075)}
+    assert unmet(bridge, slid) == ["'bridge L a b': L does not bear on a"]
+    fallen = {**supports, "L": box("L", "long", 0.7, 0.075, 0.025)}
+    assert unmet(bridge, fallen) == ["'bridge L a b': L does not bear on a"]
+    # across world x, over both: the supports stand along x instead
+    across = scene(box("a", "cube", 0.6, 0.0, 0.025), box("b", "cube", 0.75, 0.0, 0.025),
+                   box("L", "long", 0.675, 0.0, 0.075, yaw=np.pi / 2))
+    assert unmet(bridge, across) == []
+
+
+def test_a_row_stands_side_by_side_along_y_on_the_table():
+    row = parse(["row a b c"])
+    spaced = scene(*(box(n, "cube", 0.7, 0.075 * i, 0.025) for i, n in enumerate("abc")))
+    assert unmet(row, spaced) == []
+    touching = scene(*(box(n, "cube", 0.5, -0.2 + 0.05 * i, 0.025) for i, n in enumerate("abc")))
+    assert unmet(row, touching) == []
+    wide = {**spaced, "c": box("c", "cube", 0.7, 0.18, 0.025)}  # a 5.5 cm gap
+    assert unmet(row, wide) == ["'row a b c': c is not beside b along +y (gap 5.5 cm, "
+                                "0.0 cm across)"]
+    askew = {**spaced, "c": box("c", "cube", 0.725, 0.15, 0.025)}
+    assert "2.5 cm across" in unmet(row, askew)[0]
+    backwards = parse(["row c b a"])
+    assert len(unmet(backwards, spaced)) == 1
+    stacked = {**spaced, "c": box("c", "cube", 0.7, 0.075, 0.075)}
+    assert unmet(row, stacked) == ["'row a b c': b and c do not both stand on the table"]
+
+
+def test_specs_parse_into_relations_and_bad_ones_say_why():
+    assert parse(["tower o3 o1 o0", " on  a b "]) == [
+        Relation("tower", ("o3", "o1", "o0")), Relation("on", ("a", "b"))]
+    assert Relation("bridge", ("L", "a", "b")).pairs() == (("L", "a"), ("L", "b"))
+    for spec, why in (("", "an empty spec"), ("fly a b", "unknown word 'fly'"),
+                      ("bridge a b", "bridge takes 3 objects, got 2"),
+                      ("tower a b a", "a named twice")):
+        with pytest.raises(SpecError, match=why):
+            parse([spec])
