@@ -65,7 +65,9 @@ from drake_symplan.world.depth_sensor import CAMERA_NOISE
 
 DEPTH_SCALE = 0.001  # m per PNG unit written: millimetres, the RealSense SDK's and ROS's
 ROBOT_FILE = "robot.yaml"
-PNG_MODES = ("I;16", "I;16B", "I;16L")  # Pillow's 16-bit grayscale
+# Pillow's modes of a 16-bit grayscale PNG (older Pillows read them as "I"; an 8-bit one
+# is "L", a colour one "RGB", ...).
+PNG_MODES = ("I;16", "I;16B", "I;16L", "I")
 MAX_UNIT = np.iinfo(np.uint16).max
 ROTATION_TOLERANCE = 1e-6
 TABLE_BAND = 0.03  # m: a point this near z = 0 inside the workspace is the table's
