@@ -108,3 +108,45 @@ def test_every_numeric_option_has_a_type_that_says_its_range():
     assert len(found) > 40
     plain = {(words, flag) for words, flag, kind in found if kind in (int, float)}
     assert plain == PLAIN
+
+
+@pytest.fixture
+def read_only(monkeypatch, tmp_path):
+    """A folder in which no file can be made (EROFS), as on a read-only file system."""
+    import errno
+    import os
+    import tempfile
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    make = tempfile.mkstemp
+
+    def mkstemp(*args, dir=None, **kwargs):
+        if dir is not None and os.path.realpath(dir) == os.path.realpath(folder):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(folder))
+        return make(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    return folder
+
+
+@pytest.mark.parametrize("argv, out", [
+    (["scene", "sample", "--objects", "2"], "scene.yaml"),
+    (["collect", "--transitions", "10"], "data"),
+    (["collect", "--transitions", "10"], "data/deeper"),
+    (["problems", "make", "--objects", "2", "--k", "1", "--count", "1"], "set"),
+    (["operators", "--symbols", "symbols.npz"], "ops"),
+])
+def test_an_output_on_a_read_only_file_system_is_refused_before_any_work(argv, out, read_only,
+                                                                        capsys):
+    code, stdout, err = run([*argv, "--out", read_only / out], capsys)
+    assert_bad_input(code, stdout, err)
+    assert err.endswith(f": error: --out {read_only / out} cannot be written: {read_only}: "
+                        "Read-only file system\n")
+    assert list(read_only.iterdir()) == []
+
+
+def test_the_writability_probe_leaves_nothing(tmp_path):
+    options.check_output_dir(tmp_path / "a" / "b")
+    options.check_output_file(tmp_path / "x.yaml", "--out")
+    assert list(tmp_path.iterdir()) == []

@@ -14,6 +14,8 @@ from drake_symplan.cli.options import (
     MODELS,
     add_device_argument,
     add_json_argument,
+    check_output_dir,
+    check_output_file,
     nonnegative_float,
     positive_float,
     positive_int,
@@ -126,7 +128,9 @@ def train_config(args: argparse.Namespace):
 def cmd_train(args: argparse.Namespace) -> dict:
     from drake_symplan.learning.trainer import train
 
-    return train(train_config(args), resume=args.resume)
+    config = train_config(args)
+    check_output_dir(config.out)
+    return train(config, resume=args.resume)
 
 
 def parse_model_options(items: list[str]) -> dict:
@@ -146,6 +150,7 @@ def cmd_eval_effects(args: argparse.Namespace) -> dict:
     from drake_symplan.datasets import OUTCOMES
     from drake_symplan.evaluation.effects import evaluate_runs, format_summary, plot_errors
 
+    check_output_file(args.plot, "--plot")
     result = evaluate_runs(args.runs, args.data, OUTCOMES)
     if args.plot:
         result["plot"] = str(plot_errors(result["models"], args.plot))
@@ -158,6 +163,7 @@ def cmd_symbols(args: argparse.Namespace) -> dict:
     from drake_symplan.learning.gumbel import DEFAULT_MARGIN
     from drake_symplan.learning.readout import readout_dataset, uncertainty_counts
 
+    check_output_file(args.out, "--out")
     margin = DEFAULT_MARGIN if args.margin is None else args.margin
     symbols = readout_dataset(args.run, args.data, margin=margin)
     out = Path(args.out)

@@ -13,6 +13,7 @@ the status of a command killed by SIGPIPE (141), as other Unix tools do.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import json
 import math
@@ -94,6 +95,14 @@ class NegativeAnswer(dict):
 # Errors that mean the input was bad: reported in one line, exit status 2.
 BAD_INPUT = (CommandError, ValueError, FileNotFoundError, FileExistsError,
              NotADirectoryError, IsADirectoryError, PermissionError)
+# An OSError with one of these errnos is a place that cannot be written (or read): bad
+# input too, told in one line naming the path (a read-only file system, a full disk).
+FILE_ERRNOS = frozenset(getattr(errno, name) for name in (
+    "EROFS", "ENOSPC", "EDQUOT", "EACCES", "EPERM", "EFBIG", "ENAMETOOLONG", "ELOOP",
+    "ENOENT", "ENOTDIR", "EISDIR", "EEXIST", "EXDEV", "EMFILE", "ENFILE")
+    if hasattr(errno, name))
+# The options that name what a command writes, for an OSError that names no file.
+OUTPUT_OPTIONS = ("out", "record", "records", "plot", "work")
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -178,6 +187,19 @@ def one_line(error: BaseException) -> str:
     return re.sub(r"\s*\n\s*", " ", str(error)).strip()
 
 
+def file_problem(error: OSError, args: argparse.Namespace) -> str:
+    """'/mnt/ro/scene.yaml: Read-only file system' for an OSError while a command read or
+    wrote a file; one that names no file (a full disk under a library's writer) is told
+    with the command's output options."""
+    what = error.strerror or one_line(error)
+    if error.filename is not None:
+        both = f"{error.filename} -> {error.filename2}" if error.filename2 else error.filename
+        return f"{both}: {what}"
+    given = [f"--{k} {getattr(args, k)}" for k in OUTPUT_OPTIONS
+             if getattr(args, k, None) not in (None, "", False)]
+    return f"{what} (writing {', '.join(given)})" if given else what
+
+
 def run(parser: argparse.ArgumentParser, argv: list[str], name: str | None = None) -> int:
     """Parses `argv` with `parser`, runs its command and returns the exit status; bad
     input is one line on stderr, `NAME: error: ...` (NAME: `symplan CMD` by default). A
@@ -214,6 +236,12 @@ def run_command(parser: argparse.ArgumentParser, argv: list[str], name: str | No
         result = args.func(args)
     except BAD_INPUT as e:
         print(f"{name or 'symplan ' + command_name(args)}: error: {one_line(e)}",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except OSError as e:
+        if e.errno not in FILE_ERRNOS:
+            raise
+        print(f"{name or 'symplan ' + command_name(args)}: error: {file_problem(e, args)}",
               file=sys.stderr)
         return EXIT_BAD_INPUT
     if isinstance(result, int):  # the command printed its result itself

@@ -7,9 +7,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
+import tempfile
 from pathlib import Path
 
-from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
+from drake_symplan.agent.config import DEFAULT_SOLVE, GOAL_CHECKS, SolveConfig
 from drake_symplan.agent.planning_modes import PLANNING_MODES, mode_names
 from drake_symplan.cli.main import CommandError, bounded, nonnegative_int, positive_float
 from drake_symplan.cli.main import positive_int as positive_int  # the options' types, all here
@@ -147,6 +149,10 @@ def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
                    help="bilevel: when no skeleton refines, ask the symbolic planner for up "
                    "to this many more, each avoiding the moves of those before "
                    f"(default {DEFAULT_SOLVE.alternatives})")
+    p.add_argument("--goal-check", choices=GOAL_CHECKS, default=DEFAULT_SOLVE.goal_check,
+                   help="a goal written as relations (a spec) is judged by them wherever they "
+                   "stand (relations), or by every box within 5 cm of the example built "
+                   f"(scene, the paper's check) (default {DEFAULT_SOLVE.goal_check})")
 
 
 def solve_config(args: argparse.Namespace) -> SolveConfig:
@@ -156,7 +162,8 @@ def solve_config(args: argparse.Namespace) -> SolveConfig:
                            getattr(args, "max_replans", DEFAULT_SOLVE.max_replans),
                            not getattr(args, "no_refine", False),
                            getattr(args, "planning", DEFAULT_SOLVE.planning),
-                           getattr(args, "alternatives", DEFAULT_SOLVE.alternatives))
+                           getattr(args, "alternatives", DEFAULT_SOLVE.alternatives),
+                           getattr(args, "goal_check", DEFAULT_SOLVE.goal_check))
     except ValueError as e:
         raise CommandError(str(e).replace("max_replans", "--max-replans")
                            .replace("alternatives must", "--alternatives must")
@@ -222,20 +229,34 @@ def check_input_dir(path: Path | None, flag: str) -> None:
         raise CommandError(f"{flag} {path} {what}")
 
 
+def probe_writable(folder: Path, flag: str, path: Path) -> None:
+    """Bad input unless a file can be made in the existing `folder` (where `flag`'s `path`
+    is to be written): a probe file is created there and deleted again, so a read-only
+    file system or a folder not ours is told before any work, not after it."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".symplan-probe-", dir=folder)
+    except OSError as e:
+        raise CommandError(f"{flag} {path} cannot be written: {folder}: "
+                           f"{e.strerror or e}") from e
+    os.close(fd)
+    os.unlink(probe)
+
+
 def check_output_dir(path: Path | str, flag: str = "--out") -> None:
     """Bad input when the directory `path` cannot be made or used: it, or a folder it
-    would be made in, is a file."""
+    would be made in, is a file, or nothing can be written there."""
     path = Path(path)
     found = _nearest_existing(path)
     if found == path and not path.is_dir():
         raise CommandError(f"{flag} {path} is a file, not a directory")
     if not found.is_dir():
         raise CommandError(f"{flag} {path} cannot be made (in {found}, a file)")
+    probe_writable(found, flag, path)
 
 
 def check_output_file(path: Path | str | None, flag: str) -> None:
     """Bad input when the file `path` (when given) cannot be written: it is a directory,
-    or a folder it would be written in is a file."""
+    a folder it would be written in is a file, or nothing can be written there."""
     if path is None:
         return
     path = Path(path)
@@ -244,3 +265,6 @@ def check_output_file(path: Path | str | None, flag: str) -> None:
     found = _nearest_existing(path.parent)
     if not found.is_dir():
         raise CommandError(f"{flag} {path} cannot be written (in {found}, a file)")
+    probe_writable(found, flag, path)
+    if path.exists() and not os.access(path, os.W_OK):
+        raise CommandError(f"{flag} {path} cannot be written: it is read-only")

@@ -18,6 +18,7 @@ from drake_symplan.cli.options import (
     add_json_argument,
     add_planner_arguments,
     check_input_dir,
+    check_output_dir,
     check_output_file,
     nonnegative_float,
     nonnegative_int,
@@ -181,6 +182,7 @@ def cmd_operators(args) -> dict:
     from drake_symplan.symbolic.operators import LearnConfig, learn_operators
     from drake_symplan.symbolic.report import OPERATORS, write_operators
 
+    check_output_dir(args.out)
     config = LearnConfig(args.min_count, args.min_fraction, args.self_relations,
                          args.drop_uncertain)
     data, source = _load_symbols(args)
@@ -237,6 +239,7 @@ def cmd_bundle(args) -> dict:
         write_bundle,
     )
 
+    check_output_dir(args.out)
     if args.run is None and args.continuous is not None:
         ModelBundle.load(args.out)  # an existing bundle, or a one-line error
         for run in args.continuous:
