@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
@@ -39,6 +39,10 @@ class Reading:
     unary_uncertain: np.ndarray  # [n, P] bool
     relational_uncertain: np.ndarray  # [K, n, n] bool
     contacts: set = field(default_factory=set)  # {(a, b)} perceived in contact
+    # A goal of relations (relations.py): the (a, b) pairs they name, both ways round; its
+    # goal atoms are the relation atoms of those pairs alone (Abstraction.goal_atoms).
+    # None: a whole-scene goal.
+    pairs: frozenset | None = None
 
     @property
     def objects(self) -> tuple[str, ...]:
@@ -62,6 +66,22 @@ class Observation:
     scene: object
     reading: Reading | None
     boxes: Boxes
+    relations: tuple = ()  # a goal of relations (relations.Relation); (): a whole scene
+
+
+def relation_goal(goal: Observation, relations) -> Observation:
+    """The perceived example `goal` of `relations` as a goal of relations: its boxes only
+    the named ones (the others are free), its reading's goal atoms only those of the pairs
+    the relations name (Reading.pairs)."""
+    from drake_symplan.relations import named
+
+    names = [n for n in named(relations) if n in goal.boxes.names]
+    rows = [goal.boxes.names.index(n) for n in names]
+    boxes = Boxes(tuple(names), goal.boxes.features[rows],
+                  frozenset(p for p in goal.boxes.contacts if set(p) <= set(names)))
+    pairs = frozenset(q for r in relations for p in r.pairs() for q in (p, p[::-1]))
+    reading = None if goal.reading is None else replace(goal.reading, pairs=pairs)
+    return Observation(goal.scene, reading, boxes, tuple(relations))
 
 
 @dataclass(frozen=True)
@@ -200,8 +220,14 @@ class Abstraction:
         return self.atoms(reading, guess=True)[0]
 
     def goal_atoms(self, goal: Reading) -> frozenset:
-        """Unary atoms, and relation atoms only between objects in contact (paper IV-C)."""
-        return self.atoms(goal, contacts_only=True)[0]
+        """Unary atoms, and relation atoms only between objects in contact (paper IV-C);
+        of a goal of relations (Reading.pairs), the relation atoms between the objects in
+        contact of the pairs they name: the paper's contact-graph filter on the structure
+        a person asked for, not on the whole scene."""
+        atoms = self.atoms(goal, contacts_only=True)[0]
+        if goal.pairs is None:
+            return atoms
+        return frozenset(a for a in atoms if len(a) == 3 and (a[1], a[2]) in goal.pairs)
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""

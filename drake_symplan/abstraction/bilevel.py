@@ -132,6 +132,7 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
     t0 = time.perf_counter()
     search = search or Search()
     target = goal.boxes.where()
+    refiner.relations = goal.relations
     looked_at = _LookedAt()
     unverified = None  # the first skeleton, run on its symbols if nothing else is found
     searched = None  # the search's (plan, nearest), where it went before the skeletons

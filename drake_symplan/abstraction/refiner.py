@@ -27,6 +27,7 @@ from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS, goal_reached
 from drake_symplan.features import FEATURE_NAMES
 from drake_symplan.planning.budget import Budget
+from drake_symplan.relations import unmet
 from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Reposition, Step
 
 MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
@@ -160,6 +161,16 @@ class Refiner:
         # step of the plans from it takes them (Refusals.barred)
         self.refusals = Refusals()
         self.predictions = 0
+        # a goal of relations (relations.Relation): reached where the predicted boxes hold
+        # them, wherever they stand, as well as at the goal positions
+        self.relations: tuple = ()
+
+    def reached(self, boxes: Boxes, goal: dict[str, np.ndarray]) -> bool:
+        """Is the goal reached in the predicted `boxes`: every goal box within the limit of
+        its goal position (reaches_goal), or the goal's relations held?"""
+        if reaches_goal(boxes, goal, self.limit):
+            return True
+        return bool(self.relations) and not unmet(self.relations, boxes.object_states())
 
     def clears_way(self, start: Boxes, plan: Refined) -> bool:
         """Does `plan` move a box in the way of a refused step (Refusals.in_the_way)?"""
@@ -251,7 +262,7 @@ class Refiner:
                depth: int = 0) -> Refined | None:
         """`done` if its end reaches the goal, else with up to `extra_moves` moves of the
         boxes that are off their goal (the best three predicted first at each depth)."""
-        if reaches_goal(boxes, goal, self.limit):
+        if self.reached(boxes, goal):
             return done
         if depth >= self.extra_moves or budget.spent():
             return None
@@ -309,7 +320,7 @@ class Refiner:
         while frontier and not budget.spent():
             f, _, g, distance, boxes, done, deferred = heapq.heappop(frontier)
             if deferred is None:
-                if reaches_goal(boxes, goal, self.limit):
+                if self.reached(boxes, goal):
                     return done, done
                 nearest = min(nearest, (distance, done), key=lambda pair: pair[0])
                 in_the_way = self.refusals.in_the_way(boxes)

@@ -8,6 +8,8 @@ import dataclasses as dc
 from drake_symplan.agent.planning_modes import PLANNING_MODES
 from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PLANNERS
 
+GOAL_CHECKS = ("relations", "scene")
+
 
 @dc.dataclass(frozen=True)
 class SolveConfig:
@@ -20,7 +22,9 @@ class SolveConfig:
     geometric scorer) and boxes put down at their goal spot (agent/reposition.py);
     planning: a key of agent.planning_modes.PLANNING_MODES; alternatives: bilevel
     planning's skeletons beyond the first two when none refines (abstraction/bilevel.py:
-    skeletons)."""
+    skeletons); goal_check: how a problem made from a written goal (a spec) is judged,
+    "relations" (the relations it names, wherever they stand) or "scene" (every box within
+    5 cm of the built example, the paper's check); a goal scene alone is always "scene"."""
 
     planner: str = "fd"
     cpu_seconds: float = DEFAULT_TIMEOUT
@@ -30,8 +34,11 @@ class SolveConfig:
     refine: bool = True
     planning: str = "bilevel"
     alternatives: int = 0
+    goal_check: str = "relations"
 
     def __post_init__(self):
+        if self.goal_check not in GOAL_CHECKS:
+            raise ValueError(f"unknown goal check {self.goal_check!r}; one of {GOAL_CHECKS}")
         if self.planner not in PLANNERS:
             raise ValueError(f"unknown planner {self.planner!r}; one of {sorted(PLANNERS)}")
         if not self.cpu_seconds > 0:
@@ -61,7 +68,8 @@ class SolveConfig:
         flags = ["--planner", self.planner, "--timeout", f"{self.cpu_seconds:g}",
                  "--max-replans", str(self.max_replans), "--planning", self.planning]
         return (flags + ([] if self.refine else ["--no-refine"])
-                + (["--alternatives", str(self.alternatives)] if self.alternatives else []))
+                + (["--alternatives", str(self.alternatives)] if self.alternatives else [])
+                + (["--goal-check", self.goal_check] if self.goal_check != "relations" else []))
 
 
 DEFAULT_SOLVE = SolveConfig()

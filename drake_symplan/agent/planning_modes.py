@@ -39,6 +39,7 @@ import numpy as np
 
 from drake_symplan.boxes import goal_distances, goal_reached
 from drake_symplan.planning.budget import Budget
+from drake_symplan.relations import unmet
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, reaches
 
 if TYPE_CHECKING:
@@ -158,7 +159,10 @@ class PlanningMode:
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
         """At the plan's end: every box seen within the tolerance of its goal (also after
-        a skeleton that ran on its symbols, whose atoms can hold with a box far off)."""
+        a skeleton that ran on its symbols, whose atoms can hold with a box far off); a
+        goal of relations: its relations seen to hold (relations.unmet)."""
+        if goal.relations:
+            return not unmet(goal.relations, seen.scene.object_states())
         return goal_reached(goal_distances(seen.boxes.where(), goal.boxes.where()))
 
 
@@ -170,8 +174,10 @@ class SymbolicMode(PlanningMode):
         return self.abs.plan(now.reading, goal.reading, self.config.planner, self.budget())
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
-        """At the plan's end: the goal's atoms seen (the planner's own criterion)."""
-        return self.abs.goal_holds(seen.reading, goal_atoms)
+        """At the plan's end: the goal's atoms seen (the planner's own criterion), and a
+        goal of relations seen to hold."""
+        return self.abs.goal_holds(seen.reading, goal_atoms) and (
+            not goal.relations or super().goal_seen(seen, goal_atoms, goal))
 
 
 class _ContinuousModelMode(PlanningMode):
@@ -251,15 +257,13 @@ class _ContinuousModelMode(PlanningMode):
         the goal check decides. A skeleton run on its symbols: as a symbolic plan."""
         if not self.predicts_positions:
             return super().departs(step, predicted, seen, rest, believed, goal_atoms, goal)
-        from drake_symplan.abstraction.refiner import reaches_goal
-
         if predicted is None or not rest:
             return False
         off = off_prediction(predicted, seen)
         if not off or goal is None:
             return off
         end = self.refiner.rollout(seen.boxes, rest)
-        return not reaches_goal(end, goal.boxes.where(), self.refiner.limit)
+        return not self.refiner.reached(end, goal.boxes.where())
 
 
 class BilevelMode(_ContinuousModelMode):

@@ -40,7 +40,7 @@ import dataclasses as dc
 import time
 from contextlib import contextmanager
 
-from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
+from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan, relation_goal
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.offsets import GeometricScorer, choose
 from drake_symplan.abstraction.refiner import set_down_tips
@@ -49,7 +49,7 @@ from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.reposition import REPOSITIONS_PER_OBJECT, reposition_step
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
-from drake_symplan.relations import riders
+from drake_symplan.relations import riders, unmet
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
 from drake_symplan.symbolic.structs import PlanStep, Step
 from drake_symplan.world.visualization import StartMeshcat
@@ -99,6 +99,10 @@ class SolveResult:
     subgoals: int = 0
     # Steps the arm refused that were planned around (apart from the replans)
     refusals: int = 0
+    # A goal of relations: those not held in the last perceived scene (the verdict), and
+    # on the simulator's truth (evaluation only; no decision reads it)
+    unmet: list[str] | None = None
+    unmet_true: list[str] | None = None
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -121,6 +125,8 @@ class SolveResult:
             out["subgoals"] = self.subgoals
         if self.refusals:
             out["refusals"] = self.refusals
+        if self.unmet is not None:
+            out["relations"] = {"unmet": self.unmet, "unmet_true": self.unmet_true}
         if not self.success:
             out["failure_cause"] = self.failure_cause
             out["message"] = self.message
@@ -170,16 +176,18 @@ class Agent:
 
     def solve(self, start_scene, goal_scene, abstraction: Abstraction,
               config: SolveConfig = DEFAULT_SOLVE, record=None, on_plan=None,
-              given=None) -> SolveResult:
+              given=None, relations=()) -> SolveResult:
         """Solves `goal_scene` from `start_scene` (world.scenes.Scene); `record`: an HTML
         file for the Meshcat recording of the execution (with a Meshcat); `on_plan(plan,
         start, goal)` is told the first plan (abstraction.Plan, solved or not) and the
         perceived scenes (beliefs.Named) before anything moves; `given`: the actions the
-        oracle replays (a mode that needs_recorded_actions)."""
+        oracle replays (a mode that needs_recorded_actions); `relations`: a goal of
+        relations (relations.Relation), `goal_scene` an example of them, judged by the
+        relations alone wherever they stand (else: every box within 5 cm of the scene)."""
         beliefs.check_scene_pair(start_scene, goal_scene)
         clock = _Clock(self.robot)
         t0 = time.perf_counter()
-        run = _Run(self, abstraction, clock, config, on_plan, given)
+        run = _Run(self, abstraction, clock, config, on_plan, given, tuple(relations))
         try:
             goal = self.look(goal_scene, clock)
             with self.robot.recording(record):  # from the start scene on
@@ -216,8 +224,9 @@ class _Run:
     where nothing is read after the start)."""
 
     def __init__(self, agent: Agent, abstraction: Abstraction, clock: _Clock,
-                 config: SolveConfig, on_plan=None, given=None):
+                 config: SolveConfig, on_plan=None, given=None, relations: tuple = ()):
         self.agent, self.abs, self.clock, self.config = agent, abstraction, clock, config
+        self.relations = relations
         self.on_plan = on_plan
         self.planner = make_planner(abstraction, config, given)
         self.result = SolveResult("failure")
@@ -243,6 +252,8 @@ class _Run:
         try:
             with self.clock("symbols"):
                 self.goal = self.abs.observe(self.goal_scene)
+                if self.relations:
+                    self.goal = relation_goal(self.goal, self.relations)
                 self.goal_atoms = self.abs.goal_atoms(self.goal.reading)
                 self._perceived(start.scene)
             first = self._search()
@@ -292,7 +303,7 @@ class _Run:
         """Is there a step to run? Completing a plan on symbols, a repositioning goes first
         where a box the rest of the plan leaves alone is off its goal spot."""
         limit = REPOSITIONS_PER_OBJECT * len(self.scene.names)
-        if self._completes() and self.repositions < limit:
+        if self._completes() and self.repositions < limit and not self.relations:
             extra = reposition_step(self.rest, self.scene, self.goal_scene, GOAL_TOLERANCE)
             if extra is not None:
                 self.todo.insert(0, _Planned(extra))
@@ -430,15 +441,22 @@ class _Run:
         result.objects = beliefs.goal_report(beliefs.positions(self.goal_scene),
                                              beliefs.positions(final), truth)
         errors = {n: o["error_cm"] for n, o in result.objects.items()}
-        # error_cm is rounded to 0.01 cm: the check reads what the result reports
-        if goal_reached({n: None if e is None else e / 100 for n, e in errors.items()}) \
-                and cause != "perception":
+        if self.relations:
+            result.unmet = unmet(self.relations, final.object_states())
+            result.unmet_true = unmet(self.relations, self.agent.robot.ground_truth_states())
+            reached = not result.unmet
+        else:  # error_cm is rounded to 0.01 cm: the check reads what the result reports
+            reached = goal_reached({n: None if e is None else e / 100
+                                    for n, e in errors.items()})
+        if reached and cause != "perception":
             result.status = "success"
             return result
         if self.goal is not None and set(self.goal_scene.names) <= set(final.names):
             result.symbolic_goal_reached = self.abs.goal_holds(self.abs.read_scene(final),
                                                                self.goal_atoms)
-        if cause == "execution":
+        if cause == "execution" and self.relations:
+            message = message or f"not held: {'; '.join(result.unmet)}"
+        elif cause == "execution":
             far = {n: e for n, e in errors.items()
                    if e is not None and e > GOAL_TOLERANCE * 100}
             message = message or f"objects farther than {GOAL_TOLERANCE * 100:g} cm from " \
@@ -451,15 +469,17 @@ class _Run:
 
 def solve(start_scene, goal_scene, abstraction: Abstraction,
           config: SolveConfig = DEFAULT_SOLVE, meshcat=None, record=None,
-          robot: str = "arm", camera_noise: str = "none") -> SolveResult:
+          robot: str = "arm", camera_noise: str = "none", relations=()) -> SolveResult:
     """Solves one goal with a new robot (its cameras' sensor model `camera_noise`);
     `record`: write a Meshcat HTML recording there (a `meshcat` is started for it if none
-    is given). seconds["setup"] is the station build."""
+    is given); `relations`: a goal of relations, `goal_scene` an example (Agent.solve).
+    seconds["setup"] is the station build."""
     t0 = time.perf_counter()
     if record is not None and meshcat is None:
         meshcat = StartMeshcat()
     agent = Agent(robot, meshcat=meshcat, camera_noise=camera_noise)
     setup = time.perf_counter() - t0
-    result = agent.solve(start_scene, goal_scene, abstraction, config, record)
+    result = agent.solve(start_scene, goal_scene, abstraction, config, record,
+                         relations=relations)
     result.seconds["setup"] = setup
     return result

@@ -32,6 +32,7 @@ from drake_symplan.boxes import goal_reached
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
 from drake_symplan.goals.problems import load_problems, recorded_actions
 from drake_symplan.json_files import parse_json, type_name
+from drake_symplan.relations import parse
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene
 
@@ -68,12 +69,16 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
     given = None
     if PLANNING_MODES[config.planning].needs_recorded_actions:  # e.g. the oracle's replay
         given = recorded_actions(problem)
-    result = agent.solve(start, goal, abstraction, config, given=given)
+    relations = parse(problem["spec"]) if problem.get("spec") and \
+        config.goal_check == "relations" else []
+    result = agent.solve(start, goal, abstraction, config, given=given, relations=relations)
     return {
         "run": label, "problem": str(folder), "n_objects": problem["n_objects"],
         "k": problem["k"], "monitor": config.monitor, "status": result.status,
         "failure_cause": result.failure_cause, "message": result.message,
-        "success_true": true_success(result.objects, goal),
+        "goal": "relations" if relations else "scene",
+        "success_true": not result.unmet_true if relations else true_success(result.objects,
+                                                                              goal),
         "symbolic_goal_reached": result.symbolic_goal_reached, "plan_length": len(result.plan),
         "level": result.level,
         "executed": len(result.executed), "replans": result.replans,

@@ -47,7 +47,24 @@ def check(structures: list[Relation], objects: dict[str, ObjectState]) -> list[A
     each on what the ones before it designed (`build_actions`); SpecError, naming why,
     where no start or this start cannot give them."""
     check_names(structures, objects)
-    return build_actions(structures, objects)
+    return build_actions(with_supports(structures, objects), objects)
+
+
+def with_supports(structures: list[Relation], objects: dict[str, ObjectState]) -> list[Relation]:
+    """The structures, with a row of two towers' bottoms put first where a bridge spans
+    the towers' tops and the bottoms stand apart: what brings the supports together."""
+    tops = {t.objects[0]: t.objects[-1] for t in structures if t.word in ("on", "tower")}
+    rows = {frozenset(r.objects) for r in structures if r.word == "row"}
+    first = []
+    for s in structures:
+        span, a, b = s.objects if s.word == "bridge" else (None, None, None)
+        if a in tops and b in tops:
+            bottoms = (tops[a], tops[b])
+            cubes = all(objects[n].type == "cube" for n in bottoms)
+            if cubes and frozenset(bottoms) not in rows and not _bridge_fits(
+                    span, objects[bottoms[0]], objects[bottoms[1]]):
+                first.append(Relation("row", bottoms))
+    return first + list(structures)
 
 
 def check_names(structures: list[Relation], objects: dict[str, ObjectState]) -> None:
@@ -138,25 +155,46 @@ def _bridge_actions(s: Relation, objects: dict[str, ObjectState]) -> list[tuple[
                     f"{100 * BRIDGE_SPAN[1]:.0f} cm apart along y)")
 
 
+def _row_fits(s: Relation, objects: dict[str, ObjectState], i: int, at: np.ndarray,
+              yaw: float) -> bool:
+    """Would the row stand clear with its i-th box at `at` (xy), turned by `yaw`?"""
+    step = OFFSET_METRES["right"]
+    spots = [ObjectSpec(n, objects[n].type, [*(at + along_y((j - i) * step, 2)),
+                                             HALF_EXTENTS[objects[n].type][2]], yaw)
+             for j, n in enumerate(s.objects)]
+    return all(_free(spot, objects, set(s.objects)) for spot in spots)
+
+
+def _row_from(names: tuple[str, ...], i: int) -> list[tuple[Action, bool]]:
+    """A row's actions built out from its i-th box, each released beside its neighbour."""
+    after = [(Action(names[j], "center", names[j - 1], "right"), True)
+             for j in range(i + 1, len(names))]
+    before = [(Action(names[j], "center", names[j + 1], "left"), True)
+              for j in reversed(range(i))]
+    return after + before
+
+
 def _row_actions(s: Relation, objects: dict[str, ObjectState]) -> list[tuple[Action, bool]]:
-    """A row's actions, built out from the first of its boxes (its first box first) that
-    stands on the table with room for the whole row along y."""
-    names, step = s.objects, OFFSET_METRES["right"]
-    for i in range(len(names)):
-        anchor = objects[names[i]]
-        if not on_table(anchor):
-            continue
-        spots = [ObjectSpec(n, objects[n].type, [*(anchor.position[:2]
-                 + along_y((j - i) * step, 2)), HALF_EXTENTS[objects[n].type][2]], anchor.yaw)
-                 for j, n in enumerate(names) if j != i]
-        if all(_free(spot, objects, set(names)) for spot in spots):
-            after = [(Action(names[j], "center", names[j - 1], "right"), True)
-                     for j in range(i + 1, len(names))]
-            before = [(Action(names[j], "center", names[j + 1], "left"), True)
-                      for j in reversed(range(i))]
-            return after + before
-    raise SpecError(f"{s.text()!r}: no box of the row stands on the table with room for "
-                    f"{len(names)} boxes {100 * step:.1f} cm apart along y")
+    """A row's actions, built out from the first of its boxes that stands on the table with
+    room for the whole row along y; failing that, its first box is set down first beside
+    a box on the table where the row has room."""
+    names = s.objects
+    for i, n in enumerate(names):
+        if on_table(objects[n]) and _row_fits(s, objects, i, objects[n].position[:2],
+                                              objects[n].yaw):
+            return _row_from(names, i)
+    first = objects[names[0]]
+    for anchor in sorted((o for n, o in objects.items() if n not in names and on_table(o)),
+                         key=lambda o: float(np.linalg.norm(o.position[:2]
+                                                            - first.position[:2]))):
+        for side in ("right", "left"):
+            spot = _beside(first, anchor, side)
+            if _row_fits(s, objects, 0, np.asarray(spot.position[:2]), anchor.yaw) \
+                    and _free(spot, objects, set(names)):
+                return [(Action(names[0], "center", anchor.name, side), True),
+                        *_row_from(names, 0)]
+    raise SpecError(f"{s.text()!r}: the table has no room for {len(names)} boxes "
+                    f"{100 * OFFSET_METRES['right']:.1f} cm apart along y")
 
 
 def _structure_actions(s: Relation, objects: dict[str, ObjectState]) -> list[tuple[Action, bool]]:

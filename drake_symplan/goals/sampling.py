@@ -1,6 +1,7 @@
-"""Random goals of a kind (`problems make --task`): a tower, a row, two towers, a bridge
-on two towers, a tower beside a bridge, sampled on a start scene so that building them
-takes a given number of actions (compiler.check counts them)."""
+"""Random goals of a kind (`problems make --task`), sampled on a start scene: a tower, a
+row, two towers, a bridge on two towers, a tower beside a bridge, each so that building it
+takes a given number of actions (compiler.check counts them); or a goal as a person writes
+it (WRITTEN), whatever its build takes."""
 
 from __future__ import annotations
 
@@ -10,7 +11,30 @@ from drake_symplan.datasets import ObjectState
 from drake_symplan.goals.compiler import check
 from drake_symplan.relations import Relation, SpecError
 
-TASKS = ("tower", "row", "towers", "bridge", "mixed")  # `problems make --task`
+
+def _written(task: str, cubes: list[str], longs: list[str], names: list[str]
+             ) -> list[Relation] | str:
+    """The goals a person writes (module docstring), on randomly ordered names."""
+    if task == "tower4":
+        return [Relation("tower", tuple(names[:4]))] if len(names) >= 4 else "too_few_objects"
+    if task == "towers3":
+        return [Relation("tower", tuple(names[:3])), Relation("tower", tuple(names[3:6]))] \
+            if len(names) >= 6 else "too_few_objects"
+    if task == "row4":
+        return [Relation("row", tuple(cubes[:4]))] if len(cubes) >= 4 else "too_few_objects"
+    if not longs or len(cubes) < (2 if task == "bridge2" else 4):
+        return "too_few_objects"
+    if task == "bridge2":
+        return [Relation("bridge", (longs[0], *cubes[:2]))]
+    return [Relation("tower", tuple(cubes[:2])), Relation("tower", tuple(cubes[2:4])),
+            Relation("bridge", (longs[0], cubes[0], cubes[2]))]
+
+
+# Goals as a person writes them, whatever the number of actions their build takes: a tower
+# of 4, two towers of 3, a bridge over two cubes, a row of 4 cubes, a bridge on two towers
+# of 2 (the cubes' bottoms brought together: compiler.with_supports)
+WRITTEN = ("tower4", "towers3", "bridge2", "row4", "bridge_towers")
+TASKS = ("tower", "row", "towers", "bridge", "mixed", *WRITTEN)  # `problems make --task`
 
 
 def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState], task: str,
@@ -19,6 +43,9 @@ def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState],
     k + 1 boxes, a row of k + 1 cubes, two towers of k + 2 boxes, a bridge (`_bridge`), or
     a tower beside a bridge (mixed, k >= 3); or why the scene cannot give one (a string)."""
     names = [str(n) for n in rng.permutation(sorted(objects))]
+    if task in WRITTEN:
+        return _written(task, [n for n in names if objects[n].type == "cube"],
+                        [n for n in names if objects[n].type == "long"], names)
     if task in ("bridge", "mixed"):
         if k < (3 if task == "mixed" else 2):
             return "k_too_small"
