@@ -36,7 +36,7 @@ from drake_symplan.cli.options import (
     load_scene_pair,
     solve_config,
 )
-from drake_symplan.evaluation.goals import TASKS
+from drake_symplan.goals.sampling import TASKS
 
 
 def register(subparsers) -> None:
@@ -91,7 +91,7 @@ def _register_problems(subparsers) -> None:
                    help="keep a goal only if its actions, replayed from the start as saved, "
                    "reach it again (drops chaotic goals; the oracle then solves every one)")
     p.add_argument("--task", choices=TASKS, default=None,
-                   help="goals built by design, k actions away (evaluation/goals.py): a tower "
+                   help="goals built by design, k actions away (goals/compiler.py): a tower "
                    "of k + 1 boxes, a row of k + 1 cubes, two towers of k + 2 boxes, a "
                    "bridge (a row of two cubes, towers of k // 2 on them, a long block "
                    "across, a cube on it for an odd k), mixed: a tower beside a bridge; "
@@ -135,6 +135,7 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
     check_output_file(args.record, "--record")
+    structures = []
     if args.goal_spec:
         from drake_symplan.cli.goal_cmds import checked_specs, goal_of_specs
         from drake_symplan.cli.world_cmds import load_scene_file
@@ -158,7 +159,8 @@ def cmd_solve(args: argparse.Namespace) -> dict:
         with contextlib.redirect_stdout(sys.stderr):  # stdout is for the result
             meshcat = StartMeshcat()
     result = solve(start, goal, Abstraction(bundle), config, meshcat=meshcat,
-                   record=args.record, robot=args.backend, camera_noise=args.camera_noise)
+                   record=args.record, robot=args.backend, camera_noise=args.camera_noise,
+                   relations=structures if config.goal_check == "relations" else ())
     out = result.to_json()
     if args.goal_spec:
         out["goal_spec"] = [" ".join(spec.split()) for spec in args.goal_spec]
@@ -169,8 +171,11 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     if not args.json:
         print(f"{result.status}: {len(result.executed)} step(s) executed, {result.replans} "
               f"replan(s), {result.seconds['total']:.1f} s")
-        for name, o in result.objects.items():
-            print(f"  {name}: {o['error_cm']} cm from its goal")
+        if result.unmet is not None:
+            print(f"  relations: {'; '.join(result.unmet) if result.unmet else 'all held'}")
+        else:
+            for name, o in result.objects.items():
+                print(f"  {name}: {o['error_cm']} cm from its goal")
         if result.message:
             print(f"  {result.failure_cause}: {result.message}")
     if args.meshcat:
@@ -180,7 +185,7 @@ def cmd_solve(args: argparse.Namespace) -> dict:
 
 
 def cmd_problems_make(args: argparse.Namespace) -> dict:
-    from drake_symplan.evaluation.problems import make_problems
+    from drake_symplan.goals.problems import make_problems
 
     check_objects(args.objects)
     check_output_dir(args.out)
