@@ -1,13 +1,19 @@
 """Benchmark: perception accuracy and speed against the simulator's ground truth.
 
     python tools/bench_perception.py --json [--scenes 200] [--transitions 100] [--out FILE]
-        [--camera-noise none|realsense|heavy] [--problems DIR]
+        [--camera-noise none|realsense|heavy ...] [--problems DIR]
 
 Scenes of 2-8 objects built from arrangement units (single boxes with yaw jitter, towers,
 cubes on one or both ends of a long block, bridges, touching pairs, blocks that tip), each
 settled by physics before it is perceived. Identity association is measured on pick/place
 transitions executed by the arm on perceived beliefs. `--camera-noise` picks the depth
-sensor's model (world/depth_sensor.py; its calibration error is drawn from --seed).
+sensor's model (world/depth_sensor.py; its calibration error is drawn from --seed); given
+several (`--camera-noise none realsense`), each is benchmarked on the same scenes and
+`cost_over_none` says what perception costs under each against none (median wall and CPU
+time; on a shared machine CPU time is the steadier).
+`perceive_ms` splits each perception into its stages: sensing (the station's frames: the
+rendering and the sensor model, a simulator's cost), clouds (the depth filter: what a real
+camera's frames cost too) and fitting.
 `--problems DIR` perceives the start and goal scenes of a problem set (`symplan problems
 make`) instead of sampled ones: tall towers of blocks and cubes, as the solves see them.
 """
@@ -42,6 +48,7 @@ def bench_scenes(station, perceiver, n_scenes: int, seed: int, noise: DepthNoise
     rng = np.random.default_rng(seed)
     n_scenes = len(scenes) if scenes else n_scenes
     pos, yaw, type_ok, count_ok, contacts_ok, wall, cpu = [], [], [], [], [], [], []
+    stages = {}
     invented = missed = 0
     failures = []
     for i in tqdm(range(n_scenes), desc="scenes"):
@@ -52,6 +59,8 @@ def bench_scenes(station, perceiver, n_scenes: int, seed: int, noise: DepthNoise
         perceived = perceiver.perceive(station, noise, rng)
         wall.append(time.perf_counter() - t)
         cpu.append(time.process_time() - c)
+        for stage, seconds in perceiver.stage_seconds.items():
+            stages.setdefault(stage, []).append(seconds)
         r = compare(perceived, station.object_states(), station.contact_graph())
         for e in r["errors"].values():
             pos.append(e["position_mm"])
@@ -76,7 +85,9 @@ def bench_scenes(station, perceiver, n_scenes: int, seed: int, noise: DepthNoise
         "invented_objects": invented,
         "missed_objects": missed,
         "perceive_ms": {"median_wall": 1000 * statistics.median(wall),
-                        "median_cpu": 1000 * statistics.median(cpu)},
+                        "median_cpu": 1000 * statistics.median(cpu),
+                        **{f"median_{k}_wall": 1000 * statistics.median(v)
+                           for k, v in stages.items()}},
         "failures": failures[:20],
     }
 
@@ -140,7 +151,8 @@ def main() -> None:
     parser.add_argument("--transitions", type=int, default=100)
     parser.add_argument("--noise", type=float, default=0.0)
     parser.add_argument("--dropout", type=float, default=0.0)
-    parser.add_argument("--camera-noise", choices=tuple(CAMERA_NOISE), default="none")
+    parser.add_argument("--camera-noise", choices=tuple(CAMERA_NOISE), nargs="+",
+                        default=["none"])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--out", default="bench_perception.json")
@@ -149,30 +161,55 @@ def main() -> None:
     problems = [load_scene(f) for d in sorted(Path(args.problems).rglob("problem.json"))
                 for f in (d.parent / "start.yaml", d.parent / "goal.yaml")] \
         if args.problems else None
-    station = Station(StationConfig(cameras=default_cameras(), camera_noise=args.camera_noise,
+    runs = {name: bench_one(args, name, problems) for name in args.camera_noise}
+    result = {
+        "benchmark": "perception",
+        "cameras": [c.name for c in default_cameras()],
+        "noise": {"sigma": args.noise, "dropout": args.dropout},
+        "camera_noise": args.camera_noise[0] if len(runs) == 1 else args.camera_noise,
+        "cpu_threads_env": os.environ.get("LP_NUM_THREADS"),
+    }
+    if len(runs) == 1:
+        result.update(runs[args.camera_noise[0]])
+    else:
+        result["by_camera_noise"] = runs
+        if "none" in runs and args.scenes:
+            clean = runs["none"]["scenes"]["perceive_ms"]
+            result["cost_over_none"] = {
+                name: {k: round(r["scenes"]["perceive_ms"][f"median_{k}"] / clean[f"median_{k}"], 2)
+                       for k in ("wall", "cpu")} for name, r in runs.items()}
+    with open(args.out, "w") as f:
+        json.dump(result, f, indent=2)
+    print(json.dumps(result, indent=2) if args.json else json.dumps(summary(result)))
+
+
+def bench_one(args, camera_noise: str, problems) -> dict:
+    """The scenes' and the association's benchmarks under one sensor model."""
+    station = Station(StationConfig(cameras=default_cameras(), camera_noise=camera_noise,
                                     camera_seed=args.seed))
     perceiver = Perceiver()
     station.reset(sample_structured_scene(np.random.default_rng(0), 2))
     perceiver.perceive(station)  # renderer start-up is not per-state cost
-    result = {
-        "benchmark": "perception",
-        "cameras": [c.name for c in station.config.cameras],
-        "noise": {"sigma": args.noise, "dropout": args.dropout},
-        "camera_noise": args.camera_noise,
-        "cpu_threads_env": os.environ.get("LP_NUM_THREADS"),
-    }
+    out = {}
     if args.scenes:
-        result["scenes"] = bench_scenes(station, perceiver, args.scenes, args.seed,
-                                        DepthNoise(args.noise, args.dropout), problems)
+        out["scenes"] = bench_scenes(station, perceiver, args.scenes, args.seed,
+                                     DepthNoise(args.noise, args.dropout), problems)
     if args.transitions:
-        result["association"] = bench_association(station, perceiver, args.transitions,
-                                                  args.seed)
-    with open(args.out, "w") as f:
-        json.dump(result, f, indent=2)
-    print(json.dumps(result, indent=2) if args.json else
-          json.dumps({part: {k: v for k, v in result[part].items() if k != "failures"}
-                      for part in ("scenes", "association") if part in result}))
+        out["association"] = bench_association(station, perceiver, args.transitions,
+                                                args.seed)
+    return out
 
+
+def summary(result: dict) -> dict:
+    """The result without its failures (one run's, or each sensor model's)."""
+    def brief(run: dict) -> dict:
+        return {part: {k: v for k, v in run[part].items() if k != "failures"}
+                for part in ("scenes", "association") if part in run}
+
+    if "by_camera_noise" not in result:
+        return brief(result)
+    return {"by_camera_noise": {n: brief(r) for n, r in result["by_camera_noise"].items()},
+            "cost_over_none": result.get("cost_over_none")}
 
 if __name__ == "__main__":
     main()

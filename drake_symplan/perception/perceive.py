@@ -14,6 +14,7 @@ the simulator.
 from __future__ import annotations
 
 import dataclasses as dc
+import time
 
 import numpy as np
 
@@ -104,12 +105,14 @@ class Perceiver:
     action left alone anchor the fit (perception/tracking.py); without one every object
     is fitted from the points alone. Frames of a sensor with noise are read through
     `depth_filter` (several frames, filtered, levelled on the table); `readings` says what
-    each camera gave the last time.
+    each camera gave the last time, `stage_seconds` what each stage took (wall time:
+    `sensing` the station's frames, `clouds` their points, `fitting` the boxes).
     """
 
     def __init__(self, depth_filter: DepthFilter | None = None):
         self.depth_filter = depth_filter or DepthFilter()
         self.readings = []
+        self.stage_seconds: dict[str, float] = {}
 
     def perceive(self, station, noise=None, rng=None, prior: PerceivedScene | None = None
                  ) -> PerceivedScene:
@@ -117,17 +120,25 @@ class Perceiver:
         further, drawn from `rng` (a noisy sensor's default: the station's own stream)."""
         # The sensor's own noise comes from the station (its seed and the scene), so a
         # scene is seen alike whatever the caller's stream has drawn before.
+        t = time.perf_counter()
         views = station_views(station, self.depth_filter.frames)
+        sensing = time.perf_counter() - t
         if rng is None and station.sensor.active:
             rng = station.sensor_rng
-        return self.perceive_views(views, noise, rng, prior)
+        perceived = self.perceive_views(views, noise, rng, prior)
+        self.stage_seconds = {"sensing": sensing, **self.stage_seconds}
+        return perceived
 
     def perceive_views(self, views: DepthViews, noise=None, rng=None,
                        prior: PerceivedScene | None = None) -> PerceivedScene:
         """The scene `views` show."""
+        t = time.perf_counter()
         points = seg.crop(np.vstack(self.read_clouds(views, noise, rng)))
         points = seg.remove_inside(points, views.robot_shapes)
-        return self.perceive_points(points, prior)
+        t_clouds = time.perf_counter()
+        perceived = self.perceive_points(points, prior)
+        self.stage_seconds = {"clouds": t_clouds - t, "fitting": time.perf_counter() - t_clouds}
+        return perceived
 
     def read_clouds(self, views: DepthViews, noise=None, rng=None) -> list[np.ndarray]:
         """Each camera's world-frame points above the table's crop; `noise` (a
