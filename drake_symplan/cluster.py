@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -273,6 +274,7 @@ _local: dict = {}
 
 
 def _init_local(setup: Callable, setup_args: tuple, parent_pid: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the driver's to handle
     _local.update(state=setup(*setup_args), parent=parent_pid)
 
 
@@ -297,5 +299,9 @@ def run_jobs_local(setup: Callable, setup_args: tuple, job: Callable,
         futures = [pool.submit(_run_local, (key, job, *args)) for key, *args in jobs]
         for future in as_completed(futures):
             on_done(*future.result())
+    except KeyboardInterrupt:  # Ctrl-C: the workers stop now, as after kill -9
+        for process in list((pool._processes or {}).values()):
+            process.terminate()
+        raise
     finally:
         pool.shutdown(wait=False, cancel_futures=True)

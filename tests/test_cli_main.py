@@ -70,3 +70,47 @@ def test_a_scene_write_that_fails_is_one_line(monkeypatch, tmp_path, capsys):
     assert_bad_input(code, out, err)
     assert err == f"symplan scene sample: error: {path}: Read-only file system\n"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_is_one_line_and_exit_130(probe, capsys):
+    probe.append(KeyboardInterrupt())
+    assert run(["probe"], capsys) == (130, "", "symplan probe: interrupted\n")
+
+
+def test_ctrl_c_in_a_command_that_resumes_says_what_is_kept(monkeypatch, tmp_path, capsys):
+    from drake_symplan.data import collect
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(collect, "collect", interrupted)
+    code, out, err = run(["collect", "--transitions", "10", "--out", tmp_path / "d"], capsys)
+    assert (code, out) == (130, "")
+    assert err == ("symplan collect: interrupted; the shards written are kept and the same "
+                   "command resumes\n")
+
+
+def test_ctrl_c_during_a_parallel_collection_leaves_no_traceback(tmp_path):
+    """The real thing: SIGINT to `symplan collect` with two worker processes once its
+    first shard is written; the workers leave Ctrl-C to the parent, which ends the pool."""
+    import signal
+    import subprocess
+    import time
+    from pathlib import Path
+
+    out = tmp_path / "data"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "drake_symplan.cli.main", "collect", "--transitions", "400",
+         "--chunk-size", "5", "--workers", "2", "--out", str(out), "--no-progress"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.monotonic() + 240
+    while not list(out.glob("shard-*.npz")) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    stdout, err = proc.communicate(timeout=120)
+    assert (proc.returncode, stdout) == (130, "")
+    assert err == ("symplan collect: interrupted; the shards written are kept and the same "
+                   "command resumes\n")
+    assert {p.name for p in out.iterdir()} - {"manifest.json"} <= {
+        f"shard-{c:06d}.npz" for c in range(80)}

@@ -44,6 +44,20 @@ COMMAND_MODULES = [
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_CLOSED_STDOUT = 128 + 13  # as if killed by SIGPIPE
+EXIT_INTERRUPTED = 128 + 2  # Ctrl-C: as if killed by SIGINT
+
+# What a command interrupted with Ctrl-C (or killed) leaves, where it resumes; the data are
+# as after kill -9. A command not here writes its outputs whole at its end, if at all.
+INTERRUPTED = {
+    "collect": "the shards written are kept and the same command resumes",
+    "train": "the run keeps its last finished epoch in last.pt, if one finished; the same "
+             "command with --resume continues it",
+    "problems make": "the problems written are kept and the same command resumes",
+    "eval planning": "with --records, the solves recorded are kept and the same command "
+                     "resumes after them",
+    "reproduce": "the stages done are kept and the same command resumes",
+    "curve": "the points done are kept and the same command resumes",
+}
 
 # The commands in pipeline order, for `symplan --help`.
 PIPELINE = (
@@ -244,6 +258,12 @@ def run_command(parser: argparse.ArgumentParser, argv: list[str], name: str | No
         print(f"{name or 'symplan ' + command_name(args)}: error: {file_problem(e, args)}",
               file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        command = command_name(args)
+        kept = INTERRUPTED.get(command)
+        print(f"{name or 'symplan ' + command}: interrupted" + (f"; {kept}" if kept else ""),
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
     if isinstance(result, int):  # the command printed its result itself
         return result
     if result is not None and getattr(args, "json", False):
@@ -252,7 +272,11 @@ def run_command(parser: argparse.ArgumentParser, argv: list[str], name: str | No
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run(build_parser(), list(sys.argv[1:] if argv is None else argv))
+    try:
+        return run(build_parser(), list(sys.argv[1:] if argv is None else argv))
+    except KeyboardInterrupt:  # before a command started (its own is told in run_command)
+        print("symplan: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

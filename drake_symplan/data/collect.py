@@ -30,6 +30,7 @@ import math
 import multiprocessing as mp
 import os
 import queue as queue_lib
+import signal
 import subprocess
 import time
 from collections import Counter
@@ -201,6 +202,7 @@ _worker: dict = {}
 
 
 def _init_worker(config_dict: dict, progress, parent_pid: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it ends the pool
     config = CollectConfig(**config_dict)
     _worker.update(config=config, progress=progress, parent=parent_pid,
                    backend=collection_backend(*backend_args(config)))
