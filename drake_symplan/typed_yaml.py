@@ -11,6 +11,7 @@ that start with the file's name.
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import types
 import typing
@@ -21,12 +22,33 @@ import yaml
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
+def parse_yaml(text: str) -> object:
+    """`yaml.safe_load(text)`, with what Python refuses while reading it as a YAMLError:
+    nesting past the recursion limit, an integer past int()'s 4,300 digits."""
+    try:
+        return yaml.safe_load(text)
+    except RecursionError:
+        raise yaml.YAMLError("invalid YAML (nested too deeply)") from None
+    except ValueError as e:  # yaml's int(): "Exceeds the limit (4300 digits) ..."
+        raise yaml.YAMLError(f"invalid YAML ({str(e).split(';')[0]})") from None
+
+
 def yaml_problem(error: yaml.YAMLError) -> str:
-    """'invalid YAML (line L, column C)' for a parser error, positions counted from 1."""
+    """'invalid YAML (line L, column C)' for a parser error, positions counted from 1;
+    parse_yaml's own errors (no position) as they say."""
     mark = getattr(error, "problem_mark", None) or getattr(error, "context_mark", None)
     if mark is None:
-        return "invalid YAML"
+        text = str(error)
+        return text if text.startswith("invalid YAML (") else "invalid YAML"
     return f"invalid YAML (line {mark.line + 1}, column {mark.column + 1})"
+
+
+def read_text(path: Path) -> str:
+    """The UTF-8 text of file `path`; ValueError naming it when it is not UTF-8."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{path}: not UTF-8 text (byte {e.start})") from None
 
 
 def read_yaml(path: str | Path) -> object:
@@ -35,9 +57,24 @@ def read_yaml(path: str | Path) -> object:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
     try:
-        return yaml.safe_load(path.read_text())
+        return parse_yaml(read_text(path))
     except yaml.YAMLError as e:
         raise ValueError(f"{path}: {yaml_problem(e)}") from e
+
+
+def number(value) -> float | None:
+    """`value` as a finite float when it is a number (a YAML int or float, or text that
+    reads as one: YAML 1.1 takes 1e-3 for text), else None: a bool, other text, a list,
+    nan, inf, an integer too large for a float."""
+    if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
+        value = float(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        value = float(value)
+    except OverflowError:
+        return None
+    return value if math.isfinite(value) else None
 
 
 class _Mismatch(Exception):
@@ -67,11 +104,9 @@ def _convert(value, hint):
             return None
         raise _Mismatch
     if hint is float:
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
-        if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
-            return float(value)
-        raise _Mismatch
+        if (converted := number(value)) is None:
+            raise _Mismatch
+        return converted
     if hint in (bool, int, str):
         if isinstance(value, hint) and not (hint is int and isinstance(value, bool)):
             return value
@@ -106,8 +141,10 @@ def check_fields(cls: type, data: object, source: str) -> dict:
         try:
             out[key] = _convert(value, hints[key])
         except _Mismatch:
-            raise ValueError(f"{source}: {key}: expected {_type_name(hints[key])}, got "
-                             f"{type(value).__name__} {value!r}") from None
+            shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
+            what = "a finite float" if hints[key] is float else _type_name(hints[key])
+            raise ValueError(f"{source}: {key}: expected {what}, got "
+                             f"{type(value).__name__} {shown}") from None
     return out
 
 

@@ -57,7 +57,7 @@ def test_typed_loader_converts_and_checks_types(tmp_path):
         ("name: a\nrte: 1\nzz: 2\n", r"c.yaml: unknown keys \['rte', 'zz'\]; Example has \["),
         ("count: 1.5\n", r"c.yaml: count: expected int, got float 1.5"),
         ("count: true\n", r"c.yaml: count: expected int, got bool True"),
-        ("rate: fast\n", r"c.yaml: rate: expected float, got str 'fast'"),
+        ("rate: fast\n", r"c.yaml: rate: expected a finite float, got str 'fast'"),
         ("flag: 1\n", r"c.yaml: flag: expected bool, got int 1"),
         ("limit: x\n", r"c.yaml: limit: expected int \| None, got str 'x'"),
         ("options: [1]\n", r"c.yaml: options: expected dict, got list \[1\]"),

@@ -78,3 +78,63 @@ def test_a_scene_is_checked_as_its_file_reads_back(tmp_path):
     assert saved.objects[0].yaw == 0.1235
     save_scene(scene, tmp_path / "s.yaml")
     assert load_scene(tmp_path / "s.yaml") == saved
+
+
+# --- values YAML and Python accept and the world does not: one line naming file and field
+
+SCENE = ("objects:\n  - {{name: o0, type: cube, position: {position}, yaw: {yaw}}}\n"
+         "  - {{name: o1, type: cube, position: [0.6, 0.2, 0.025], yaw: 0}}\n")
+BIG = "9" * 400
+
+
+@pytest.mark.parametrize("position, yaw, problem", [
+    ("[0.7, 0.0, 0.025]", ".nan", "objects[0] (o0): yaw must be a finite number, got nan"),
+    ("[0.7, 0.0, 0.025]", ".inf", "objects[0] (o0): yaw must be a finite number, got inf"),
+    ("[0.7, 0.0, 0.025]", BIG, f"objects[0] (o0): yaw must be a finite number, got {BIG[:40]}..."),
+    ("[true, false, 0.025]", "0", "objects[0] (o0): position[0] must be a finite number, got true"),
+    (f"[{BIG}, 0, 0.025]", "0",
+     f"objects[0] (o0): position[0] must be a finite number, got {BIG[:40]}..."),
+    ("[.nan, 0, 0.025]", "0", "objects[0] (o0): position[0] must be a finite number, got nan"),
+    ("[0.7, 0.0]", "0", "objects[0] (o0): position must be a list of 3 numbers, got [0.7, 0.0]"),
+    ("[0.7, zero, 0.025]", "0",
+     "objects[0] (o0): position[1] must be a finite number, got 'zero'"),
+])
+def test_numbers_the_world_does_not_take_are_one_line_naming_the_field(
+        position, yaw, problem, tmp_path, capsys):
+    from conftest import assert_bad_input, run
+
+    path = tmp_path / "s.yaml"
+    path.write_text(SCENE.format(position=position, yaw=yaw))
+    code, out, err = run(["perceive", "--scene", path], capsys)
+    assert_bad_input(code, out, err)
+    assert err == f"symplan perceive: error: malformed scene file {path}: {problem}\n"
+
+
+@pytest.mark.parametrize("content, problem", [
+    (b"objects:\n  - {name: \xe9t\xe9, position: [0.7, 0, 0.025]}\n",
+     "scene file {path}: not UTF-8 text (byte 20)"),
+    (("objects: " + "[" * 5000 + "]" * 5000 + "\n").encode(),
+     "{path}: invalid YAML (nested too deeply)"),
+    (f"objects: [{'9' * 5000}]\n".encode(),
+     "{path}: invalid YAML (Exceeds the limit (4300 digits) for integer string conversion: "
+     "value has 5000 digits)"),
+])
+def test_a_file_python_cannot_read_is_one_line_naming_it(content, problem, tmp_path, capsys):
+    from conftest import assert_bad_input, run
+
+    path = tmp_path / "s.yaml"
+    path.write_bytes(content)
+    code, out, err = run(["perceive", "--scene", path], capsys)
+    assert_bad_input(code, out, err)
+    assert err == f"symplan perceive: error: {problem.format(path=path)}\n"
+
+
+def test_a_yaw_that_is_not_finite_is_refused_in_a_scene_built_in_code():
+    with pytest.raises(SceneError, match="^object 'a' yaw must be a finite number, got nan$"):
+        validate_scene(Scene([ObjectSpec("a", "cube", [0.7, 0, 0.025], float("nan"))]))
+
+
+def test_numbers_written_as_yaml_1_1_text_still_read(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text(SCENE.format(position="[7e-1, 0, 25e-3]", yaw="0"))
+    assert load_scene(path).objects[0].position == [0.7, 0.0, 0.025]

@@ -132,6 +132,8 @@ def validate_scene(scene: Scene) -> Scene:
             raise SceneError(f"object {o.name!r} position must be 3 finite numbers")
         if o.rpy is not None and (len(o.rpy) != 3 or not all(math.isfinite(v) for v in o.rpy)):
             raise SceneError(f"object {o.name!r} rpy must be 3 finite numbers")
+        if not math.isfinite(o.yaw):
+            raise SceneError(f"object {o.name!r} yaw must be a finite number, got {o.yaw}")
         x, y, _ = o.position
         if not (WORKSPACE_X[0] <= x <= WORKSPACE_X[1] and WORKSPACE_Y[0] <= y <= WORKSPACE_Y[1]):
             raise SceneError(
@@ -163,8 +165,31 @@ def validate_scene(scene: Scene) -> Scene:
     return scene
 
 
+def _shown(value) -> str:
+    text = repr(value).replace("True", "true").replace("False", "false")
+    return text if len(text) <= 40 else text[:40] + "..."
+
+
+def _number(value, field: str) -> float:
+    """`value` of the scene field `field` as a finite float; ValueError naming the field
+    when it is none (a bool, text, nan, inf, an integer too large for a float)."""
+    from drake_symplan.typed_yaml import number
+
+    converted = number(value)
+    if converted is None:
+        raise ValueError(f"{field} must be a finite number, got {_shown(value)}")
+    return converted
+
+
+def _numbers(value, field: str) -> list[float]:
+    """`value` of the scene field `field` as 3 finite floats (position, rpy)."""
+    if not isinstance(value, list) or len(value) != 3:
+        raise ValueError(f"{field} must be a list of 3 numbers, got {_shown(value)}")
+    return [_number(v, f"{field}[{k}]") for k, v in enumerate(value)]
+
+
 def scene_from_dict(data: object, source: str = "scene") -> Scene:
-    """Builds a Scene from parsed YAML, naming the first malformed field."""
+    """Builds a Scene from parsed YAML, naming the first malformed field and its rule."""
     if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
         raise SceneError(f"malformed {source}: expected a mapping with an 'objects' list")
     fields = {f.name for f in dc.fields(ObjectSpec)}
@@ -174,21 +199,26 @@ def scene_from_dict(data: object, source: str = "scene") -> Scene:
             raise SceneError(f"malformed {source}: objects[{i}] is not a mapping")
         unknown = set(item) - fields
         if unknown:
-            raise SceneError(f"malformed {source}: objects[{i}] has unknown keys {sorted(unknown)}")
+            raise SceneError(f"malformed {source}: objects[{i}] has unknown keys "
+                             f"{sorted(map(str, unknown))}")
         try:
-            rpy = None if item.get("rpy") is None else [float(v) for v in item["rpy"]]
-            yaw = float(item.get("yaw", 0.0))
+            for key in ("name", "position"):
+                if key not in item:
+                    raise ValueError(f"no {key}")
+            if not isinstance(item["name"], (str, int)) or isinstance(item["name"], bool):
+                raise ValueError(f"name must be text, got {_shown(item['name'])}")
+            rpy = None if item.get("rpy") is None else _numbers(item["rpy"], "rpy")
+            yaw = _number(item.get("yaw", 0.0), "yaw")
             if rpy is not None:
-                if len(rpy) != 3:
-                    raise ValueError(f"rpy must be [roll, pitch, yaw], got {rpy}")
                 if "yaw" in item and not math.isclose(yaw, rpy[2], abs_tol=1e-6):
                     raise ValueError(f"yaw {yaw} differs from rpy's yaw {rpy[2]}")
                 yaw = rpy[2]
             objects.append(ObjectSpec(
                 name=str(item["name"]), type=str(item.get("type", "cube")),
-                position=[float(v) for v in item["position"]], yaw=yaw, rpy=rpy))
-        except (KeyError, TypeError, ValueError) as e:
-            raise SceneError(f"malformed {source}: objects[{i}]: {e!r}") from e
+                position=_numbers(item["position"], "position"), yaw=yaw, rpy=rpy))
+        except ValueError as e:
+            named = f" ({item['name']})" if isinstance(item.get("name"), str) else ""
+            raise SceneError(f"malformed {source}: objects[{i}]{named}: {e}") from e
     return Scene(objects)
 
 
@@ -196,9 +226,11 @@ def scene_from_yaml(text: str, source: str | None = None) -> Scene:
     """A validated Scene from YAML text; `source` (e.g. "scene file F") prefixes errors."""
     import yaml
 
+    from drake_symplan.typed_yaml import parse_yaml
+
     where = source or "scene"
     try:
-        data = yaml.safe_load(text)
+        data = parse_yaml(text)
     except yaml.YAMLError as e:
         raise SceneError(f"malformed {where}: {e}") from e
     scene = scene_from_dict(data, where)
@@ -210,10 +242,16 @@ def scene_from_yaml(text: str, source: str | None = None) -> Scene:
 
 def load_scene(path: str | Path) -> Scene:
     """Loads and validates a scene YAML file."""
+    from drake_symplan.typed_yaml import read_text
+
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"scene file {path} does not exist")
-    return scene_from_yaml(path.read_text(), f"scene file {path}")
+    try:
+        text = read_text(path)
+    except ValueError as e:
+        raise SceneError(f"scene file {e}") from None
+    return scene_from_yaml(text, f"scene file {path}")
 
 
 def scene_from_poses(poses: dict, types: dict[str, str]):
