@@ -4,6 +4,8 @@ and `learning` trains on) and the symbols read out of them. No Drake and no torc
 from __future__ import annotations
 
 import dataclasses
+import zipfile
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -176,8 +178,10 @@ class SymbolDataset:
         try:
             with np.load(path, allow_pickle=False) as z:
                 arrays = {k: z[k] for k in z.files}
-        except (OSError, ValueError, TypeError) as e:  # TypeError: a .npy, not an .npz
-            raise ValueError(f"cannot read symbols file {path}: {e}") from e
+        except (OSError, ValueError, TypeError, EOFError, KeyError, zipfile.BadZipFile,
+                zlib.error) as e:  # TypeError: a .npy, not an .npz; the rest: cut short
+            raise ValueError(f"cannot read symbols file {path}: "
+                             f"{str(e).strip() or type(e).__name__}") from e
         return cls.from_arrays(arrays, f"symbols file {path}")
 
 

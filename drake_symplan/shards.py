@@ -11,13 +11,19 @@ A data set is a directory holding
 - `manifest.json`: at least `{"schema_version": 1}`; collection adds its own keys.
 
 Shards and the manifest are written atomically (`atomic.write_atomic`), so a reader
-never sees half a shard and an interrupted writer leaves no corrupt file behind.
+never sees half a shard and an interrupted writer leaves no corrupt file behind. A set
+damaged afterwards is told, naming the file, by every reader: a shard cut short or
+otherwise unreadable, and, where the manifest says a collection is complete (`status`
+"complete", its `config` giving `transitions` and `chunk_size`), a shard missing from
+it or one that is not its own.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +36,8 @@ SCHEMA_VERSION = 1
 MANIFEST = "manifest.json"
 SHARD_GLOB = "shard-*.npz"
 REQUIRED_KEYS = ("state", "action", "effect", "mask", "episode")
+# What numpy and zipfile raise on a shard file cut short or damaged.
+UNREADABLE = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error)
 
 
 def shard_path(out_dir: str | Path, index: int) -> Path:
@@ -89,22 +97,57 @@ def read_manifest(data_dir: str | Path) -> dict:
     return manifest
 
 
+def promised_shards(manifest: dict) -> int | None:
+    """How many shards (indices 0 to n - 1) the manifest of a complete collection says the
+    set holds; None where it promises none (a set still being collected, a view of one,
+    a set made by hand)."""
+    config = manifest.get("config")
+    if manifest.get("status") != "complete" or not isinstance(config, dict):
+        return None
+    total, size = config.get("transitions"), config.get("chunk_size")
+    if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in (total, size)):
+        return None
+    return -(-total // size)
+
+
 def shard_paths(data_dir: str | Path) -> list[Path]:
-    """The shard files of `data_dir` in index order; errors if there are none."""
+    """The shard files of `data_dir` in index order; errors if there are none, or, when
+    its manifest says the collection is complete, if one is missing or not its own."""
     data_dir = Path(data_dir)
-    read_manifest(data_dir)
+    manifest = read_manifest(data_dir)
     paths = sorted(data_dir.glob(SHARD_GLOB))
     if not paths:
         raise ValueError(f"data directory {data_dir} holds no {SHARD_GLOB} files")
+    n = promised_shards(manifest)
+    if n is not None:
+        names = {path.name for path in paths}
+        wanted = [shard_path(data_dir, c) for c in range(n)]
+        missing = [path for path in wanted if path.name not in names]
+        promise = (f"its manifest says the set is complete: {manifest['config']['transitions']}"
+                   f" transitions in {n} shards, {wanted[0].name} to {wanted[-1].name}")
+        if missing:
+            more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+            raise ValueError(f"{missing[0]} is missing{more}; {promise}")
+        stray = sorted(names - {path.name for path in wanted})
+        if stray:
+            more = f" (and {len(stray) - 1} more)" if len(stray) > 1 else ""
+            raise ValueError(f"{data_dir / stray[0]} is not a shard of this set{more}; "
+                             f"{promise}")
     return paths
+
+
+def _unreadable(path: Path, error: BaseException) -> ValueError:
+    """The one-line error of a shard file that cannot be read."""
+    detail = str(error).strip() or type(error).__name__
+    return ValueError(f"cannot read shard {path}: cut short or damaged ({detail})")
 
 
 def _read_shard(path: Path) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as z:
             fields = {key: z[key] for key in z.files}
-    except (OSError, ValueError) as e:
-        raise ValueError(f"cannot read shard {path}: {e}") from e
+    except UNREADABLE as e:
+        raise _unreadable(path, e) from e
     missing = [key for key in REQUIRED_KEYS if key not in fields]
     if missing:
         raise ValueError(f"shard {path} lacks arrays {missing}")
@@ -163,8 +206,11 @@ def fingerprint(data_dir: str | Path) -> str:
 
 def read_shard_arrays(path: str | Path, keys: tuple[str, ...]) -> dict[str, np.ndarray]:
     """Only the named arrays of one shard (those it has)."""
-    with np.load(path, allow_pickle=False) as z:
-        return {k: z[k] for k in keys if k in z.files}
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in keys if k in z.files}
+    except UNREADABLE as e:
+        raise _unreadable(Path(path), e) from e
 
 
 def load_extra(data_dir: str | Path, key: str, pad_value=None) -> np.ndarray | None:

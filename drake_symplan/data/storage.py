@@ -17,6 +17,7 @@ from drake_symplan.shards import (  # noqa: F401 - the format, re-exported for d
     REQUIRED_KEYS,
     SCHEMA_VERSION,
     SHARD_GLOB,
+    UNREADABLE,
     fingerprint,
     load_extra,
     load_transitions,
@@ -40,11 +41,12 @@ def existing_shards(data_dir: str | Path) -> dict[int, Path]:
 
 
 def shard_length(path: str | Path) -> int:
-    """Number of transitions in a shard; -1 if the file cannot be read."""
+    """Number of transitions in a shard; -1 if the file cannot be read (cut short or
+    damaged: a collection resumed there collects its chunk again)."""
     try:
         with np.load(path, allow_pickle=False) as z:
             return int(z["episode"].shape[0])
-    except (OSError, ValueError, KeyError):
+    except UNREADABLE:
         return -1
 
 
