@@ -114,3 +114,30 @@ def test_ctrl_c_during_a_parallel_collection_leaves_no_traceback(tmp_path):
                    "command resumes\n")
     assert {p.name for p in out.iterdir()} - {"manifest.json"} <= {
         f"shard-{c:06d}.npz" for c in range(80)}
+
+
+def test_bad_input_found_half_way_leaves_no_empty_folder(monkeypatch, tmp_path, capsys):
+    from pathlib import Path
+
+    fake = types.ModuleType("fake_cmds")
+
+    def command(args):
+        (Path(args.out) / "p000").mkdir(parents=True)  # as problems make does first
+        if args.keep:
+            (Path(args.out) / "kept.json").write_text("{}")
+        raise cli_main.CommandError("no such task")
+
+    def register(subparsers):
+        p = subparsers.add_parser("probe")
+        p.add_argument("--out")
+        p.add_argument("--keep", action="store_true")
+        p.set_defaults(func=command)
+
+    fake.register = register
+    monkeypatch.setitem(sys.modules, "fake_cmds", fake)
+    monkeypatch.setattr(cli_main, "COMMAND_MODULES", ["fake_cmds"])
+    out = tmp_path / "a" / "set"
+    assert run(["probe", "--out", out], capsys) == (2, "", "symplan probe: error: no such task\n")
+    assert list(tmp_path.iterdir()) == []
+    run(["probe", "--out", out, "--keep"], capsys)  # what was written stays, with its folders
+    assert sorted(p.name for p in out.iterdir()) == ["kept.json"]

@@ -227,3 +227,19 @@ def test_other_modules_can_add_eval_subcommands():
     args = parser.parse_args(["eval", "planning"])
     assert args.func(args) == {"planned": True}
     assert parser.parse_args(["eval", "effects", "run"]).runs == ["run"]
+
+
+@pytest.mark.parametrize("option, problem", [
+    ("n_unary=-1", "model 'relational' cannot run with options {'n_unary': -1}: "),
+    ("key_dim=nope", "model 'relational' cannot be made with options {'key_dim': 'nope'}: "),
+])
+def test_a_model_option_the_model_cannot_run_with_writes_no_run(option, problem, data_dir,
+                                                                tmp_path, capsys):
+    from conftest import assert_bad_input, run
+
+    out = tmp_path / "runs" / "r"
+    code, stdout, err = run(["train", "--model", "relational", "--data", data_dir, "--out", out,
+                             "--model-option", option, "--epochs", "1", "--no-progress"],
+                            capsys)
+    assert_bad_input(code, stdout, err, f"symplan train: error: {problem}")
+    assert list(tmp_path.iterdir()) == []

@@ -22,6 +22,7 @@ import re
 import select
 import sys
 import textwrap
+from pathlib import Path
 
 # Each module defines `register(subparsers)`, which adds its sub-commands and sets
 # `func` on them; a func takes the parsed args and returns a JSON-able dict (printed
@@ -230,6 +231,34 @@ def run(parser: argparse.ArgumentParser, argv: list[str], name: str | None = Non
     return code
 
 
+def new_folders(args: argparse.Namespace) -> list[Path]:
+    """The paths of the command's output options that do not exist yet, with their
+    ancestors that do not: what a command refused half-way may have made empty."""
+    found = []
+    for key in OUTPUT_OPTIONS:
+        value = getattr(args, key, None)
+        if isinstance(value, (str, os.PathLike)) and str(value):
+            path = Path(value).absolute()
+            while not path.exists() and path != path.parent:
+                found.append(path)
+                path = path.parent
+    return found
+
+
+def remove_empty(folders: list[Path]) -> None:
+    """Removes the empty folders in and of `folders` (made by the command: they did not
+    exist before it), deepest first: bad input leaves no empty folder behind, and whatever
+    was written in them stays, with the folders that hold it."""
+    for folder in sorted(set(folders), key=lambda p: len(p.parts), reverse=True):
+        if not folder.is_dir() or folder.is_symlink():
+            continue
+        for root, _, _ in os.walk(folder, topdown=False):
+            try:
+                os.rmdir(root)
+            except OSError:  # not empty
+                pass
+
+
 def stdout_closed() -> bool:
     """Whether stdout is a pipe whose reader has closed it."""
     try:
@@ -246,13 +275,16 @@ def run_command(parser: argparse.ArgumentParser, argv: list[str], name: str | No
         args = parser.parse_args(argv)
     except SystemExit as e:  # --help (0) or a usage error (2), already printed
         return e.code if isinstance(e.code, int) else EXIT_BAD_INPUT
+    made = new_folders(args)
     try:
         result = args.func(args)
     except BAD_INPUT as e:
+        remove_empty(made)
         print(f"{name or 'symplan ' + command_name(args)}: error: {one_line(e)}",
               file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as e:
+        remove_empty(made)
         if e.errno not in FILE_ERRNOS:
             raise
         print(f"{name or 'symplan ' + command_name(args)}: error: {file_problem(e, args)}",
@@ -264,6 +296,9 @@ def run_command(parser: argparse.ArgumentParser, argv: list[str], name: str | No
         print(f"{name or 'symplan ' + command}: interrupted" + (f"; {kept}" if kept else ""),
               file=sys.stderr)
         return EXIT_INTERRUPTED
+    except Exception:  # a bug, shown as such; an empty folder it made is not left
+        remove_empty(made)
+        raise
     if isinstance(result, int):  # the command printed its result itself
         return result
     if result is not None and getattr(args, "json", False):

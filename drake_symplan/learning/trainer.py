@@ -225,6 +225,30 @@ def _load_data(data_path: Path, seed: int):
     return arrays, data_fp, splits, sets
 
 
+def _trial_step(model, cfg: TrainConfig, train_set: TensorSet) -> None:
+    """The model's loss on two training transitions, before anything is written: model
+    options it cannot run with (n_unary=-1) or an objective the data cannot feed are bad
+    input now, not after the run directory is made. torch's random state is left as it
+    was, so the run is the same as without it."""
+    with_next = getattr(model, "transition_weight", 0.0) > 0
+    if with_next and train_set.next_state is None:
+        raise ValueError(f"{cfg.data}: the symbolic transition objective needs next_state "
+                         "in the data set")
+    was_training = model.training
+    with torch.random.fork_rng(devices=[]), torch.no_grad():
+        try:
+            model.eval()
+            model.training_loss(*train_set.batch(torch.arange(min(2, len(train_set))),
+                                                 with_next))
+        except (AttributeError, TypeError, ValueError, RuntimeError, IndexError) as e:
+            if not cfg.model_kwargs:
+                raise
+            raise ValueError(f"model {cfg.model!r} cannot run with options "
+                             f"{cfg.model_kwargs}: {e}") from e
+        finally:
+            model.train(was_training)
+
+
 def _start_log(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     with open(out / ckpt_io.LOG, "w", newline="") as f:
@@ -325,10 +349,17 @@ def train(cfg: TrainConfig, resume: bool = False) -> dict:
     arrays, data_fp, splits, sets = _load_data(data_path, cfg.seed)
 
     torch.manual_seed(cfg.seed)
-    model = make_model(cfg, arrays.state.shape[2], int(arrays.mask.sum(axis=1).max()))
+    try:
+        model = make_model(cfg, arrays.state.shape[2], int(arrays.mask.sum(axis=1).max()))
+    except (TypeError, AttributeError, RuntimeError) as e:
+        if not cfg.model_kwargs:
+            raise
+        raise ValueError(f"model {cfg.model!r} cannot be made with options "
+                         f"{cfg.model_kwargs}: {e}") from e
     if cfg.init is not None:  # the weights of an earlier run; normalised for this data
         _load_init(model, cfg.init)
     model.set_normalization(**normalization_stats(arrays.subset(splits["train"])))
+    _trial_step(model, cfg, sets["train"])  # before the run directory is made
     model.to(device)
     sets["train"] = sets["train"].to(device)
     run = _Run(cfg, out, data_fp, model, make_optimizer(model, cfg.lr),
