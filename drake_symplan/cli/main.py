@@ -4,8 +4,10 @@ runs the command and maps its outcome to the exit status.
 Every command keeps one contract, enforced here: exit status 0 when it did its job, 1
 when it ran but its answer is negative (no plan, unsolvable, timeout, infeasible action:
 the command returns a `NegativeAnswer`), 2 for bad input (a flag, a missing or malformed
-file: a `CommandError`, ValueError or file error), reported as ONE line on stderr,
-`symplan CMD: error: ...`, naming the file or flag, with nothing written. A reader that
+file, a place that cannot be written: a `CommandError`, ValueError or file error),
+reported as ONE line on stderr, `symplan CMD: error: ...`, naming the file or flag, with
+nothing written (empty folders it made are removed). Ctrl-C: one line saying what is
+kept, exit status 130. A reader that
 closes stdout early (`symplan data stats DIR | head -1`) ends the command quietly, with
 the status of a command killed by SIGPIPE (141), as other Unix tools do.
 """
