@@ -29,6 +29,12 @@ from drake_symplan.symbolic.pddl import problem_from_atoms
 from drake_symplan.symbolic.states import SymbolicState, check_name
 from drake_symplan.symbolic.structs import Atom, PlanStep, Step, Task, parse_step
 
+# A move's plan cost per box it carries, where a goal of relations leaves the order of
+# the moves free: the arm keeps a rider on 26 of 45 carries (the carry suite,
+# tools/bench_carry.py), -ln(26/45) at the operators' cost scale of 10. A whole-scene
+# goal is planned without it, as it always was.
+CARRY_COST = 5
+
 
 @dataclass
 class Reading:
@@ -39,10 +45,11 @@ class Reading:
     unary_uncertain: np.ndarray  # [n, P] bool
     relational_uncertain: np.ndarray  # [K, n, n] bool
     contacts: set = field(default_factory=set)  # {(a, b)} perceived in contact
-    # A goal of relations (relations.py): the (a, b) pairs they name, both ways round; its
-    # goal atoms are the relation atoms of those pairs alone (Abstraction.goal_atoms).
+    # A goal of relations (relations.py): the (a, b) pairs they name, both ways round, each
+    # with the layer its lower box stands in in the example (0: on the table); its goal
+    # atoms are the relation atoms of those pairs alone (Abstraction.goal_atoms, stages).
     # None: a whole-scene goal.
-    pairs: frozenset | None = None
+    pairs: dict | None = None
 
     @property
     def objects(self) -> tuple[str, ...]:
@@ -72,14 +79,20 @@ class Observation:
 def relation_goal(goal: Observation, relations) -> Observation:
     """The perceived example `goal` of `relations` as a goal of relations: its boxes only
     the named ones (the others are free), its reading's goal atoms only those of the pairs
-    the relations name (Reading.pairs)."""
-    from drake_symplan.relations import named
+    the relations name (Reading.pairs), each pair with the layer of its lower box."""
+    from drake_symplan.boxes import SIDE
+    from drake_symplan.relations import bottom, named
 
     names = [n for n in named(relations) if n in goal.boxes.names]
     rows = [goal.boxes.names.index(n) for n in names]
     boxes = Boxes(tuple(names), goal.boxes.features[rows],
                   frozenset(p for p in goal.boxes.contacts if set(p) <= set(names)))
-    pairs = frozenset(q for r in relations for p in r.pairs() for q in (p, p[::-1]))
+    states = goal.scene.object_states()
+    pairs = {}
+    for r in relations:
+        for upper, lower in r.pairs():
+            layer = max(0, int(round(bottom(states[lower]) / SIDE))) if lower in states else 0
+            pairs[(upper, lower)] = pairs[(lower, upper)] = layer
     reading = None if goal.reading is None else replace(goal.reading, pairs=pairs)
     return Observation(goal.scene, reading, boxes, tuple(relations))
 
@@ -159,15 +172,17 @@ def problem_text(task: Task, costs: bool) -> str:
 
 def plan_task(operators, domain: Callable[[], str], task: Task, planner: str = "fd",
               wall_seconds: float = DEFAULT_TIMEOUT, cpu_seconds: float | None = None,
-              penalties: Mapping[tuple[str, ...], int] | None = None) -> PlanResult:
+              penalties: Mapping[tuple[str, ...], int] | None = None,
+              carry_cost: int = 0) -> PlanResult:
     """Plans `task` with `operators`: Fast Downward's search on the task grounded here
     (planning/grounding.py, where `penalties` make moves of (source, target) pairs dearer)
     where its build has a search binary, else the planner on the PDDL `domain()` text
     (with action costs for Fast Downward; no penalties). `cpu_seconds`: a CPU budget,
-    `wall_seconds` then the wall-clock cap (planning/planners.py)."""
+    `wall_seconds` then the wall-clock cap (planning/planners.py); `carry_cost`: added per
+    rider a move carries (grounded here only)."""
     if planner == "fd" and search_binary() is not None:
         return fast_downward_task(operators, task, wall_seconds, cpu_seconds=cpu_seconds,
-                                  penalties=penalties)
+                                  penalties=penalties, carry_cost=carry_cost)
     options = {} if cpu_seconds is None else {"cpu_seconds": cpu_seconds}
     return plan_pddl(domain(), problem_text(task, costs=planner == "fd"), planner, wall_seconds,
                      **options)
@@ -257,26 +272,67 @@ class Abstraction:
         """Plans from start to goal within `budget` (planning.budget.Budget, from now;
         default DEFAULT_TIMEOUT CPU seconds). The `focus` objects first; only if that
         proves unsolvable, all of them, in the time left (`focus=False`: all of them). The
-        empty plan, without a planner call, when the goal's atoms hold already.
-        `penalties`: see `plan_task`."""
+        empty plan, without a planner call, when the goal's atoms hold already. A goal of
+        relations is planned stage by stage, the lowest pairs first (`stages`), where that
+        reaches it; else at once. `penalties`: see `plan_task`."""
         t0 = time.perf_counter()
         budget = budget or Budget.of_cpu(DEFAULT_TIMEOUT)
         task = self.task(start, goal)
+        found = None
+        if goal.pairs is not None:
+            found = self._plan_stages(task, start, goal, planner, budget, focus, penalties)
+        if found is None or not found.solved:
+            found = self._plan_task(task, start, goal, planner, budget, focus, penalties)
+        found.seconds = time.perf_counter() - t0
+        return found
+
+    def stages(self, goal: Reading, atoms: frozenset) -> list[frozenset]:
+        """A goal of relations' atoms in growing stages: those of its pairs whose lower box
+        stands in the lowest layer of the example, then those one layer up with them, and
+        so on (Reading.pairs' values): a structure planned from the bottom up, as a person
+        builds it, with no move that carries a built part."""
+        layers = sorted(set(goal.pairs.values()))
+        return [frozenset(a for a in atoms if goal.pairs[(a[1], a[2])] <= layer)
+                for layer in layers]
+
+    def _plan_stages(self, task: Task, start: Reading, goal: Reading, planner: str,
+                     budget: Budget, focus: bool, penalties) -> Plan | None:
+        """`task` planned stage by stage (`stages`), each from the state the plan before
+        it predicts; None where a stage finds no plan or the stages do not reach the goal."""
+        stages = self.stages(goal, task.goal)
+        if len(stages) < 2:
+            return None
+        state, steps = task.init, []
+        for atoms in stages:
+            found = self._plan_task(replace(task, init=state, goal=atoms), start, goal,
+                                    planner, budget, focus, penalties)
+            if not found.solved:
+                return None
+            for step in found.steps:
+                state = step.apply(state)
+            steps += found.steps
+        if not task.goal <= state:
+            return None
+        return Plan("solved", steps, 0.0, "", planner)
+
+    def _plan_task(self, task: Task, start: Reading, goal: Reading, planner: str,
+                   budget: Budget, focus: bool, penalties) -> Plan:
+        """`task` planned on its focus objects, then on all (`plan`)."""
         objects = self.focus(task, start, goal)
         if objects and not focus:
             objects = task.objects
         if not objects:
-            return Plan("solved", [], time.perf_counter() - t0, "", planner)
+            return Plan("solved", [], 0.0, "", planner)
         for subset in ([objects, None] if len(objects) < len(task.objects) else [None]):
             sub = task if subset is None else task.restricted(subset)
             domain = partial(self.bundle.domain_for, len(sub.objects), planner == "fd")
             found = plan_task(self.bundle.planned, domain, sub, planner,
                               max(budget.wall_left(), 1e-3), max(budget.cpu_left(), 1e-3),
-                              penalties)
+                              penalties, CARRY_COST if goal.pairs is not None else 0)
             if found.status != "unsolvable":
                 break
         steps = [self.step(s) for s in found.plan] if found.solved else []
-        return Plan(found.status, steps, time.perf_counter() - t0, found.message, planner)
+        return Plan(found.status, steps, 0.0, found.message, planner)
 
     def step(self, text: str) -> PlanStep:
         """A plan step as the planner (or a record) writes it, parsed on the bundle's

@@ -170,8 +170,34 @@ class SymbolicMode(PlanningMode):
     name = "symbolic"
     help = "plans from the symbols alone"
 
+    def __init__(self, abstraction: Abstraction, config: SolveConfig,
+                 given: list[Action] | None = None):
+        super().__init__(abstraction, config, given)
+        # costs added to the moves of (source, target, ...) the arm refused or missed in
+        # this solve, so that the planner tries another way while one is left
+        self.penalties: Counter = Counter()
+
     def _plan(self, now: Observation, goal: Observation) -> Plan:
-        return self.abs.plan(now.reading, goal.reading, self.config.planner, self.budget())
+        return self.abs.plan(now.reading, goal.reading, self.config.planner, self.budget(),
+                             penalties=dict(self.penalties))
+
+    def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None,
+                at: str = "") -> None:
+        """A step the arm would not run costs more in the plans after it."""
+        from drake_symplan.abstraction.bilevel import PENALTY
+
+        if isinstance(step, Step):
+            self.penalties[tuple(step.args)] += PENALTY
+
+    def observed(self, step: PlanStep, predicted: Boxes | None, before: Observation,
+                 seen: Observation) -> None:
+        """A step after which nothing moved, or whose operator's prediction did not come
+        true, costs more in the plans after it."""
+        from drake_symplan.abstraction.bilevel import PENALTY
+
+        if isinstance(step, Step) and (nothing_moved(before, seen)
+                                       or self.abs.mismatches(seen.reading, step)):
+            self.penalties[tuple(step.args)] += PENALTY
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
         """At the plan's end: the goal's atoms seen (the planner's own criterion), and a

@@ -238,6 +238,7 @@ class _Run:
         self.believed = frozenset()
         self.todo: list[_Planned] = []
         self.repositions = 0
+        self.refused: set = set()  # actions the arm refused in the scene as it stands
 
     @property
     def rest(self) -> list[PlanStep]:
@@ -329,7 +330,8 @@ class _Run:
                                      self.goal_scene.contacts)
             boxes = Boxes.of(self.scene)
             return choose(self.abs.bundle.planning, step, self.rest, self.believed,
-                          self.goal_atoms, scorer, lambda a: set_down_tips(boxes, a),
+                          self.goal_atoms, scorer,
+                          lambda a: a in self.refused or set_down_tips(boxes, a),
                           boxes.riding)
 
     def _execute(self, planned: _Planned) -> None:
@@ -339,9 +341,11 @@ class _Run:
         with self.clock("execute"):
             execution = self.agent.robot.execute(step.action, self.scene, lift=False)
         if execution.status == "infeasible":
+            self.refused.add(step.action)
             self._refused(step, f"{step}: {execution.message}", execution.obstacles,
                           execution.at)
             return
+        self.refused.clear()
         self.result.executed.append(step)
         if execution.status != "ok":
             raise _Stop(self.scene, "error", f"{step}: {execution.message}")

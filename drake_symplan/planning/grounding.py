@@ -115,11 +115,12 @@ def _reachable(operators: tuple[LiftedOperator, ...], objects: tuple[str, ...],
 
 
 def ground(operators: Sequence[LiftedOperator], task: Task,
-           penalties: Mapping[tuple[str, ...], int] | None = None) -> GroundTask:
+           penalties: Mapping[tuple[str, ...], int] | None = None,
+           carry_cost: int = 0) -> GroundTask:
     """The task's reachable actions and variables (module docstring); `penalties`: cost
     added to every action whose arguments begin with the key: (source, target) for every
     move of the pair whatever its offsets, longer keys for those that also name the
-    others (a carry's riders)."""
+    others (a carry's riders); `carry_cost`: added per rider an action carries."""
     penalties = penalties or {}
     lengths = sorted({len(key) for key in penalties})
     found, facts = _reachable(tuple(operators), tuple(task.objects), frozenset(task.init))
@@ -128,8 +129,9 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
     for (op, args), (pre, add, delete) in found.items():
         act = GroundAction(f"{op.name} {' '.join(args)}", pre & changing, add - pre,
                            delete & changing,
-                           op.cost + sum(penalties.get(args[:n], 0) for n in lengths
-                                             if n <= len(args)))
+                           op.cost + carry_cost * max(0, len(args) - 2)
+                           + sum(penalties.get(args[:n], 0) for n in lengths
+                                 if n <= len(args)))
         if act.add or act.delete:
             kept.append(act)
     return GroundTask(sorted(changing), kept, frozenset(task.init) & changing,
@@ -166,12 +168,13 @@ def sas_text(task: GroundTask) -> str:
 def fast_downward_task(operators: Sequence[LiftedOperator], task: Task,
                        wall_seconds: float = DEFAULT_TIMEOUT, search: str = FD_SEARCH,
                        cpu_seconds: float | None = None,
-                       penalties: Mapping[tuple[str, ...], int] | None = None) -> PlanResult:
+                       penalties: Mapping[tuple[str, ...], int] | None = None,
+                       carry_cost: int = 0) -> PlanResult:
     """Fast Downward's search on `task` grounded here (with `penalties`, see `ground`);
     the grounding's CPU time (this thread's: `eval operators` plans in threads) counts
     against `cpu_seconds` and its seconds against `wall_seconds`."""
     start, cpu0 = time.perf_counter(), time.thread_time()
-    grounded = ground(operators, task, penalties)
+    grounded = ground(operators, task, penalties, carry_cost)
 
     def result(status, message=""):
         return PlanResult(status, [], time.perf_counter() - start, message, "fd")
