@@ -34,6 +34,7 @@ from drake_symplan.cli.options import (
     check_output_file,
     load_bundle,
     load_scene_pair,
+    probability,
     solve_config,
 )
 from drake_symplan.goals.sampling import TASKS
@@ -94,8 +95,12 @@ def _register_problems(subparsers) -> None:
                    help="goals built by design, k actions away (goals/compiler.py): a tower "
                    "of k + 1 boxes, a row of k + 1 cubes, two towers of k + 2 boxes, a "
                    "bridge (a row of two cubes, towers of k // 2 on them, a long block "
-                   "across, a cube on it for an odd k), mixed: a tower beside a bridge; "
+                   "across, a cube on it for an odd k), mixed: a tower beside a bridge; many: "
+                   "towers, bridges on towers and rows on boxes of their own; tower4, "
+                   "towers3, bridge2, row4, bridge_towers: goals as a person writes them; "
                    "default: k random actions")
+    p.add_argument("--long-fraction", type=probability, default=0.5,
+                   help="the share of long blocks among the start's boxes (default 0.5)")
     p.add_argument("--start-k", type=nonnegative_int, default=0,
                    help="with --task: the start is two towers that this many actions build "
                    "from scattered boxes, and a goal whose build takes any of the k is kept, "
@@ -192,7 +197,8 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
                             reproducible=args.reproducible, camera_noise=args.camera_noise,
-                            task=args.task, start_k=args.start_k)
+                            task=args.task, start_k=args.start_k,
+                            long_fraction=args.long_fraction)
     out = {"out": str(args.out), **summary}
     if not args.json:
         print(f"{summary['kept']} problem(s) in {args.out} after {summary['attempts']} "

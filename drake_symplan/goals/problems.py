@@ -86,7 +86,10 @@ def make_problem(agent, seed: int, n_objects: int, k: int, long_fraction: float 
     a scattered scene, or (`start_k`) from two towers that start_k actions build there, any
     goal whose build takes one of the k (a tuple) actions, towers taken apart counted."""
     rng = np.random.default_rng(seed)
-    start = sample_scene(rng, n_objects, long_fraction=long_fraction)
+    try:
+        start = sample_scene(rng, n_objects, long_fraction=long_fraction)
+    except SceneError:  # so many boxes that they do not fit apart
+        return "start_crowded"
     if task is not None:
         if start_k:
             start = _stacked_start(agent, rng, start, start_k)
@@ -247,7 +250,8 @@ def replay(agent, start, actions: list[Action]):
 def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: str = "arm",
                   max_attempts: int | None = None, agent=None, progress=None,
                   reproducible: bool = False, camera_noise: str = "none",
-                  task: str | None = None, start_k: int = 0) -> dict:
+                  task: str | None = None, start_k: int = 0,
+                  long_fraction: float = 0.5) -> dict:
     """Writes `count` non-trivial problems with `n_objects` objects to `out_dir`/pNNN.
 
     `k`: actions per problem, an int or a list taken in turn; `start_k` (with `task`): the
@@ -273,6 +277,8 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
         settings["task"] = task
     if start_k:
         settings["start_k"] = start_k
+    if long_fraction != 0.5:  # only then, so that sets made before still resume
+        settings["long_fraction"] = long_fraction
     stored = summary.get("settings")
     if isinstance(stored, dict):  # sets made before the sensor model was recorded: none
         stored = {"camera_noise": "none", **stored}
@@ -290,6 +296,7 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
         pseed = problem_seed(seed, attempt)
         attempt += 1
         made = make_problem(agent, pseed, n_objects, tuple(ks) if start_k else kk,
+                            long_fraction=long_fraction,
                             reproducible=reproducible, task=task, start_k=start_k)
         if isinstance(made, str):
             rejected[made] += 1

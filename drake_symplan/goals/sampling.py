@@ -30,11 +30,39 @@ def _written(task: str, cubes: list[str], longs: list[str], names: list[str]
             Relation("bridge", (longs[0], cubes[0], cubes[2]))]
 
 
+def _many(rng: np.random.Generator, objects: dict[str, ObjectState], names: list[str],
+          k: int) -> list[Relation] | str:
+    """Several structures that take about `k` actions together, each on boxes of its own:
+    towers of 2-4 boxes, bridges on two towers of two cubes, rows of 2-3 cubes."""
+    free, out, left = list(names), [], k
+    while left >= 1:
+        cubes = [n for n in free if objects[n].type == "cube"]
+        longs = [n for n in free if objects[n].type == "long"]
+        kinds = ["tower"] + (["bridge"] if len(cubes) >= 4 and longs and left >= 3 else []) \
+            + (["row"] if len(cubes) >= 2 else [])
+        kind = kinds[int(rng.integers(len(kinds)))]
+        if kind == "bridge":
+            c = cubes[:4]
+            made = [Relation("tower", (c[0], c[1])), Relation("tower", (c[2], c[3])),
+                    Relation("bridge", (longs[0], c[0], c[2]))]
+        else:
+            pool = cubes if kind == "row" else free
+            m = min(int(rng.integers(2, 4 if kind == "row" else 5)), left + 1, len(pool))
+            if m < 2:
+                break
+            made = [Relation(kind, tuple(pool[:m]))]
+        out += made
+        used = {n for r in made for n in r.objects}
+        free = [n for n in free if n not in used]
+        left -= len(used) - 1 - (kind == "bridge")
+    return out or "too_few_objects"
+
+
 # Goals as a person writes them, whatever the number of actions their build takes: a tower
 # of 4, two towers of 3, a bridge over two cubes, a row of 4 cubes, a bridge on two towers
 # of 2 (the cubes' bottoms brought together: compiler.with_supports)
 WRITTEN = ("tower4", "towers3", "bridge2", "row4", "bridge_towers")
-TASKS = ("tower", "row", "towers", "bridge", "mixed", *WRITTEN)  # `problems make --task`
+TASKS = ("tower", "row", "towers", "bridge", "mixed", "many", *WRITTEN)  # `problems make --task`
 
 
 def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState], task: str,
@@ -46,6 +74,8 @@ def sample_structures(rng: np.random.Generator, objects: dict[str, ObjectState],
     if task in WRITTEN:
         return _written(task, [n for n in names if objects[n].type == "cube"],
                         [n for n in names if objects[n].type == "long"], names)
+    if task == "many":
+        return _many(rng, objects, names, k)
     if task in ("bridge", "mixed"):
         if k < (3 if task == "mixed" else 2):
             return "k_too_small"

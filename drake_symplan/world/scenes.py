@@ -32,7 +32,7 @@ from drake_symplan.datasets import ObjectState
 # Where objects may be placed (box centres), metres.
 WORKSPACE_X = (0.45, 1.0)
 WORKSPACE_Y = (-0.4, 0.4)
-MAX_OBJECTS = 8
+MAX_OBJECTS = 16
 
 # Resting tolerance: a box is supported if its bottom is within this of the table or
 # of another box's top, with overlapping footprints.

@@ -87,7 +87,7 @@ class StationConfig:
     contact_model: str = "hydroelastic_with_fallback"
     discrete_contact_approximation: str = "similar"
     box_modulus: float = BOX_MODULUS  # Pa, replaces the box models' own value
-    pool_cubes: int = 8
+    pool_cubes: int = 16
     pool_longs: int = 8
     arm_kp: list[float] = dc.field(default_factory=lambda: [4000, 4000, 2000, 500, 500, 300])
     arm_kd: list[float] = dc.field(default_factory=lambda: [400, 400, 200, 30, 30, 15])
