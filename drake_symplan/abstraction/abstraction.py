@@ -87,7 +87,7 @@ def relation_goal(goal: Observation, relations) -> Observation:
     rows = [goal.boxes.names.index(n) for n in names]
     boxes = Boxes(tuple(names), goal.boxes.features[rows],
                   frozenset(p for p in goal.boxes.contacts if set(p) <= set(names)))
-    states = goal.scene.object_states()
+    states = goal.boxes.object_states()
     pairs = {}
     for r in relations:
         for upper, lower in r.pairs():

@@ -36,6 +36,7 @@ import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
 from drake_symplan.actions import OFFSET_METRES, release_shift
+from drake_symplan.relations import unmet
 from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Step
 
 MIN_GAIN = 0.01  # m: the geometric scorer's change of offsets lands the source this much nearer
@@ -78,16 +79,21 @@ class GeometricScorer:
 
 class PredictedScorer:
     """The summed distance (m) of the boxes to their `goal` positions in the scene that
-    `predict(boxes, actions) -> [Boxes]` predicts after each candidate from `boxes`."""
+    `predict(boxes, actions) -> [Boxes]` predicts after each candidate from `boxes`; with
+    a goal of `relations`, a metre more for each of them the scene does not hold (where
+    the structure stands does not matter, that it stands does)."""
 
     keep = 0.0
 
-    def __init__(self, predict: Callable, boxes: Boxes, goal: dict[str, np.ndarray]):
-        self.predict, self.boxes, self.goal = predict, boxes, goal
+    def __init__(self, predict: Callable, boxes: Boxes, goal: dict[str, np.ndarray],
+                 relations: tuple = ()):
+        self.predict, self.boxes, self.goal, self.relations = predict, boxes, goal, relations
 
     def __call__(self, options: list[Step]) -> list[Scored]:
         after = self.predict(self.boxes, options)
-        return [Scored(s, sum(goal_errors(b, self.goal).values()), b)
+        return [Scored(s, sum(goal_errors(b, self.goal).values())
+                       + (len(unmet(self.relations, b.object_states())) if self.relations
+                          else 0.0), b)
                 for s, b in zip(options, after, strict=True)]
 
 

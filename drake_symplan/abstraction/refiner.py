@@ -222,7 +222,7 @@ class Refiner:
                 later = moved(boxes, self.rollout(boxes, skeleton[i:]))
                 return done if self.subgoal_reached(boxes, goal, before, placed, later) \
                     else None
-            scorer = PredictedScorer(self._predict, boxes, goal)
+            scorer = PredictedScorer(self._predict, boxes, goal, self.relations)
             # every offset variant of the step moves its source (one box's grasp rules)
             barred = self.refusals.barred(boxes, {skeleton[i].action.source})
             covered = boxes.covered()

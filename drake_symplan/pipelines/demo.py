@@ -224,10 +224,16 @@ def tell_verdict(result, out: dict, demo: dict, say) -> None:
     if result.executed != result.plan:
         say("executed (repositionings and replans included): "
             + "; ".join(demo["executed_readable"]))
-    for name, o in out["objects"].items():
-        say(f"  {name}: {o['error_cm']} cm from its goal")
-    say(f"verdict: {result.status} (every object within {GOAL_TOLERANCE * 100:g} cm: "
-        f"{'yes' if result.success else 'no'}), {len(result.executed)} step(s), "
+    if result.unmet is not None:  # a goal of relations
+        check = f"the relations hold wherever they stand: {'no' if result.unmet else 'yes'}"
+        for wrong in result.unmet:
+            say(f"  not held: {wrong}")
+    else:
+        check = f"every object within {GOAL_TOLERANCE * 100:g} cm: " \
+                f"{'yes' if result.success else 'no'}"
+        for name, o in out["objects"].items():
+            say(f"  {name}: {o['error_cm']} cm from its goal")
+    say(f"verdict: {result.status} ({check}), {len(result.executed)} step(s), "
         f"{result.replans} replan(s)" + (f"; {result.failure_cause}: {result.message}"
                                        if result.message else ""))
     if result.symbolic_goal_reached is not None:
@@ -242,6 +248,7 @@ def run_demo(bundle, settings: DemoSettings, config, start=None, goal=None, say=
     from drake_symplan.abstraction.abstraction import Abstraction
     from drake_symplan.agent.inspection import annotate_html, readable_step
     from drake_symplan.agent.solve import Agent
+    from drake_symplan.relations import parse
     from drake_symplan.world.visualization import StartMeshcat
 
     t0 = time.perf_counter() if t0 is None else t0
@@ -262,8 +269,10 @@ def run_demo(bundle, settings: DemoSettings, config, start=None, goal=None, say=
     start, goal = posed
     if record is not None:
         prepare_recording(meshcat, record, start, goal, demo)
+    relations = parse(settings.goal_spec) if settings.goal_spec else ()
     result = agent.solve(start, goal, abstraction, config, record=record,
-                         on_plan=plan_teller(abstraction, config.timeout, demo, say))
+                         on_plan=plan_teller(abstraction, config.timeout, demo, say),
+                         relations=relations)
     out = result.to_json()
     demo["executed_readable"] = [readable_step(s) for s in result.executed]
     demo["seconds"] = round(time.perf_counter() - t0, 1)

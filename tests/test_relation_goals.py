@@ -1,0 +1,94 @@
+"""Goals of relations in planning (abstraction.relation_goal): judged wherever the
+structure stands, planned from the bottom up, at up to 16 boxes."""
+
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import run
+from test_abstraction_bilevel import STACK, Skeletons, Stacking, boxes, observed, solve
+from test_abstraction_bilevel import START as BOXES
+
+from drake_symplan.abstraction.abstraction import (
+    Abstraction,
+    Observation,
+    Plan,
+    Reading,
+    relation_goal,
+)
+from drake_symplan.abstraction.bilevel import Search, plan_bilevel
+from drake_symplan.abstraction.refiner import Refiner
+from drake_symplan.planning.budget import Budget
+from drake_symplan.relations import parse
+from drake_symplan.symbolic.states import SymbolicState
+from drake_symplan.symbolic.structs import Step
+from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
+
+# The example built c at (0.6, 0.1) with a on it; the skeleton leaves c where it stands.
+EXAMPLE = boxes(a=(0.6, 0.1, 0.075), b=(0.5, -0.2, 0.025), c=(0.6, 0.1, 0.025))
+A_ON_C = Plan("solved", [Step(STACK["center"], ("a", "c"))])
+
+
+def test_a_skeleton_that_builds_the_relation_elsewhere_is_accepted_for_a_relation_goal():
+    scene_goal = solve(Skeletons(A_ON_C), EXAMPLE)
+    assert not scene_goal.candidates[0].accepted  # a and c 14 cm off the example
+    goal = relation_goal(observed(EXAMPLE), parse(["on a c"]))
+    assert goal.boxes.names == ("a", "c")  # b is free
+    refiner = Refiner(list(STACK.values()), Stacking())
+    found = plan_bilevel(Skeletons(A_ON_C), refiner, observed(BOXES), goal, Budget(10.0, 30.0),
+                         Search(True))
+    assert found.solved and found.level == "bilevel" and found.candidates[0].accepted
+    assert [str(s) for s in found.steps] == [str(A_ON_C.steps[0])]
+
+
+def test_a_relation_goal_names_its_pairs_both_ways_with_the_layer_of_the_lower_box():
+    tower = boxes(a=(0.6, 0.1, 0.125), b=(0.6, 0.1, 0.075), c=(0.6, 0.1, 0.025),
+                  d=(0.8, 0.0, 0.025))
+    reading = Reading(SymbolicState(tower.names, np.zeros((4, 1)), np.zeros((3, 4, 4))),
+                      np.zeros((4, 1), bool), np.zeros((3, 4, 4), bool))
+    goal = relation_goal(Observation(None, reading, tower), parse(["tower a b c"]))
+    assert goal.reading.pairs == {("b", "c"): 0, ("c", "b"): 0, ("a", "b"): 1, ("b", "a"): 1}
+
+
+def test_a_goal_of_relations_is_planned_in_stages_from_the_lowest_pairs():
+    goal = SimpleNamespace(pairs={("b", "c"): 0, ("c", "b"): 0, ("a", "b"): 1, ("b", "a"): 1})
+    atoms = frozenset({("r0", "a", "b"), ("r0", "b", "c"), ("not_r0", "c", "b")})
+    assert Abstraction(None).stages(goal, atoms) == [
+        frozenset({("r0", "b", "c"), ("not_r0", "c", "b")}), atoms]
+
+
+START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),
+               ObjectSpec("o1", "long", [0.80, 0.10, 0.025]),
+               ObjectSpec("o2", "cube", [0.60, 0.05, 0.025]),
+               ObjectSpec("o3", "cube", [0.75, -0.20, 0.025])])
+
+
+@pytest.mark.slow
+def test_the_symbols_alone_build_a_written_tower_from_the_bottom_up(tmp_path, capsys):
+    save_scene(START, tmp_path / "start.yaml")
+    code, out, err = run(["solve", "--start", tmp_path / "start.yaml", "--goal-spec",
+                          "tower o2 o3 o0", "--planning", "symbolic", "--backend", "hand",
+                          "--json"], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["status"] == "success", err
+    assert result["relations"] == {"unmet": [], "unmet_true": []}
+    assert [step.split()[1:] for step in result["plan"]][0][:2] == ["o3", "o0)"]
+
+
+@pytest.mark.slow
+def test_a_sixteen_box_scene_is_perceived_and_a_tower_on_it_planned_and_built(tmp_path,
+                                                                              capsys):
+    code, _, err = run(["scene", "sample", "--objects", "16", "--long-fraction", "0.25",
+                        "--seed", "1", "--out", tmp_path / "s16.yaml"], capsys)
+    assert code == 0, err
+    code, out, err = run(["perceive", "--scene", tmp_path / "s16.yaml", "--json"], capsys)
+    seen = json.loads(out)
+    assert code == 0 and seen["count_ok"] and len(seen["objects"]) == 16, err
+    code, out, err = run(["solve", "--start", tmp_path / "s16.yaml", "--goal-spec",
+                          "tower o3 o7 o12", "--planning", "symbolic", "--backend", "hand",
+                          "--json"], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["relations"]["unmet"] == [], err
