@@ -191,12 +191,11 @@ class SymbolicMode(PlanningMode):
 
     def observed(self, step: PlanStep, predicted: Boxes | None, before: Observation,
                  seen: Observation) -> None:
-        """A step after which nothing moved, or whose operator's prediction did not come
-        true, costs more in the plans after it."""
+        """A step after which nothing moved (the arm achieved nothing: the same step on
+        the same scene would do the same) costs more in the plans after it."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
-        if isinstance(step, Step) and (nothing_moved(before, seen)
-                                       or self.abs.mismatches(seen.reading, step)):
+        if isinstance(step, Step) and nothing_moved(before, seen):
             self.penalties[tuple(step.args)] += PENALTY
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:

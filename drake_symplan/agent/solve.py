@@ -8,11 +8,10 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
 1. The goal scene is put on the table and perceived; the file only names the boxes
    (agent/beliefs.py). The start scene likewise, then the robot stays in it.
 2. The bundle reads both scenes' symbols and writes the problem: the start's certain atoms,
-   the goal's unary atoms and relation atoms only between objects perceived in contact in
-   the goal scene. The planning mode `config.planning` (agent/planning_modes.py) plans:
-   the planner (Fast Downward or pyperplan) alone, or its plan checked and completed with
-   the learned continuous model, or found by that model's search. Each scene is planned
-   from as an abstraction.Observation (the scene, its symbols, its boxes), made once.
+   the goal's atoms (abstraction.goal_atoms; of a goal of relations, those of the pairs
+   it names). The planning mode `config.planning` (agent/planning_modes.py) plans on
+   symbols, checked with the learned continuous model, or by that model's search alone,
+   from abstraction.Observations (the scene, its symbols, its boxes), each made once.
 3. Each step is executed by the back-end on the perceived objects (the arm: IK-planned
    pick/place in full physics); the scene perceived after it keeps the names through
    perception's association. A plan on symbols is completed as it runs (with
@@ -26,19 +25,18 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
    step's operator predicted (a plan checked in continuous space: the perceived positions
    with the predicted ones); on a departure the agent replans from the perceived state
    (if that replan fails, the current plan runs on).
-   When the plan has run out, the goal's atoms must hold in the perceived symbols, or it
-   replans too. At most `max_replans` replans; after that the current plan runs on.
-   Without monitoring the first plan runs open-loop, as in the paper.
-5. The check: every object within GOAL_TOLERANCE (5 cm) of its perceived goal position,
-   on the scene perceived after the last step (boxes.goal_reached). The simulator's positions are reported
-   beside it (`final_true`), for evaluation only: no decision reads them.
+   When the plan has run out, the goal must be seen (the mode's goal_seen), or it replans
+   too; at most `max_replans` times. Without monitoring the first plan runs open loop.
+5. The check, on the scene perceived after the last step: every object within
+   GOAL_TOLERANCE (5 cm) of its perceived goal position (boxes.goal_reached), or, for a
+   goal of relations, the relations held wherever they stand (relations.unmet). The
+   simulator's view is reported beside it, for evaluation only: no decision reads it.
 """
 
 from __future__ import annotations
 
 import dataclasses as dc
 import time
-from contextlib import contextmanager
 
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan, relation_goal
 from drake_symplan.abstraction.continuous import Boxes
@@ -48,15 +46,13 @@ from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.reposition import REPOSITIONS_PER_OBJECT, reposition_step
+from drake_symplan.agent.result import PhaseClock, SolveResult
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.relations import riders, unmet
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
 from drake_symplan.symbolic.structs import PlanStep, Step
 from drake_symplan.world.visualization import StartMeshcat
 
-STATUSES = ("success", "failure", "no_plan", "timeout", "infeasible", "error")
-FAILURE_CAUSES = ("no_plan", "timeout", "execution", "perception", "infeasible", "error")
-PHASES = ("perceive", "symbols", "plan", "execute", "total")
 # Planner statuses -> the agent's status (= failure cause) when the plan cannot be had.
 PLANNER_STATUS = {"unsolvable": "no_plan", "timeout": "timeout", "error": "error"}
 # Plans made at subgoals per object at most: a tower of n boxes from a scattered start is
@@ -65,91 +61,6 @@ SUBGOALS_PER_OBJECT = 3
 # Steps the arm refused (nothing moved) planned around per object at most, apart from the
 # replans on a departure: a refusal costs a plan, not a step.
 REFUSALS_PER_OBJECT = 2
-
-
-@dc.dataclass
-class SolveResult:
-    """What `solve` returns; `to_json` is the documented JSON. `plan` is the first plan,
-    `executed` every step executed (repositionings and replans included)."""
-
-    status: str
-    plan: list[PlanStep] = dc.field(default_factory=list)
-    executed: list[PlanStep] = dc.field(default_factory=list)
-    replans: int = 0
-    objects: dict[str, dict] = dc.field(default_factory=dict)
-    seconds: dict[str, float] = dc.field(default_factory=dict)
-    failure_cause: str | None = None
-    message: str = ""
-    # On a failure: do the goal's atoms hold in the last perceived scene? True with objects
-    # off their goal positions means the symbols did not capture the goal; False means the
-    # plan did not reach it (an operator's prediction or the execution went wrong).
-    symbolic_goal_reached: bool | None = None
-    # The first plan's candidates (bilevel and continuous planning): the plans looked at,
-    # the rejected ones with why (abstraction/bilevel.py: Candidate).
-    candidates: list = dc.field(default_factory=list)
-    # Which level found the first plan: "symbolic", "bilevel", "receding" (a long skeleton's
-    # first steps, to its subgoal), "continuous", "nearest" (no
-    # plan reaches the goal in prediction: the steps predicted nearest it) or "oracle".
-    level: str = ""
-    # Steps after which a box perceived resting on the carried one no longer rests on it
-    # (skills/carry.riders on the perceived scenes before and after): riders dropped.
-    dropped_riders: int = 0
-    # Plans made again where a plan ended at its subgoal (receding planning), apart from
-    # the replans on a departure
-    subgoals: int = 0
-    # Steps the arm refused that were planned around (apart from the replans)
-    refusals: int = 0
-    # A goal of relations: those not held in the last perceived scene (the verdict), and
-    # on the simulator's truth (evaluation only; no decision reads it)
-    unmet: list[str] | None = None
-    unmet_true: list[str] | None = None
-
-    def __post_init__(self):
-        if self.status not in STATUSES:
-            raise ValueError(f"unknown status {self.status!r}; expected one of {STATUSES}")
-
-    @property
-    def success(self) -> bool:
-        return self.status == "success"
-
-    def to_json(self) -> dict:
-        out = {"status": self.status, "plan": [str(s) for s in self.plan],
-               "executed": [str(s) for s in self.executed], "replans": self.replans,
-               "objects": self.objects, "level": self.level,
-               "seconds": {k: round(v, 4) for k, v in self.seconds.items()}}
-        if self.candidates:
-            out["candidates"] = [c.to_json() for c in self.candidates]
-        if self.dropped_riders:
-            out["dropped_riders"] = self.dropped_riders
-        if self.subgoals:
-            out["subgoals"] = self.subgoals
-        if self.refusals:
-            out["refusals"] = self.refusals
-        if self.unmet is not None:
-            out["relations"] = {"unmet": self.unmet, "unmet_true": self.unmet_true}
-        if not self.success:
-            out["failure_cause"] = self.failure_cause
-            out["message"] = self.message
-            out["symbolic_goal_reached"] = self.symbolic_goal_reached
-        return out
-
-
-class _Clock:
-    """Wall time per phase; perception inside other phases is moved to "perceive"."""
-
-    def __init__(self, robot: Backend):
-        self.robot = robot
-        self.seconds = dict.fromkeys(PHASES, 0.0)
-
-    @contextmanager
-    def __call__(self, phase: str):
-        start, seen = time.perf_counter(), self.robot.perception_seconds
-        try:
-            yield
-        finally:
-            perceived = self.robot.perception_seconds - seen
-            self.seconds[phase] += time.perf_counter() - start - perceived
-            self.seconds["perceive"] += perceived
 
 
 class Agent:
@@ -161,7 +72,7 @@ class Agent:
         self.robot = (make_backend(robot, meshcat=meshcat, camera_noise=camera_noise)
                       if isinstance(robot, str) else robot)
 
-    def look(self, scene, clock: _Clock | None = None) -> beliefs.Named:
+    def look(self, scene, clock: PhaseClock | None = None) -> beliefs.Named:
         """Puts `scene` on the table (robot home, physics settled) and perceives it, the
         boxes named after the file's objects; the perception counts on `clock`."""
         self.robot.reset(scene)
@@ -185,7 +96,7 @@ class Agent:
         relations (relations.Relation), `goal_scene` an example of them, judged by the
         relations alone wherever they stand (else: every box within 5 cm of the scene)."""
         beliefs.check_scene_pair(start_scene, goal_scene)
-        clock = _Clock(self.robot)
+        clock = PhaseClock(self.robot)
         t0 = time.perf_counter()
         run = _Run(self, abstraction, clock, config, on_plan, given, tuple(relations))
         try:
@@ -223,7 +134,7 @@ class _Run:
     is the scene perceived last, `now` the Observation last read (they differ open loop,
     where nothing is read after the start)."""
 
-    def __init__(self, agent: Agent, abstraction: Abstraction, clock: _Clock,
+    def __init__(self, agent: Agent, abstraction: Abstraction, clock: PhaseClock,
                  config: SolveConfig, on_plan=None, given=None, relations: tuple = ()):
         self.agent, self.abs, self.clock, self.config = agent, abstraction, clock, config
         self.relations = relations
