@@ -4,7 +4,7 @@ import numpy as np
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
-from drake_symplan.world.station import AddUr10, add_package_paths
+from drake_symplan.world.station_models import AddUr10, add_package_paths
 
 D = [0.1273, 0, 0, 0.163941, 0.1157, 0.0922]
 A = [0, -0.612, -0.5723, 0, 0, 0]

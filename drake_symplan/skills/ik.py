@@ -14,7 +14,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.solvers import Solve
 
-from drake_symplan.world.station import FINGER_OPEN, AddUr10, add_package_paths
+from drake_symplan.world.station_models import FINGER_OPEN, AddUr10, add_package_paths
 
 # One elbow-up branch that reaches the whole workspace with the gripper pointing down.
 Q_LOWER = np.array([-np.pi, -np.pi, 0.0, -2.5 * np.pi / 2, -np.pi, -np.pi])
