@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import time
 
-from drake_symplan.planning.planners import WALL_FACTOR, cpu_used
+from drake_symplan.planning.planners import WALL_FACTOR
+from drake_symplan.planning.processes import cpu_used
 
 
 class Budget:

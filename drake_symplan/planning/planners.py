@@ -19,7 +19,8 @@ file, an unsolvable task, a timeout or a missing planner all come back as result
 
 With `cpu_seconds`, both also stop when their processes have used that much CPU (an
 RLIMIT_CPU on each child, what is left of the budget), `wall_seconds` then being the wall-clock
-cap: a busy host gives the planner the same work as a quiet one.
+cap: a busy host gives the planner the same work as a quiet one (planning/processes.py runs
+the children under those limits).
 
 Both default to optimal A* with LM-cut, so on unit-cost tasks their plans have equal
 length. Fast Downward's search binary (not the driver alone) gives the optimal search
@@ -32,18 +33,17 @@ and on the short goals it finishes first anyway (docs/planning.md).
 from __future__ import annotations
 
 import importlib.util
-import math
 import multiprocessing
 import os
-import resource
 import signal
-import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+
+from drake_symplan.planning.processes import children_cpu, limit_cpu, run_group
 
 STATUSES = ("solved", "unsolvable", "timeout", "error")
 WALL_FACTOR = 3.0  # the wall-clock cap of a CPU-second budget, as a multiple of it
@@ -216,14 +216,14 @@ def _fd_runs(runs, tmp: str, start: float, wall_seconds: float, cpu_seconds: flo
     for phase, (cmd, env, stdin) in enumerate(runs):
         if fallback is not None and phase == len(runs) - 1:
             now, cpu = time.perf_counter(), left()
-            code, out, err = _run_group(cmd, tmp, env, stdin,
+            code, out, err = run_group(cmd, tmp, env, stdin,
                                         now + OPTIMAL_SHARE * (deadline - now),
                                         None if cpu is None else OPTIMAL_SHARE * cpu)
             if _out_of_time(code):
-                code, out, err = _run_group(fallback[0], tmp, fallback[1], fallback[2],
+                code, out, err = run_group(fallback[0], tmp, fallback[1], fallback[2],
                                             deadline, left())
         else:
-            code, out, err = _run_group(cmd, tmp, env, stdin, deadline, left())
+            code, out, err = run_group(cmd, tmp, env, stdin, deadline, left())
         if code is None:
             return result("timeout", message=f"Fast Downward killed after {wall_seconds:g} s")
         if code != 0:
@@ -265,55 +265,6 @@ def _fd_components(driver: Path) -> tuple[Path, Path] | None:
     if (bin_dir / "fast_downward" / "translate").is_dir() and os.access(search, os.X_OK):
         return bin_dir, search
     return None
-
-
-def children_cpu() -> float:
-    """CPU seconds used so far by this process's finished children."""
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return usage.ru_utime + usage.ru_stime
-
-
-def cpu_used() -> float:
-    """CPU seconds used so far by this process and its finished children."""
-    return time.process_time() + children_cpu()
-
-
-def limit_cpu(seconds: float | None) -> None:
-    """In a child: SIGXCPU after `seconds` of CPU (rounded up: the limit has whole
-    seconds), then SIGKILL a second later."""
-    if seconds is not None:
-        soft = max(1, math.ceil(seconds))
-        resource.setrlimit(resource.RLIMIT_CPU, (soft, soft + 1))
-
-
-def _run_group(cmd, cwd, env, stdin: Path | None, deadline: float,
-               cpu_seconds: float | None = None):
-    """Runs `cmd` in its own process group until `deadline` (perf_counter) or its CPU
-    budget: (exit code, stdout, stderr), or (None, "", "") when killed at the deadline."""
-    try:
-        with open(stdin) if stdin is not None else open(os.devnull) as feed:
-            proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdin=feed,
-                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                    text=True, start_new_session=True,
-                                    # preexec_fn is unsafe beside threads: only when asked.
-                                    preexec_fn=None if cpu_seconds is None
-                                    else (lambda: limit_cpu(cpu_seconds)))
-    except OSError as e:
-        return 35, "", f"could not start Fast Downward: {e}"
-    try:
-        out, err = proc.communicate(timeout=max(deadline - time.perf_counter(), 0.001))
-    except subprocess.TimeoutExpired:
-        _kill_group(proc)
-        proc.communicate()
-        return None, "", ""
-    return proc.returncode, out, err
-
-
-def _kill_group(proc: subprocess.Popen) -> None:
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        proc.kill()
 
 
 # ---------------------------------------------------------------- pyperplan
