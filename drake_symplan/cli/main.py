@@ -43,6 +43,7 @@ COMMAND_MODULES = [
     "drake_symplan.cli.inspect_cmds",
     "drake_symplan.cli.reproduce_cmds",
     "drake_symplan.cli.demo_cmds",
+    "drake_symplan.cli.report_cmds",
 ]
 
 EXIT_OK, EXIT_NEGATIVE, EXIT_BAD_INPUT = 0, 1, 2

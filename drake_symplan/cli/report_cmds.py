@@ -1,0 +1,98 @@
+"""`symplan report`: results kept as records in the repo, and the tables rendered from them.
+
+    symplan report keep --records R.jsonl --eval E.json --name NAME --table TABLE \\
+        --column COLUMN [--rows set|kind] --command "..." [--out results/NAME.json]
+    symplan report render [--results results] [TABLE ...] [--write FILE ...] [--check FILE ...]
+
+`keep` makes one record of an `eval planning` run (its --records file and its --json
+output); `render` prints tables, `--write` puts them between a page's
+`<!-- report:TABLE -->` markers, `--check` exits 1 where a page's tables differ from the
+records (evaluation/report.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from drake_symplan.cli.main import CommandError, NegativeAnswer
+from drake_symplan.cli.options import check_output_file
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("report", help="results kept as records, tables rendered from them",
+                              description=__doc__,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="report_command", required=True)
+    keep = sub.add_parser("keep", help="one record of an eval planning run")
+    keep.add_argument("--records", required=True, type=Path, help="its --records JSONL")
+    keep.add_argument("--eval", required=True, type=Path, help="its --json output")
+    keep.add_argument("--name", required=True, help="the record's name (the question)")
+    keep.add_argument("--table", required=True, help="the table it is a column of")
+    keep.add_argument("--column", required=True, help="its column's heading")
+    keep.add_argument("--rows", choices=("set", "kind"), default="set",
+                      help="a row per problem set, or per kind (its first folder)")
+    keep.add_argument("--command", required=True, help="the command that made it")
+    keep.add_argument("--commit", default=None,
+                      help="the code's commit the run was made at (default: HEAD now)")
+    keep.add_argument("--out", type=Path, default=None,
+                      help="where to write it (default results/NAME.json)")
+    keep.set_defaults(func=cmd_keep)
+    render = sub.add_parser("render", help="tables from the records")
+    render.add_argument("tables", nargs="*", help="tables to print (default: all)")
+    render.add_argument("--results", type=Path, default=Path("results"))
+    render.add_argument("--write", type=Path, nargs="*", default=[],
+                        help="pages whose report blocks are rendered anew")
+    render.add_argument("--check", type=Path, nargs="*", default=[],
+                        help="pages whose report blocks must match the records (exit 1)")
+    render.set_defaults(func=cmd_render)
+
+
+def cmd_keep(args: argparse.Namespace) -> dict:
+    from drake_symplan.evaluation.planning import read_records
+    from drake_symplan.evaluation.report import keep
+    from drake_symplan.json_files import read_json
+
+    out = args.out or Path("results") / f"{args.name}.json"
+    check_output_file(out, "--out")
+    settings = read_json(args.eval).get("settings")
+    records = read_records(args.records)
+    if not isinstance(settings, dict) or not records:
+        raise CommandError(f"{args.eval} holds no eval planning settings or {args.records} "
+                           "no records")
+    record = keep(records, settings, args.name, args.table, args.column, args.command,
+                  args.rows)
+    if args.commit:
+        record["commit"] = args.commit
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(record, indent=1) + "\n")
+    return {"out": str(out), "sets": len(record["sets"])}
+
+
+def cmd_render(args: argparse.Namespace) -> dict:
+    from drake_symplan.evaluation.report import load_records, render, replace_blocks
+
+    records = load_records(args.results)
+    if not records:
+        raise CommandError(f"no records (*.json) in {args.results}")
+    for page in [*args.write, *args.check]:
+        if not page.is_file():
+            raise CommandError(f"no page {page}")
+    for page in args.write:
+        page.write_text(replace_blocks(page.read_text(), records))
+    stale = [str(p) for p in args.check if replace_blocks(p.read_text(), records)
+             != p.read_text()]
+    if not args.write and not args.check:
+        tables = args.tables or sorted({r["table"] for r in records})
+        for table in tables:
+            try:
+                print(f"## {table}\n\n{render(records, table)}", file=sys.stdout)
+            except ValueError as e:
+                raise CommandError(str(e)) from e
+    if stale:
+        print(f"symplan report: tables differ from the records in {', '.join(stale)}",
+              file=sys.stderr)
+        return NegativeAnswer({"stale": stale})
+    return {"written": [str(p) for p in args.write], "checked": [str(p) for p in args.check]}
