@@ -167,6 +167,23 @@ def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
     if len(idx) == 0:
         return out, sigma / size
     fitted = np.full(depth.shape, size * size, np.float32)
+    a, n = _plane_intercepts(depth, valid, tol, idx, r)
+    keep = n >= cfg.min_support
+    out.flat[idx[keep]] = 1.0 / a[keep]
+    fitted.flat[idx] = np.maximum(n, 1)
+    # A pixel off its neighbours' plane is a flying pixel (or a speck) between surfaces.
+    off = ~(np.abs(out - depth) <= cfg.off_plane + 3 * sigma)
+    out[off] = np.nan
+    return out, sigma / np.sqrt(fitted)
+
+
+def _plane_intercepts(depth: np.ndarray, valid: np.ndarray, tol: np.ndarray, idx: np.ndarray,
+                      r: int) -> tuple[np.ndarray, np.ndarray]:
+    """At the pixels `idx` (flat): the least-squares plane of 1/depth over the pixel offsets
+    of the (2r + 1)^2 window's neighbours within `tol` of the pixel's depth, as (its
+    intercept, the neighbours fitted); `local_plane_depth`'s fit where a window spans
+    surfaces."""
+    size = 2 * r + 1
     w = depth.shape[1]
     padded = np.pad(np.where(valid, depth, np.nan), r, constant_values=np.nan).ravel()
     k = np.arange(-r, r + 1)
@@ -192,13 +209,7 @@ def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
     # A window whose pixels lie on a line (a one-pixel-wide strip) has no plane: its mean.
     flat = np.abs(det) > 1e-9 * n ** 3
     a = np.where(flat, num / np.where(flat, det, 1.0), sy / np.maximum(n, 1))
-    keep = n >= cfg.min_support
-    out.flat[idx[keep]] = 1.0 / a[keep]
-    fitted.flat[idx] = np.maximum(n, 1)
-    # A pixel off its neighbours' plane is a flying pixel (or a speck) between surfaces.
-    off = ~(np.abs(out - depth) <= cfg.off_plane + 3 * sigma)
-    out[off] = np.nan
-    return out, sigma / np.sqrt(fitted)
+    return a, n
 
 
 def _window_extreme(a: np.ndarray, size: int, extreme, outside: float) -> np.ndarray:
