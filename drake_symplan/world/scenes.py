@@ -45,7 +45,8 @@ def _number(value, field: str) -> float:
 def _numbers(value, field: str) -> list[float]:
     """`value` of the scene field `field` as 3 finite floats (position, rpy)."""
     if not isinstance(value, list) or len(value) != 3:
-        raise ValueError(f"{field} must be a list of 3 numbers, got {_shown(value)}")
+        what = " (roll, pitch, yaw)" if field == "rpy" else ""
+        raise ValueError(f"{field} must be a list of 3 numbers{what}, got {_shown(value)}")
     return [_number(v, f"{field}[{k}]") for k, v in enumerate(value)]
 
 
