@@ -3,9 +3,10 @@
 `read_fields(path, cls)` reads a YAML mapping and checks it against the fields of
 dataclass `cls`: unknown keys are refused by name, every value must have its field's
 type (an int where a float is declared is taken as that float, and so is a number in
-exponent notation such as 1e-3, which YAML 1.1 reads as a string); the result goes into
-`cls(**fields)`, possibly with other values on top. Errors are ValueErrors of one line
-that start with the file's name.
+exponent notation such as 1e-3, which YAML 1.1 reads as a string; a list where a tuple
+is declared is taken as that tuple); the result goes into `cls(**fields)`, possibly with
+other values on top. Errors are ValueErrors of one line that start with the file's name.
+`shipped_config(name)` finds a file of the repo's configs/, in a checkout or installed.
 """
 
 from __future__ import annotations
@@ -121,6 +122,16 @@ def _convert(value, hint):
         if not isinstance(value, list):
             raise _Mismatch
         return [_convert(v, args[0]) for v in value] if args else list(value)
+    if hint is tuple or origin is tuple:  # a YAML list; tuple[X, ...] or of fixed length
+        if not isinstance(value, list):
+            raise _Mismatch
+        if not args:
+            return tuple(value)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(v, args[0]) for v in value)
+        if len(args) != len(value):
+            raise _Mismatch
+        return tuple(_convert(v, a) for v, a in zip(value, args, strict=True))
     raise TypeError(f"typed_yaml cannot check fields of type {hint}")
 
 
@@ -146,6 +157,20 @@ def check_fields(cls: type, data: object, source: str) -> dict:
             raise ValueError(f"{source}: {key}: expected {what}, got "
                              f"{type(value).__name__} {shown}") from None
     return out
+
+
+def shipped_config(name: str) -> Path:
+    """The configuration file `name` of configs/: the checkout's, beside the package, or,
+    installed from a wheel, the package data drake_symplan_configs (pyproject.toml)."""
+    checkout = Path(__file__).resolve().parents[1] / "configs" / name
+    if checkout.is_file():
+        return checkout
+    from importlib import resources
+
+    try:
+        return Path(str(resources.files("drake_symplan_configs"))) / name
+    except ModuleNotFoundError:
+        return checkout  # neither: read_yaml names the missing file
 
 
 def read_fields(path: str | Path, cls: type) -> dict:

@@ -7,19 +7,19 @@ import json
 
 import pytest
 
-from drake_symplan.pipelines.learning_curve import CURVE_SCALES, CurveScale, LearningCurve
+from drake_symplan.pipelines.learning_curve import LearningCurve
+from drake_symplan.pipelines.scales import Scale
 
-TINY = CurveScale(sizes=(100, 150), random_only=(200,), multi_seed=(150,), seeds=(0, 1),
-                  heldout=100, objects="2-3", chunk_size=50, epochs=5, patience=3,
-                  min_count=3, operator_problems=2,
-                  active=("--warmup", "100", "--round-size", "50", "--members", "2",
-                          "--round-epochs", "3", "--episode-length", "4"))
+TINY = Scale(sizes=(100, 150), random_only=(200,), multi_seed=(150,), seeds=(0, 1),
+             heldout=100, objects="2-3", chunk_size=50, epochs=5, patience=3,
+             min_count=3, operator_problems=2,
+             active=("--warmup", "100", "--round-size", "50", "--members", "2",
+                     "--round-epochs", "3", "--episode-length", "4"))
 
 
 @pytest.mark.slow
-def test_the_curve_measures_every_point_once_on_the_same_held_out_set(tmp_path, monkeypatch):
-    monkeypatch.setitem(CURVE_SCALES, "tiny", TINY)
-    curve = LearningCurve("tiny", tmp_path / "curve", say=lambda text: None)
+def test_the_curve_measures_every_point_once_on_the_same_held_out_set(tmp_path):
+    curve = LearningCurve(TINY, tmp_path / "curve", say=lambda text: None)
     curve.run()
     table = json.loads((curve.results / "curve.json").read_text())["points"]
     assert list(table) == ["random_100", "random_150", "random_200", "active_100",
@@ -42,6 +42,6 @@ def test_the_curve_measures_every_point_once_on_the_same_held_out_set(tmp_path, 
     assert md.index("| random 200 |") < md.index("| active 100 |")
     assert "seen >= 10x: coverage / precision" in md
     assert (curve.results / "curve.png").stat().st_size > 0
-    again = LearningCurve("tiny", tmp_path / "curve", say=lambda text: None)
+    again = LearningCurve(TINY, tmp_path / "curve", say=lambda text: None)
     again.run()
     assert again.log and all(entry.get("skipped") for entry in again.log)

@@ -11,13 +11,13 @@ import pytest
 
 from drake_symplan.agent.config import SolveConfig
 from drake_symplan.cli.main import main
-from drake_symplan.pipelines.reproduce import SCALES, Reproduction, Stage, StageFailed
+from drake_symplan.pipelines.reproduce import Reproduction, Stage, StageFailed
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
 
 def test_the_stages_of_a_scale(tmp_path):
     rep = Reproduction("small", tmp_path)
-    s = SCALES["small"]
+    s = rep.scale
     assert [st.name for st in rep.collect_stages()] == ["collect train", "collect held-out"]
     trains = rep.train_stages()
     assert len(trains) == 3 * len(s.seeds)  # Table I's three models

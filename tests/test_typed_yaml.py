@@ -53,3 +53,18 @@ def test_a_train_config_with_a_nan_rate_writes_no_run(tmp_path, capsys):
     assert err == (f"symplan train: error: {config}: lr: expected a finite float, got float "
                    "nan\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["train.yaml"]
+
+
+@dataclasses.dataclass
+class WithTuples:
+    sizes: tuple[int, ...] = ()
+    pair: tuple[int, int] | None = None
+
+
+def test_a_list_is_read_as_a_tuple_of_its_declared_items(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("sizes: [1, 2, 3]\npair: [4, 5]\n")
+    assert read_fields(path, WithTuples) == {"sizes": (1, 2, 3), "pair": (4, 5)}
+    path.write_text("pair: [4, 5, 6]\n")
+    with pytest.raises(ValueError, match=r"c.yaml: pair: expected .*, got list \[4, 5, 6\]"):
+        read_fields(path, WithTuples)

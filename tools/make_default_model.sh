@@ -3,14 +3,14 @@
 # 2 cores): the 50k hand data set with whole scenes (seed 12), one invariant
 # RelationalDeepSym (seed 0, Table I settings), its effect-first operators (min count 10).
 # The same commands as the relational_s0 stages of `symplan reproduce --scale paper`.
-# `--hand-twin off --box-modulus 1e7`: the shipped model learned from the hand alone, before
-# its arm twin and before stacks rested (docs/world.md).
+# `--recipe paper` (configs/recipes.yaml): the shipped model's kind of data, the hand alone
+# (before its arm twin) with the boxes of before stacks rested (docs/world.md).
 # Every step resumes or is skipped when its output is there. Then:
 #   symplan eval operators --data data_out/eval2k_s97 --max-problems 30 --json
 set -eu
 cd "$(dirname "$0")/.."
-symplan collect --backend hand --hand-twin off --box-modulus 1e7 --transitions 50000 --workers 2 --out data_out/hand50k_s12 --seed 12
-symplan collect --backend hand --hand-twin off --box-modulus 1e7 --transitions 2000 --workers 2 --out data_out/eval2k_s97 --seed 97
+symplan collect --recipe paper --transitions 50000 --workers 2 --out data_out/hand50k_s12 --seed 12
+symplan collect --recipe paper --transitions 2000 --workers 2 --out data_out/eval2k_s97 --seed 97
 run=runs/hand50k_s12/relational_s0
 resume=""
 [ -f "$run/last.pt" ] && resume="--resume"

@@ -34,34 +34,66 @@ def register(subparsers) -> None:
     collect.add_argument("--out", required=True, help="data set directory")
     collect.add_argument("--seed", type=seed, default=0,
                          help="seed of scenes and actions (chunk c draws from seed and c)")
-    collect.add_argument("--objects", default="2-4", help="objects per scene: N or MIN-MAX")
-    collect.add_argument("--episode-length", type=positive_int, default=10,
-                         help="actions per episode before a new scene")
-    collect.add_argument("--long-fraction", type=probability, default=0.5,
-                         help="chance that an object is a long block rather than a cube")
-    collect.add_argument("--chunk-size", type=positive_int, default=100, help="transitions per shard")
-    collect.add_argument("--noise-sigma", type=nonnegative_float, default=0.0, help="depth noise (m)")
-    collect.add_argument("--noise-dropout", type=fraction_lost, default=0.0,
-                         help="fraction of depth pixels lost")
+    add_data_arguments(collect)
+    add_exploration_arguments(collect)
+    collect.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_json_argument(collect)
+    collect.set_defaults(func=cmd_collect)
+
+    data = subparsers.add_parser("data", help="data set tools")
+    data_sub = data.add_subparsers(dest="data_command", required=True)
+    stats = data_sub.add_parser("stats", help="summary of a collected data set")
+    stats.add_argument("dir", help="data set directory (shards + manifest.json)")
+    add_json_argument(stats)
+    stats.set_defaults(func=cmd_data_stats)
+
+
+def add_data_arguments(collect) -> None:
+    """--recipe and the options that override it: what the data set holds (CollectConfig)."""
+    collect.add_argument("--recipe", default=None, metavar="NAME",
+                         help="a data recipe of configs/recipes.yaml: paper, the shipped "
+                         "model's kind of data (what `reproduce` and `curve` collect); "
+                         "shipped, its very set (to extend it); current, the present world. "
+                         "Options given here override the recipe; without one, each option "
+                         "has the default shown")
+    # The data's options default to None, so that an option given overrides the recipe.
+    collect.set_defaults(backend=None, camera_noise=None)
+    collect.add_argument("--objects", default=None,
+                         help="objects per scene: N or MIN-MAX (default 2-4)")
+    collect.add_argument("--episode-length", type=positive_int, default=None,
+                         help="actions per episode before a new scene (default 10)")
+    collect.add_argument("--long-fraction", type=probability, default=None,
+                         help="chance that an object is a long block rather than a cube "
+                         "(default 0.5)")
+    collect.add_argument("--chunk-size", type=positive_int, default=None,
+                         help="transitions per shard (default 100)")
+    collect.add_argument("--noise-sigma", type=nonnegative_float, default=None,
+                         help="depth noise (m) (default 0)")
+    collect.add_argument("--noise-dropout", type=fraction_lost, default=None,
+                         help="fraction of depth pixels lost (default 0)")
     add_camera_noise_argument(collect)
-    collect.add_argument("--hand-twin", choices=("on", "off"), default="on",
-                         help="on: the hand carries as the arm does where they differ (the "
-                              "careful carry's points; a twin arm for what the arm's wrist or "
-                              "fingers would touch): the data tells the truth about the arm, at "
-                              "about half the speed; off: the hand alone, as sets made before "
-                              "2026-11-27 (to extend one)")
-    collect.add_argument("--time-step", type=positive_float, default=0.01,
-                         help="physics step (s); 0.005 extends a collection made before 10 ms "
-                              "became the step")
-    collect.add_argument("--box-modulus", type=positive_float, default=1e6,
-                         help="the boxes' hydroelastic modulus (Pa); 1e7 extends a "
-                              "collection made before stacks rested (2026-11-27)")
+    collect.add_argument("--hand-twin", choices=("on", "off"), default=None,
+                         help="on (default): the hand carries as the arm does where they "
+                              "differ (the careful carry's points; a twin arm for what the "
+                              "arm's wrist or fingers would touch): the data tell the truth "
+                              "about the arm, at about half the speed; off: the hand alone, "
+                              "as the shipped model's data (--recipe paper)")
+    collect.add_argument("--time-step", type=positive_float, default=None,
+                         help="physics step (s) (default 0.01); 0.005 extends a collection "
+                              "made before 10 ms became the step")
+    collect.add_argument("--box-modulus", type=positive_float, default=None,
+                         help="the boxes' hydroelastic modulus (Pa) (default 1e6); the "
+                              "shipped model's data had stiffer boxes (--recipe paper)")
+
+
+def add_exploration_arguments(collect) -> None:
+    """--explorer and the active explorer's settings."""
     explore = collect.add_argument_group(
         "exploration", "how actions are chosen (explorers/active.py); random stays the "
         "default, and held-out sets stay random")
-    explore.add_argument("--explorer", choices=("random", "active"), default="random",
-                         help="random: uniform actions; active: rounds of actions chosen "
-                         "where the robot expects to learn most")
+    explore.add_argument("--explorer", choices=("random", "active"), default=None,
+                         help="random (default): uniform actions; active: rounds of actions "
+                         "chosen where the robot expects to learn most")
     explore.add_argument("--warmup", type=positive_int, default=1000,
                          help="active: random transitions before the first round")
     explore.add_argument("--round-size", type=positive_int, default=1000,
@@ -76,16 +108,6 @@ def register(subparsers) -> None:
     explore.add_argument("--round-epochs", type=positive_int, default=30,
                          help="active: training epochs per round (warm start)")
     add_device_argument(explore, "active: where each round's ensemble trains")
-    collect.add_argument("--no-progress", action="store_true", help="no progress bar")
-    add_json_argument(collect)
-    collect.set_defaults(func=cmd_collect)
-
-    data = subparsers.add_parser("data", help="data set tools")
-    data_sub = data.add_subparsers(dest="data_command", required=True)
-    stats = data_sub.add_parser("stats", help="summary of a collected data set")
-    stats.add_argument("dir", help="data set directory (shards + manifest.json)")
-    add_json_argument(stats)
-    stats.set_defaults(func=cmd_data_stats)
 
 
 def parse_objects(text: str) -> tuple[int, int]:
@@ -97,32 +119,43 @@ def parse_objects(text: str) -> tuple[int, int]:
     return lo_i, hi_i
 
 
-def cmd_collect(args: argparse.Namespace) -> dict:
+def collect_config(args: argparse.Namespace):
+    """The CollectConfig the options ask for: --recipe's settings (none: CollectConfig's
+    defaults), the data options given on top."""
     import dataclasses
-    import sys
 
-    from drake_symplan.data.collect import CollectConfig, collect
-    from drake_symplan.data.stats import format_stats
+    from drake_symplan.data.collect import CollectConfig
+    from drake_symplan.data.recipes import recipe
 
-    check_output_dir(args.out)
-    if args.explorer == "active":
-        check_device(args.device)
-    lo, hi = parse_objects(args.objects)
-    active = {}
-    if args.explorer == "active":
+    given = {"backend": args.backend, "episode_length": args.episode_length,
+             "long_fraction": args.long_fraction, "chunk_size": args.chunk_size,
+             "noise_sigma": args.noise_sigma, "noise_dropout": args.noise_dropout,
+             "time_step": args.time_step, "camera_noise": args.camera_noise,
+             "box_modulus": args.box_modulus, "explorer": args.explorer,
+             "hand_twin": None if args.hand_twin is None else args.hand_twin == "on"}
+    if args.objects is not None:
+        given["min_objects"], given["max_objects"] = parse_objects(args.objects)
+    settings = {**(recipe(args.recipe) if args.recipe is not None else {}),
+                **{k: v for k, v in given.items() if v is not None}}
+    if settings.get("explorer") == "active":
         from drake_symplan.explorers.active import ActiveConfig
 
-        active = dataclasses.asdict(ActiveConfig(
+        settings["active"] = dataclasses.asdict(ActiveConfig(
             warmup=args.warmup, round_size=args.round_size, p_random=args.mix[0],
             p_goal=args.mix[1], members=args.members, epochs=args.round_epochs))
-    config = CollectConfig(
-        backend=args.backend, transitions=args.transitions, seed=args.seed,
-        min_objects=lo, max_objects=hi, episode_length=args.episode_length,
-        long_fraction=args.long_fraction, chunk_size=args.chunk_size,
-        noise_sigma=args.noise_sigma, noise_dropout=args.noise_dropout,
-        time_step=args.time_step, camera_noise=args.camera_noise, explorer=args.explorer,
-        active=active, hand_twin=args.hand_twin == "on", box_modulus=args.box_modulus)
-    if args.explorer == "active":
+    return CollectConfig(**settings, transitions=args.transitions, seed=args.seed)
+
+
+def cmd_collect(args: argparse.Namespace) -> dict:
+    import sys
+
+    from drake_symplan.data.collect import collect
+    from drake_symplan.data.stats import format_stats
+
+    config = collect_config(args)
+    check_output_dir(args.out)
+    if config.explorer == "active":
+        check_device(args.device)
         from drake_symplan.explorers.rounds import collect_active
 
         summary = collect_active(args.out, config, workers=args.workers,

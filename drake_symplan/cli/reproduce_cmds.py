@@ -26,23 +26,20 @@ from drake_symplan.json_files import read_json
 
 
 def register(subparsers) -> None:
-    from drake_symplan.pipelines.reproduce import SCALES
-
     p = subparsers.add_parser(
         "reproduce", help="collect, train 3 models x 3 seeds, learn operators, evaluate "
         "effects, operators and planning in the arm; every table into one directory",
         description="Runs every stage of the pipeline as `symplan` commands (recorded in "
         "DIR/provenance.json) and writes DIR/results/results.md with the tables and plots. "
         "Re-running the same command resumes: finished stages are skipped.")
-    p.add_argument("--scale", choices=sorted(SCALES), required=True,
-                   help="small: a toy run (~10 min on 2 cores); paper: the README's run")
+    p.add_argument("--scale", required=True, metavar="NAME",
+                   help="a scale of configs/scales.yaml: small, a toy run (~10 min on 2 "
+                   "cores); paper, the README's run")
     add_run_arguments(p, "reproduce", "collect and solve the arm problems on Ray",
                       "write results.md from the stages done so far",
                       extra=lambda: (add_solve_arguments(p, monitor_flag=False),
                                      add_camera_noise_argument(p)))
     p.set_defaults(func=run_reproduce)
-
-    from drake_symplan.pipelines.learning_curve import CURVE_SCALES
 
     c = subparsers.add_parser(
         "curve", help="random against active exploration by data size: coverage, "
@@ -50,9 +47,10 @@ def register(subparsers) -> None:
         description="Collects a random and an active data set size by size, trains and "
         "evaluates a model at every size (DIR/runs), writes DIR/results/curve.md, .json "
         "and .png. Re-running the same command resumes.")
-    c.add_argument("--scale", choices=sorted(CURVE_SCALES), required=True,
-                   help="small: toy (minutes); session: 5k, 10k and 25k, 3 seeds at 10k and 25k (about 2 h "
-                   "on 2 cores); paper: 5k-50k, random to 100k, 3 seeds at 25k/50k, the arm")
+    c.add_argument("--scale", required=True, metavar="NAME",
+                   help="a scale of configs/scales.yaml: small, toy (minutes); session, 5k, "
+                   "10k and 25k, 3 seeds at 10k and 25k (about 2 h on 2 cores); paper, "
+                   "5k-50k, random to 100k, 3 seeds at 25k/50k, the arm")
     add_run_arguments(c, "curve", "collect and solve on Ray",
                       "write the table from the points done so far")
     c.set_defaults(func=run_curve)
@@ -75,7 +73,9 @@ def add_run_arguments(p, name: str, ray_help: str, report_help: str, extra=None)
 
 def run_reproduce(args):
     from drake_symplan.pipelines.reproduce import Reproduction, StageFailed
+    from drake_symplan.pipelines.scales import load_scale
 
+    load_scale("reproduce", args.scale)  # an unknown name: one line, before any folder
     out = args.out or Path("out") / f"reproduce_{args.scale}"
     check_output_dir(out)
     check_device(args.device)
@@ -98,8 +98,10 @@ def run_reproduce(args):
 
 def run_curve(args):
     from drake_symplan.pipelines.learning_curve import LearningCurve
+    from drake_symplan.pipelines.scales import load_scale
     from drake_symplan.pipelines.stages import StageFailed
 
+    load_scale("curve", args.scale)  # an unknown name: one line, before any folder
     out = args.out or Path("out") / f"curve_{args.scale}"
     check_output_dir(out)
     check_device(args.device)

@@ -15,9 +15,8 @@ transitions are reported to the parent as they happen for a tqdm bar with rate a
 Workers exit if their parent dies. With `ray_address` the workers are Ray actors instead
 (drake_symplan/cluster.py), on this machine or a cluster: each returns its chunk's arrays
 and the driver writes the shard, so the data set is the same file for file; Ray restarts a
-killed worker and retries the chunk it had in flight. Each shard also stores its chunk's bookkeeping
-(outcome classes, why episodes ended, skipped transitions) so `stats` can summarise a data
-set from its files alone.
+killed worker and retries its chunk. Each shard also stores its chunk's bookkeeping
+(outcome classes, episode ends, skipped transitions) for `stats`.
 """
 
 from __future__ import annotations
@@ -58,7 +57,8 @@ LEGACY_BOX_MODULUS = 1e7  # Pa: and those that name no box modulus with boxes of
 
 @dc.dataclass
 class CollectConfig:
-    """Everything that determines the data; stored in the manifest, checked on resume."""
+    """Everything that determines the data; stored in the manifest, checked on resume.
+    Named settings, such as the shipped model's: configs/recipes.yaml (data/recipes.py)."""
 
     backend: str = "hand"
     transitions: int = 1000
@@ -86,12 +86,9 @@ class CollectConfig:
             raise ValueError(f"unknown back-end {self.backend!r}; expected one of {tuple(BACKENDS)}")
         if self.transitions < 1 or self.chunk_size < 1 or self.episode_length < 1:
             raise ValueError("transitions, chunk_size and episode_length must be positive")
-        if not 0 < self.time_step < math.inf:
-            raise ValueError(f"time_step must be a positive number of seconds, got "
-                             f"{self.time_step}")
-        if not 0 < self.box_modulus < math.inf:
-            raise ValueError(f"box_modulus must be a positive number (Pa), got "
-                             f"{self.box_modulus}")
+        for key, unit in (("time_step", " of seconds"), ("box_modulus", " (Pa)")):
+            if not 0 < (value := getattr(self, key)) < math.inf:
+                raise ValueError(f"{key} must be a positive number{unit}, got {value}")
         if not 0 <= self.seed < 2**32:
             raise ValueError(f"seed must be an integer in [0, 2**32), got {self.seed}")
         if not 0 <= self.long_fraction <= 1:
@@ -259,8 +256,9 @@ def collect(out_dir: str | Path, config: CollectConfig, workers: int | None = 1,
         manifest, todo, already = _prepare(out_dir, config)
         if upto is not None:
             todo = [c for c in todo if c < upto]
-        bar = stack.enter_context(contextlib.closing(
-            _progress_bar(config.transitions, already, progress)))
+        bar = stack.enter_context(tqdm(  # disabled: update and close do nothing
+            total=config.transitions, initial=already, unit="tr", desc="collect",
+            smoothing=0.05, dynamic_ncols=True, disable=not progress))
         jobs_by_node = None
         if not todo:
             started = time.perf_counter()
@@ -396,18 +394,3 @@ def _run_ray(ray, out_dir: Path, config: CollectConfig, todo: list[int], workers
 
     return run_jobs(ray, collection_backend, backend_args(config), chunk_shard,
                     [(c, config, c, explorer(c)) for c in todo], workers, write, advance)
-
-
-class _NoBar:
-    def update(self, n: int = 1) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-def _progress_bar(total: int, initial: int, enabled: bool):
-    if not enabled:
-        return _NoBar()
-    return tqdm(total=total, initial=initial, unit="tr", desc="collect", smoothing=0.05,
-                dynamic_ncols=True)

@@ -1,7 +1,7 @@
 """`symplan curve`: random against active exploration by data size, on one held-out set.
 
-Each explorer's training set is one collection (hand back-end, seed 12) extended size by
-size, so a point at N is the first N transitions of it (a view of its first shards,
+Each explorer's training set is one collection (the scale's data recipe, seed 12) extended
+size by size, so a point at N is the first N transitions of it (a view of its first shards,
 data/storage.link_head): active at 5k is exactly the first 5k of active at 50k. Every
 point is trained with the same settings (Relational DeepSym, invariant), gets effect-first
 operators, and is evaluated on the same random held-out set (seed 97): coverage,
@@ -12,65 +12,27 @@ OUT/results/curve.md, curve.json and curve.png; resumable like `symplan reproduc
 
 from __future__ import annotations
 
-import dataclasses as dc
 import json
 from pathlib import Path
 
 from drake_symplan.atomic import write_atomic
 from drake_symplan.json_files import read_json
+from drake_symplan.pipelines.scales import Scale, load_scale
 from drake_symplan.pipelines.stages import Stage, StageRunner
 
 EXPLORERS = ("random", "active")
 MODEL = ["--model", "relational", "--model-option", "invariant=true"]
 
 
-@dc.dataclass(frozen=True)
-class CurveScale:
-    """Which points and how each is trained and measured."""
-
-    sizes: tuple[int, ...]  # both explorers
-    random_only: tuple[int, ...] = ()  # random alone goes on to these (data alone buys)
-    multi_seed: tuple[int, ...] = ()  # sizes trained with every seed (else seed 0)
-    seeds: tuple[int, ...] = (0, 1, 2)
-    heldout: int = 2000
-    objects: str = "2-4"
-    chunk_size: int = 100
-    epochs: int = 300
-    patience: int = 30
-    min_count: int = 10
-    operator_problems: int = 30
-    active: tuple[str, ...] = ()  # extra `collect --explorer active` options
-    arm: tuple[int, int] | None = None  # (active size, random size) solved in the arm
-    arm_problems: int = 30  # per object count 2, 3, 4 (k = 1-3)
-    train_seed: int = 12
-    heldout_seed: int = 97
-    problem_seed: int = 3000
-
-
-CURVE_SCALES = {
-    # A few minutes on 2 cores: every stage on toy data; a systems test.
-    "small": CurveScale(sizes=(200, 300), random_only=(400,), multi_seed=(300,),
-                        seeds=(0, 1), heldout=200, objects="2-3", chunk_size=50, epochs=15,
-                        patience=5, min_count=3, operator_problems=4,
-                        active=("--warmup", "100", "--round-size", "100", "--members", "2",
-                                "--round-epochs", "5")),
-    # What one 2-core session measures (about 2 hours): seeds 0-2 at 10k and 25k.
-    "session": CurveScale(sizes=(5000, 10000, 25000), multi_seed=(10000, 25000)),
-    # The issue's curve: hours on one machine, `--ray` spreads the collections.
-    "paper": CurveScale(sizes=(5000, 10000, 25000, 50000), random_only=(100000,),
-                        multi_seed=(25000, 50000), arm=(25000, 50000)),
-}
-
-
 class LearningCurve(StageRunner):
-    """The stages of one scale in `out`; `run()` runs what is not done yet."""
+    """The stages of one scale in `out` (a name in configs/scales.yaml, or a Scale);
+    `run()` runs what is not done yet."""
 
-    def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
+    def __init__(self, scale: str | Scale, out: Path, jobs: int = 2, ray: str | None = None,
                  say=print, device: str = "auto"):
-        if scale not in CURVE_SCALES:
-            raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(CURVE_SCALES)}")
+        self.name, self.scale = load_scale("curve", scale)  # first: a bad name makes nothing
         super().__init__(out, jobs, say)
-        self.name, self.scale, self.ray = scale, CURVE_SCALES[scale], ray
+        self.ray = ray
         self.device = device  # where the train stages and the active rounds train
         self.heldout_data, self.results = self.out / "data/heldout", self.out / "results"
 
@@ -97,11 +59,7 @@ class LearningCurve(StageRunner):
         workers = ["--ray", *([self.ray] if self.ray else [])] if self.ray is not None \
             else ["--workers", self.jobs]
         options = [*s.active, "--device", self.device] if explorer == "active" else []
-        # The published curve was measured on the hand without its arm twin, with boxes
-        # of modulus 1e7 (before stacks rested).
-        argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--box-modulus", "1e7",
-                "--transitions", size,
-                "--out", data,
+        argv = ["collect", "--recipe", s.recipe, "--transitions", size, "--out", data,
                 "--seed", seed, "--objects", s.objects, "--chunk-size", s.chunk_size,
                 *(["--explorer", "active", *options] if explorer == "active" else []),
                 "--no-progress", "--json", *workers]
@@ -207,7 +165,7 @@ class LearningCurve(StageRunner):
         arm = summarise_planning(read_json(planning)) \
             if planning.is_file() else None
         write_atomic(self.results / "curve.json", json.dumps(
-            {"scale": dc.asdict(self.scale), "points": rows, "arm": arm}, indent=1))
+            {"scale": self.scale.settings("curve"), "points": rows, "arm": arm}, indent=1))
         text = [f"# Learning curve ({self.name})", "",
                 "Held-out set: random, seed "
                 f"{self.scale.heldout_seed}, {self.scale.heldout} transitions. Rows: "

@@ -1,21 +1,20 @@
 """`symplan reproduce`: every table and figure of the results from nothing, in one resumable run.
 
 Each stage is a `symplan` child process whose command line is recorded: collect a training
-and a held-out data set (hand back-end, two seeds), train Table I's three models x 3 seeds,
+and a held-out data set (the scale's data recipe, two seeds), train Table I's three models,
 learn operators for every RelationalDeepSym and Attentive run (effect-first; the paper's
 learner beside it on RelationalDeepSym, the baseline row), evaluate the effects (Table I),
 the operators and the continuous model's rollouts on the held-out episodes, make arm
 problems and solve them with every bundle monitored, then with the first seed's Relational
-bundle in the other planning modes, the oracle and open loop. A stage whose output is
-there is skipped, so the same
-command resumes an interrupted run. OUT/results.md holds the tables, the JSON and PNG files
+bundle in the other planning modes, the oracle and open loop. The scales are
+configs/scales.yaml (pipelines/scales.py). A stage whose output is there is skipped, so
+the same command resumes an interrupted run. OUT/results.md holds the tables, the JSON and PNG files
 lie beside it, OUT/provenance.json records commands, seeds, data fingerprints, package
 versions and the host.
 """
 
 from __future__ import annotations
 
-import dataclasses as dc
 import json
 import os
 import platform
@@ -28,47 +27,13 @@ from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import PLANNING_MODES
 from drake_symplan.atomic import write_atomic
 from drake_symplan.json_files import read_json
+from drake_symplan.pipelines.scales import Scale, load_scale
 from drake_symplan.pipelines.stages import Stage, StageFailed, StageRunner
 from drake_symplan.shards import fingerprint
 
-__all__ = ["SCALES", "Reproduction", "Stage", "StageFailed"]
+__all__ = ["Reproduction", "Scale", "Stage", "StageFailed"]
 
 
-@dc.dataclass(frozen=True)
-class Scale:
-    """How big each stage is."""
-
-    train: int  # transitions in the training data set
-    heldout: int  # transitions in the held-out data set (another seed)
-    objects: str  # objects per scene in both data sets
-    epochs: int
-    patience: int
-    min_count: int  # effect-first operators: transitions an effect needs
-    paper_min_count: int  # the paper's learner
-    operator_problems: int  # `eval operators --max-problems` (per k and object count)
-    planning_objects: tuple[int, ...]
-    planning_k: tuple[int, ...]
-    planning_problems: int  # per object count
-    planning_seeds: tuple[int, ...]  # training seeds whose bundles solve the arm problems
-    seeds: tuple[int, ...] = (0, 1, 2)
-    train_seed: int = 12
-    heldout_seed: int = 97
-    problem_seed: int = 1000
-
-
-SCALES = {
-    # About 10 minutes on 2 cores: the whole pipeline on a toy data set; a systems test.
-    "small": Scale(train=1500, heldout=300, objects="2-3", epochs=40, patience=10,
-                   min_count=5, paper_min_count=5, operator_problems=8,
-                   planning_objects=(2,), planning_k=(1,), planning_problems=3,
-                   planning_seeds=(0,)),
-    # The README's headline run (hours on one machine; `--ray` fans collection and the
-    # arm problems out over a cluster).
-    "paper": Scale(train=50000, heldout=2000, objects="2-4", epochs=300, patience=30,
-                   min_count=10, paper_min_count=50, operator_problems=30,
-                   planning_objects=(2, 3, 4, 8), planning_k=(1, 2, 3, 4, 5),
-                   planning_problems=100, planning_seeds=(0, 1, 2)),
-}
 MODELS = {  # Table I's three models; RelationalDeepSym in its permutation-invariant form
     "relational": ["--model", "relational", "--model-option", "invariant=true"],
     "attentive": ["--model", "attentive"],
@@ -79,15 +44,14 @@ MODE_ROWS = tuple(n for n, m in PLANNING_MODES.items() if m.reproduced)  # on se
 
 
 class Reproduction(StageRunner):
-    """The stages of one scale in `out`; `run()` runs what is not done yet."""
+    """The stages of one scale in `out` (a name in configs/scales.yaml, or a Scale);
+    `run()` runs what is not done yet."""
 
-    def __init__(self, scale: str, out: Path, jobs: int = 2, ray: str | None = None,
+    def __init__(self, scale: str | Scale, out: Path, jobs: int = 2, ray: str | None = None,
                  say=print, solve: SolveConfig = DEFAULT_SOLVE, device: str = "auto",
                  camera_noise: str = "none"):
-        if scale not in SCALES:
-            raise ValueError(f"unknown scale {scale!r}; expected one of {sorted(SCALES)}")
+        self.name, self.scale = load_scale("reproduce", scale)  # first: a bad name makes nothing
         super().__init__(out, jobs, say)
-        self.name, self.scale = scale, SCALES[scale]
         self.ray, self.solve, self.device = ray, solve, device  # device: the train stages'
         # The depth sensor every perceiving stage runs with (world/depth_sensor.py).
         self.camera_noise = camera_noise
@@ -106,11 +70,8 @@ class Reproduction(StageRunner):
     def collect_stages(self) -> list[Stage]:
         s = self.scale
 
-        def collect(name, data, n, seed):
-            # The published figures were measured on the hand without its arm twin, with
-            # boxes of modulus 1e7 (before stacks rested).
-            argv = ["collect", "--backend", "hand", "--hand-twin", "off", "--box-modulus", "1e7",
-                    "--transitions", n,
+        def collect(name, data, n, seed):  # the scale's data recipe (configs/recipes.yaml)
+            argv = ["collect", "--recipe", s.recipe, "--transitions", n,
                     "--out", data, "--seed", seed, "--objects", s.objects, "--no-progress",
                     "--json",
                     *self._sensor(), *(self._ray() or ["--workers", self.jobs])]
@@ -268,7 +229,7 @@ class Reproduction(StageRunner):
                        + (f" --ray {self.ray}" if self.ray is not None else "")
                        + (f" --device {self.device}" if self.device != "auto" else "")
                        + "".join(f" {a}" for a in self._sensor()),
-            "scale": dc.asdict(self.scale),
+            "scale": self.scale.settings("reproduce"),
             "data": {name: {"dir": str(d), "fingerprint": fingerprint(d)}
                      for name, d in (("train", self.train_data), ("heldout", self.heldout_data))},
             "versions": _versions(),
