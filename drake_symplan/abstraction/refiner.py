@@ -53,6 +53,10 @@ class Refined:
     predicted: list[Boxes]
     subgoal: bool = False
 
+    def then(self, step: PlanStep, after: Boxes) -> Refined:
+        """This plan with `step` after it, predicted to leave `after`."""
+        return Refined(self.steps + [step], self.predicted + [after])
+
 
 def _asked_first(options: list[Reposition], boxes: Boxes, order: GoalOrder,
                  goal: dict[str, np.ndarray], limit: float, missed: Counter,
@@ -288,6 +292,21 @@ class Refiner:
         order = order or GoalOrder(goal, boxes.kinds())
         return order.moves_left(boxes.where(), goal_errors(boxes, goal), self.limit)
 
+    def _split(self, boxes: Boxes, order: GoalOrder, goal: dict[str, np.ndarray],
+               in_the_way) -> tuple[list[Reposition], list[Reposition] | None]:
+        """The moves from `boxes` that the search predicts now, and those it defers
+        (`defer`; None: none): the ones the goal's order asks for first."""
+        options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
+                        boxes.riding, boxes.covered())
+        if self.defer is None:
+            return self._allowed(boxes, options), None
+        first, later = _asked_first(options, boxes, order, goal, self.limit, self.missed,
+                                    in_the_way)
+        first = self._allowed(boxes, first)
+        if later and first:
+            return first, later
+        return first or self._allowed(boxes, later), None
+
     def search(self, start: Boxes, goal: dict[str, np.ndarray], budget: Budget,
                max_depth: int | None = None) -> tuple[Refined | None, Refined]:
         """Weighted best-first search over pick/place moves in predicted space: f = g
@@ -331,29 +350,17 @@ class Refiner:
                 if key in seen or len(done.steps) >= depth:
                     continue
                 seen.add(key)
-                options = moves(boxes.names, set(boxes.names), boxes.half_length, "move",
-                                boxes.riding, boxes.covered())
-                if self.defer is not None:
-                    first, later = _asked_first(options, boxes, order, goal, self.limit,
-                                                self.missed, in_the_way)
-                    first = self._allowed(boxes, first)
-                    if later and first:
-                        heapq.heappush(frontier, (f + self.defer, next(tie), g, distance,
-                                                  boxes, done, later))
-                    options = first or self._allowed(boxes, later)
-                else:
-                    options = self._allowed(boxes, options)
+                options, later = self._split(boxes, order, goal, in_the_way)
+                if later:
+                    heapq.heappush(frontier, (f + self.defer, next(tie), g, distance, boxes,
+                                              done, later))
             else:
                 options = self._allowed(boxes, deferred)
             for after, option in zip(self._predict(boxes, options), options, strict=True):
-                if self.unsafe(boxes, after, option.action):
-                    continue
-                distance = h(after)
-                cost = g + 1 + MISSED * self.missed[option.action]
-                heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,
-                                          distance, after, Refined(done.steps + [option],
-                                                                   done.predicted + [after]),
-                                          None))
+                if not self.unsafe(boxes, after, option.action):
+                    cost, distance = g + 1 + MISSED * self.missed[option.action], h(after)
+                    heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,
+                                              distance, after, done.then(option, after), None))
         if clearing is not None and not nearer(nearest[1], start, goal):
             return None, clearing[1]
         return None, nearest[1]

@@ -271,14 +271,10 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     summary = read_json(summary_path) if summary_path.is_file() else {}
     settings = {"n_objects": n_objects, "k": ks, "seed": seed, "backend": backend,
                 "camera_noise": camera_noise}
-    if reproducible:  # only then, so that sets made before still resume
-        settings["reproducible"] = True
-    if task is not None:
-        settings["task"] = task
-    if start_k:
-        settings["start_k"] = start_k
-    if long_fraction != 0.5:  # only then, so that sets made before still resume
-        settings["long_fraction"] = long_fraction
+    # each only when it is not the default, so that sets made before still resume
+    settings.update({key: value for key, value, default in (
+        ("reproducible", reproducible, False), ("task", task, None), ("start_k", start_k, 0),
+        ("long_fraction", long_fraction, 0.5)) if value != default})
     stored = summary.get("settings")
     if isinstance(stored, dict):  # sets made before the sensor model was recorded: none
         stored = {"camera_noise": "none", **stored}
@@ -292,23 +288,18 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
     if agent is None and kept < count:
         agent = Agent(backend, camera_noise=camera_noise)
     while kept < count and attempt < max_attempts:
-        kk = ks[kept % len(ks)]
         pseed = problem_seed(seed, attempt)
         attempt += 1
-        made = make_problem(agent, pseed, n_objects, tuple(ks) if start_k else kk,
+        made = make_problem(agent, pseed, n_objects,
+                            tuple(ks) if start_k else ks[kept % len(ks)],
                             long_fraction=long_fraction,
                             reproducible=reproducible, task=task, start_k=start_k)
         if isinstance(made, str):
             rejected[made] += 1
         else:
-            start, goal, info = made
-            folder = out / f"p{kept:03d}"
-            folder.mkdir(exist_ok=True)
-            save_scene(start, folder / "start.yaml")
-            save_scene(goal, folder / "goal.yaml")
-            record = {"k": len(info["actions"]), "seed": pseed, "n_objects": n_objects, "backend": backend,
-                      "camera_noise": camera_noise, "attempt": attempt - 1, **info}
-            write_atomic(folder / "problem.json", json.dumps(record, indent=1) + "\n")
+            _write_problem(out / f"p{kept:03d}", made, {
+                "seed": pseed, "n_objects": n_objects, "backend": backend,
+                "camera_noise": camera_noise, "attempt": attempt - 1})
             kept += 1
         summary = {"settings": settings, "kept": kept, "attempts": attempt,
                    "rejected": dict(sorted(rejected.items()))}
@@ -316,6 +307,17 @@ def make_problems(out_dir, n_objects: int, k, count: int, seed: int, backend: st
         if progress:
             progress(summary)
     return summary
+
+
+def _write_problem(folder: Path, made: tuple, record: dict) -> None:
+    """A problem's folder: start.yaml, goal.yaml and problem.json (`record`, its k the
+    actions that made it, and what else the maker told: `made`'s info)."""
+    start, goal, info = made
+    folder.mkdir(exist_ok=True)
+    save_scene(start, folder / "start.yaml")
+    save_scene(goal, folder / "goal.yaml")
+    record = {"k": len(info["actions"]), **record, **info}
+    write_atomic(folder / "problem.json", json.dumps(record, indent=1) + "\n")
 
 
 def load_problems(problems_dir) -> list[dict]:
