@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -160,35 +160,45 @@ def plan_bilevel(abstraction, refiner: Refiner, start: Observation, goal: Observ
         looked_at(_candidate(SEARCH, [], refined, refiner, start.boxes, target))
     else:
         refined, nearest = searched
-    seconds, candidates = time.perf_counter() - t0, looked_at.candidates
+    return _after_search(refined, nearest, unverified, refiner, start.boxes, target,
+                         Plan("solved", [], time.perf_counter() - t0, "", search.planner,
+                              level=SEARCH, candidates=looked_at.candidates), search.level)
 
+
+def _after_search(refined: Refined | None, nearest: Refined, unverified: Plan | None,
+                  refiner: Refiner, start: Boxes, target: dict[str, np.ndarray],
+                  base: Plan, level: str) -> Plan:
+    """The plan once the search has run: its plan (`refined`); where it found none, the
+    first skeleton on its symbols, the steps predicted nearest the goal, those that clear
+    a refused grasp, the empty plan where the goal's symbols hold, or none (a timeout).
+    `base`: the Plan's seconds, planner and candidates."""
     def found(steps, message: str, level: str, predicted=(), status="solved") -> Plan:
-        return Plan(status, steps, seconds, message, search.planner, level=level,
-                    predicted=list(predicted), candidates=candidates)
+        return replace(base, status=status, steps=list(steps), message=message, level=level,
+                       predicted=list(predicted))
 
     if refined is not None:
         return found(refined.steps, "", SEARCH, refined.predicted)
     missed = "no plan reaches the goal positions in prediction"
     if unverified is not None and unverified.steps \
-            and allows(unverified.steps[0].action, refiner.refusals.barred(start.boxes)):
+            and allows(unverified.steps[0].action, refiner.refusals.barred(start)):
         # Predictions are not the world (`symplan eval rollout`): the symbolic plan still
         # has its chance, completed and monitored as a symbolic plan is; not where the arm
         # refuses its first step (a skeleton with no other way found it again and again).
         return found(unverified.steps, f"{missed}; the first skeleton runs on its symbols",
                      "symbolic")
-    if nearer(nearest, start.boxes, target):
+    if nearer(nearest, start, target):
         # Nothing reaches the goal, but these steps are predicted to bring the boxes
         # nearer it; the monitor replans from what is perceived at their end.
         return found(nearest.steps, f"{missed}; the steps predicted nearest it run, then "
                      "a replan", "nearest", nearest.predicted)
-    if refiner.clears_way(start.boxes, nearest):
-        # Nor nearer, but they move a box the arm's wrist would strike on a refused grasp:
-        # once it is seen moved, the grasp is planned again.
+    if refiner.clears_way(start, nearest):
+        # Nor nearer, but they move a box in the way of a refused grasp: once it is seen
+        # moved, the grasp is planned again.
         return found(nearest.steps, f"{missed}; the steps that move a box in the way of a "
                      "refused grasp run, then a replan", "nearest", nearest.predicted)
     if unverified is not None and not unverified.steps:  # the goal's symbols hold already
         return found([], missed, "symbolic")
-    return found([], missed, search.level, status="timeout")
+    return found([], missed, level, status="timeout")
 
 
 def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: Observation,
