@@ -44,20 +44,23 @@ def test_a_skeleton_that_builds_the_relation_elsewhere_is_accepted_for_a_relatio
     assert [str(s) for s in found.steps] == [str(A_ON_C.steps[0])]
 
 
-def test_a_relation_goal_names_its_pairs_both_ways_with_the_layer_of_the_lower_box():
+def test_a_relation_goal_names_its_pairs_upper_first_with_the_lower_boxs_layer():
     tower = boxes(a=(0.6, 0.1, 0.125), b=(0.6, 0.1, 0.075), c=(0.6, 0.1, 0.025),
                   d=(0.8, 0.0, 0.025))
     reading = Reading(SymbolicState(tower.names, np.zeros((4, 1)), np.zeros((3, 4, 4))),
                       np.zeros((4, 1), bool), np.zeros((3, 4, 4), bool))
     goal = relation_goal(Observation(None, reading, tower), parse(["tower a b c"]))
-    assert goal.reading.pairs == {("b", "c"): 0, ("c", "b"): 0, ("a", "b"): 1, ("b", "a"): 1}
+    assert goal.reading.pairs == {("b", "c"): (0, 0), ("a", "b"): (1, 0)}
 
 
 def test_a_goal_of_relations_is_planned_in_stages_from_the_lowest_pairs():
-    goal = SimpleNamespace(pairs={("b", "c"): 0, ("c", "b"): 0, ("a", "b"): 1, ("b", "a"): 1})
-    atoms = frozenset({("r0", "a", "b"), ("r0", "b", "c"), ("not_r0", "c", "b")})
+    # tower a b c, and on d e: c and e on the table
+    goal = SimpleNamespace(pairs={("b", "c"): (0, 0), ("a", "b"): (1, 0), ("d", "e"): (0, 1)})
+    atoms = frozenset({("r0", "a", "b"), ("r0", "b", "c"), ("not_r2", "b", "c"),
+                       ("r0", "d", "e")})
+    bottom = frozenset({("r0", "b", "c"), ("not_r2", "b", "c")})
     assert Abstraction(None).stages(goal, atoms) == [
-        frozenset({("r0", "b", "c"), ("not_r0", "c", "b")}), atoms]
+        bottom, bottom | {("r0", "d", "e")}, atoms]
 
 
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),

@@ -45,9 +45,9 @@ class Reading:
     unary_uncertain: np.ndarray  # [n, P] bool
     relational_uncertain: np.ndarray  # [K, n, n] bool
     contacts: set = field(default_factory=set)  # {(a, b)} perceived in contact
-    # A goal of relations (relations.py): the (a, b) pairs they name, both ways round, each
-    # with the layer its lower box stands in in the example (0: on the table); its goal
-    # atoms are the relation atoms of those pairs alone (Abstraction.goal_atoms, stages).
+    # A goal of relations (relations.py): the (upper, lower) pairs they name, each
+    # with (the layer its lower box stands in in the example, 0 on the table; the index of
+    # its relation); its goal atoms are those pairs' relation atoms alone (goal_atoms, stages).
     # None: a whole-scene goal.
     pairs: dict | None = None
 
@@ -79,7 +79,8 @@ class Observation:
 def relation_goal(goal: Observation, relations) -> Observation:
     """The perceived example `goal` of `relations` as a goal of relations: its boxes only
     the named ones (the others are free), its reading's goal atoms only those of the pairs
-    the relations name (Reading.pairs), each pair with the layer of its lower box."""
+    the relations name (Reading.pairs), each pair with the layer of its lower box and
+    its relation's index."""
     from drake_symplan.boxes import SIDE
     from drake_symplan.relations import bottom, named
 
@@ -89,10 +90,10 @@ def relation_goal(goal: Observation, relations) -> Observation:
                   frozenset(p for p in goal.boxes.contacts if set(p) <= set(names)))
     states = goal.boxes.object_states()
     pairs = {}
-    for r in relations:
+    for index, r in enumerate(relations):
         for upper, lower in r.pairs():
             layer = max(0, int(round(bottom(states[lower]) / SIDE))) if lower in states else 0
-            pairs[(upper, lower)] = pairs[(lower, upper)] = layer
+            pairs[(upper, lower)] = (layer, index)
     reading = None if goal.reading is None else replace(goal.reading, pairs=pairs)
     return Observation(goal.scene, reading, boxes, tuple(relations))
 
@@ -287,13 +288,14 @@ class Abstraction:
         return found
 
     def stages(self, goal: Reading, atoms: frozenset) -> list[frozenset]:
-        """A goal of relations' atoms in growing stages: those of its pairs whose lower box
-        stands in the lowest layer of the example, then those one layer up with them, and
-        so on (Reading.pairs' values): a structure planned from the bottom up, as a person
-        builds it, with no move that carries a built part."""
-        layers = sorted(set(goal.pairs.values()))
-        return [frozenset(a for a in atoms if goal.pairs[(a[1], a[2])] <= layer)
-                for layer in layers]
+        """A goal of relations' atoms in growing stages, by Reading.pairs' values (layer,
+        relation): those of the first relation's pairs whose lower box stands in the lowest
+        layer of the example, then the next relation's in that layer with them, and so on
+        up: structures planned from the bottom up, as a person builds them, one at a time,
+        with no move that carries a built part."""
+        stages = sorted(set(goal.pairs.values()))
+        return [frozenset(a for a in atoms if goal.pairs[(a[1], a[2])] <= stage)
+                for stage in stages]
 
     def _plan_stages(self, task: Task, start: Reading, goal: Reading, planner: str,
                      budget: Budget, focus: bool, penalties) -> Plan | None:
