@@ -1,0 +1,50 @@
+"""Results rendered from records (evaluation/report.py, `symplan report`): the README's
+tables are the records', to the digit."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+from drake_symplan.evaluation.report import BLOCK, keep, load_records, render, replace_blocks
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def solve(problem, status, k=3, plan=0.5, n=6):
+    return {"problem": problem, "status": status, "success_true": status == "success",
+            "n_objects": n, "k": k, "seconds": {"plan": plan}}
+
+
+SETTINGS = {"problems_dir": "out/w", "planning": "symbolic"}
+RECORDS = [solve("out/w/row4/o6/p000", "success", plan=0.2),
+           solve("out/w/row4/o8/p000", "failure", k=4, plan=0.6, n=8),
+           solve("out/w/tower4/o6/p000", "success", plan=0.4)]
+
+
+def test_a_record_counts_each_set_and_a_table_renders_it():
+    record = keep(RECORDS, SETTINGS, "w-symbolic", "w", "symbols alone", "symplan ...",
+                  rows="kind")
+    assert record["sets"] == {
+        "row4": {"problems": 2, "success": 1, "success_true": 1, "objects": [6, 8],
+                 "actions": [3, 4], "plan_seconds_median": 0.4},
+        "tower4": {"problems": 1, "success": 1, "success_true": 1, "objects": [6],
+                   "actions": [3, 3], "plan_seconds_median": 0.4}}
+    record.update(measured="2026-12-04", commit="abc1234", host={"cpus": 2})
+    assert render([record], "w") == (
+        "| set | boxes | actions | symbols alone |\n|---|---|---|---|\n"
+        "| row4 | 6-8 | 3-4 | 1/2 (1), 0.40 s |\n| tower4 | 6 | 3 | 1/1 (1), 0.40 s |\n\n"
+        "Measured 2026-12-04 at commit abc1234 on 2 CPU cores; each cell: solved on the "
+        "perceived verdict (on the simulator's), median plan seconds. Records: "
+        "`results/w-symbolic.json`.\n")
+
+
+def test_the_readme_tables_are_the_records_and_a_changed_digit_shows():
+    readme = (REPO / "README.md").read_text()
+    records = load_records(REPO / "results")
+    assert BLOCK.search(readme), "the README has no report block"
+    assert replace_blocks(readme, records) == readme
+    changed = copy.deepcopy(records)
+    first = next(iter(changed[0]["sets"].values()))
+    first["success"] = first["success"] - 1 if first["success"] else 1
+    assert replace_blocks(readme, changed) != readme
