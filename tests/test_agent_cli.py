@@ -82,7 +82,7 @@ def test_a_model_without_operators(scenes, tmp_path, capsys):
 def test_problem_and_evaluation_arguments(tmp_path, capsys):
     code, out, err = run(["problems", "make", "--out", tmp_path / "p", "--objects", "1",
                           "--k", "1", "--count", "1"], capsys)
-    assert_bad_input(code, out, err, "--objects must be in [2, 8]")
+    assert_bad_input(code, out, err, "--objects must be in [2, 16]")
     code, out, err = run(["problems", "make", "--out", tmp_path / "p", "--objects", "2",
                           "--k", "0", "--count", "1"], capsys)
     assert_bad_input(code, out, err, "--k")

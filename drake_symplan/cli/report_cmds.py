@@ -33,7 +33,8 @@ def register(subparsers) -> None:
     keep.add_argument("--table", required=True, help="the table it is a column of")
     keep.add_argument("--column", required=True, help="its column's heading")
     keep.add_argument("--rows", choices=("set", "kind"), default="set",
-                      help="a row per problem set, or per kind (its first folder)")
+                      help="a row per problem set, or per kind (its first folder) "
+                      "(default set)")
     keep.add_argument("--command", required=True, help="the command that made it")
     keep.add_argument("--commit", default=None,
                       help="the code's commit the run was made at (default: HEAD now)")
@@ -42,11 +43,13 @@ def register(subparsers) -> None:
     keep.set_defaults(func=cmd_keep)
     render = sub.add_parser("render", help="tables from the records")
     render.add_argument("tables", nargs="*", help="tables to print (default: all)")
-    render.add_argument("--results", type=Path, default=Path("results"))
+    render.add_argument("--results", type=Path, default=Path("results"),
+                        help="the folder of records (default results)")
     render.add_argument("--write", type=Path, nargs="*", default=[],
-                        help="pages whose report blocks are rendered anew")
+                        help="pages whose report blocks are rendered anew (default none)")
     render.add_argument("--check", type=Path, nargs="*", default=[],
-                        help="pages whose report blocks must match the records (exit 1)")
+                        help="pages whose report blocks must match the records, else exit 1 "
+                        "(default none)")
     render.set_defaults(func=cmd_render)
 
 
