@@ -19,6 +19,7 @@ wherever the structure stands. No Drake and no torch here.
 from __future__ import annotations
 
 import dataclasses as dc
+from collections import Counter
 from collections.abc import Iterable, Mapping
 
 import numpy as np
@@ -59,6 +60,17 @@ class Relation:
         return tuple(zip(o, o[1:], strict=False))
 
 
+def brief(text: str, most: int = 60) -> str:
+    """`text` quoted, cut to `most` characters (a spec in a one-line message)."""
+    return repr(text if len(text) <= most else text[:most] + " ...")
+
+
+def listed(names: list[str], most: int = 5) -> str:
+    """Names joined by commas, the first `most` and how many more."""
+    more = f" and {len(names) - most} more" if len(names) > most else ""
+    return ", ".join(names[:most]) + more
+
+
 def parse(specs: Iterable[str]) -> list[Relation]:
     """Relations of one-line specs ('tower o3 o1 o0', ...); SpecError on a bad word, a
     wrong count or a name twice in one spec."""
@@ -69,14 +81,15 @@ def parse(specs: Iterable[str]) -> list[Relation]:
             raise SpecError("an empty spec")
         word, names = words[0], tuple(words[1:])
         if word not in ARITY:
-            raise SpecError(f"{spec!r}: unknown word {word!r}; expected one of {sorted(ARITY)}")
+            raise SpecError(f"{brief(spec)}: unknown word {brief(word, 20)}; expected one of "
+                            f"{sorted(ARITY)}")
         low, high = ARITY[word]
         if len(names) < low or (high is not None and len(names) > high):
             count = f"{low}" if low == high else f"at least {low}"
-            raise SpecError(f"{spec!r}: {word} takes {count} objects, got {len(names)}")
-        twice = sorted({n for n in names if names.count(n) > 1})
+            raise SpecError(f"{brief(spec)}: {word} takes {count} objects, got {len(names)}")
+        twice = sorted(n for n, times in Counter(names).items() if times > 1)
         if twice:
-            raise SpecError(f"{spec!r}: {', '.join(twice)} named twice")
+            raise SpecError(f"{brief(spec)}: {listed(twice)} named twice")
         out.append(Relation(word, names))
     return out
 

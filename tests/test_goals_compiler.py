@@ -291,3 +291,17 @@ def test_every_written_goal_compiles_on_a_start_that_has_its_boxes():
     assert all(counts[task, "refused"] == 0 for task in sampling.WRITTEN if task != "row4")
     assert counts["row4", "refused"] <= 1
     assert min(counts[task, "built"] for task in sampling.WRITTEN) >= 30
+
+
+def test_requests_no_start_could_meet_are_refused_at_once(tmp_path, capsys):
+    save_scene(START, tmp_path / "start.yaml")
+    many = "tower " + " ".join(f"o{i}" for i in range(15000))
+    assert_bad_input(*run(["goal", "--start", tmp_path / "start.yaml", many, "--out",
+                           tmp_path / "g.yaml"], capsys), "and 14989 more not in the start")
+    out = tmp_path / "problems"
+    assert_bad_input(*run(["problems", "make", "--out", out, "--objects", "4", "--k", "2",
+                           "--count", "1", "--start-k", "2"], capsys), "--start-k needs --task")
+    assert_bad_input(*run(["problems", "make", "--out", out, "--objects", "4", "--k", "99",
+                           "--count", "1", "--task", "tower"], capsys),
+                     "--k 99: a structure of 4 boxes takes at most 8 actions")
+    assert not out.exists() and not (tmp_path / "g.yaml").exists()

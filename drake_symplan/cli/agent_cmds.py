@@ -189,10 +189,23 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     return out if result.success else NegativeAnswer(out)
 
 
+def check_task(task: str | None, ks: list[int], objects: int, start_k: int) -> None:
+    """Bad input for a request no start could meet: --start-k without --task, or a
+    structure k actions away on too few boxes (each box placed once and set down out of
+    the way at most once: 2 x --objects actions at most)."""
+    if start_k and task is None:
+        raise CommandError("--start-k needs --task (the start's towers are taken apart to "
+                           "build a structure)")
+    if task is not None and max(ks) > 2 * objects:
+        raise CommandError(f"--k {max(ks)}: a structure of {objects} boxes takes at most "
+                           f"{2 * objects} actions to build")
+
+
 def cmd_problems_make(args: argparse.Namespace) -> dict:
     from drake_symplan.goals.problems import make_problems
 
     check_objects(args.objects)
+    check_task(args.task, args.k, args.objects, args.start_k)
     check_output_dir(args.out)
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,

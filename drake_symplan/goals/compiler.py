@@ -17,13 +17,22 @@ them: it gets the relations, and the example's symbols for the pairs they name.
 from __future__ import annotations
 
 import dataclasses as dc
+from collections import Counter
 
 import numpy as np
 
 from drake_symplan.actions import OFFSET_METRES, Action, along_y, release_shift
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.datasets import ObjectState
-from drake_symplan.relations import ALIGN, Relation, SpecError, on_table, riders, top
+from drake_symplan.relations import (
+    ALIGN,
+    Relation,
+    SpecError,
+    listed,
+    on_table,
+    riders,
+    top,
+)
 from drake_symplan.world.scenes import WORKSPACE_X, WORKSPACE_Y, ObjectSpec, footprints_overlap
 
 BRIDGE_SPAN = (0.06, 0.17)  # m: supports' distance along y that the long block spans
@@ -73,10 +82,10 @@ def check_names(structures: list[Relation], objects: dict[str, ObjectState]) -> 
     named = [n for s in structures for n in s.objects]
     unknown = sorted(set(named) - set(objects))
     if unknown:
-        raise SpecError(f"{', '.join(unknown)} not in the start scene (it holds "
-                        f"{', '.join(sorted(objects))})")
-    movers = [n for s in structures for n in moved(s)]
-    twice = sorted({n for n in movers if movers.count(n) > 1})
+        raise SpecError(f"{listed(unknown)} not in the start scene (it holds "
+                        f"{listed(sorted(objects), 16)})")
+    movers = Counter(n for s in structures for n in moved(s))
+    twice = sorted(n for n, times in movers.items() if times > 1)
     if twice:
         raise SpecError(f"{', '.join(twice)} named twice")
     for s in structures:
