@@ -136,6 +136,33 @@ def shard_paths(data_dir: str | Path) -> list[Path]:
     return paths
 
 
+def damaged_shards(data_dir: str | Path) -> dict[str, str]:
+    """Every shard of `data_dir` that is missing, not the set's own, or damaged (a member
+    whose zip CRC-32 fails, a file cut short, arrays missing), by file name, with why;
+    empty: every shard reads whole. Reads every byte of every shard."""
+    data_dir = Path(data_dir)
+    paths = sorted(data_dir.glob(SHARD_GLOB))
+    found: dict[str, str] = {}
+    n = promised_shards(read_manifest(data_dir))
+    if n is not None:
+        wanted = {shard_path(data_dir, c).name for c in range(n)}
+        found |= {name: "missing" for name in sorted(wanted - {p.name for p in paths})}
+        found |= {p.name: "not a shard of this set" for p in paths if p.name not in wanted}
+    for path in paths:
+        if path.name in found:
+            continue
+        try:
+            with zipfile.ZipFile(path) as z:
+                bad = z.testzip()
+            if bad is not None:
+                found[path.name] = f"{bad} fails its CRC"
+                continue
+            _read_shard(path)
+        except (zipfile.BadZipFile, ValueError, *UNREADABLE) as e:
+            found[path.name] = str(e).strip() or type(e).__name__
+    return found
+
+
 def _unreadable(path: Path, error: BaseException) -> ValueError:
     """The one-line error of a shard file that cannot be read."""
     detail = str(error).strip() or type(error).__name__

@@ -88,3 +88,25 @@ def test_a_damaged_shard_counts_as_not_collected(complete_set):
     assert shard_length(path) == 2
     path.write_bytes(path.read_bytes()[:-40])
     assert shard_length(path) == -1  # collect's resume (data/collect.py _prepare) redoes it
+
+
+def test_verify_names_every_damaged_missing_or_stray_shard(complete_set, tmp_path, capsys):
+    import json
+
+    code, out, err = run(["data", "stats", complete_set, "--verify", "--json"], capsys)
+    assert code == 0 and json.loads(out)["damaged"] == {}, err
+    cut = shard_path(complete_set, 0)
+    cut.write_bytes(cut.read_bytes()[:300])
+    flipped = shard_path(complete_set, 1)
+    data = bytearray(flipped.read_bytes())
+    data[80] ^= 0xFF  # a byte inside the first member: its CRC fails
+    flipped.write_bytes(bytes(data))
+    shard_path(complete_set, 2).unlink()
+    shard_path(complete_set, 7).write_bytes(b"")
+    code, out, err = run(["data", "stats", complete_set, "--verify", "--json"], capsys)
+    damaged = json.loads(out)["damaged"]
+    assert code == 1 and err.count("\n") == 1 and "4 shard(s) damaged or missing" in err
+    assert sorted(damaged) == ["shard-000000.npz", "shard-000001.npz", "shard-000002.npz",
+                               "shard-000007.npz"]
+    assert damaged["shard-000002.npz"] == "missing"
+    assert damaged["shard-000007.npz"] == "not a shard of this set"

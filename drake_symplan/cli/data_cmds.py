@@ -44,6 +44,9 @@ def register(subparsers) -> None:
     data_sub = data.add_subparsers(dest="data_command", required=True)
     stats = data_sub.add_parser("stats", help="summary of a collected data set")
     stats.add_argument("dir", help="data set directory (shards + manifest.json)")
+    stats.add_argument("--verify", action="store_true",
+                       help="read every byte of every shard and name each missing, stray or "
+                       "damaged one (exit 1 if any)")
     add_json_argument(stats)
     stats.set_defaults(func=cmd_data_stats)
 
@@ -176,7 +179,34 @@ def cmd_collect(args: argparse.Namespace) -> dict:
 def cmd_data_stats(args: argparse.Namespace) -> dict:
     from drake_symplan.data.stats import dataset_stats, format_stats
 
+    if args.verify:
+        return _verify(args)
     stats = dataset_stats(args.dir)
     if not args.json:
         print(format_stats(stats))
     return stats
+
+
+def _verify(args: argparse.Namespace) -> dict:
+    """`data stats --verify`: every shard read whole; the damaged ones named."""
+    import sys
+    from pathlib import Path
+
+    from drake_symplan.cli.main import CommandError, NegativeAnswer
+    from drake_symplan.shards import SHARD_GLOB, damaged_shards
+
+    if not Path(args.dir).is_dir():
+        raise CommandError(f"no data directory {args.dir}")
+    damaged = damaged_shards(args.dir)
+    out = {"dir": str(args.dir), "shards": len(list(Path(args.dir).glob(SHARD_GLOB))),
+           "damaged": damaged}
+    if not args.json:
+        print(f"{args.dir}: {out['shards']} shard file(s), "
+              f"{len(damaged) or 'none'} damaged or missing")
+        for name, why in damaged.items():
+            print(f"  {name}: {why}")
+    if damaged:
+        print(f"symplan data stats: {len(damaged)} shard(s) damaged or missing in {args.dir}; "
+              "the same collect command redoes them", file=sys.stderr)
+        return NegativeAnswer(out)
+    return out
