@@ -103,7 +103,10 @@ def test_ctrl_c_during_a_parallel_collection_leaves_no_traceback(tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "drake_symplan.cli.main", "collect", "--transitions", "400",
          "--chunk-size", "5", "--workers", "2", "--out", str(out), "--no-progress"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        # Ctrl-C as a terminal gives it, whatever this test process inherited (a process
+        # that ignores SIGINT passes that on, and a shell's background jobs ignore it)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 240
     while not list(out.glob("shard-*.npz")) and time.monotonic() < deadline:
         time.sleep(0.2)
