@@ -39,10 +39,19 @@ SEED, CHUNK, N = 3, 4, 16  # 4 chunks over 2 workers
 START_SECONDS = 120
 
 
+_GIVEN: set[int] = set()
+
+
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A free port not given before in this run: the OS can hand the same free port out
+    twice in a row, and two Ray components on one port refuse to start."""
+    while True:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        if port not in _GIVEN:
+            _GIVEN.add(port)
+            return port
 
 
 def node_ports() -> list[str]:
