@@ -9,6 +9,7 @@ from collections import Counter
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 import torch
 
 from drake_symplan.abstraction import bilevel
@@ -412,6 +413,7 @@ def test_a_box_released_with_its_centre_beyond_its_one_support_topples_and_no_pl
     assert [(s.action.source, s.action.target) for s in found.steps] == [("l", "c")]
 
 
+@pytest.mark.slow
 def test_a_grasp_refused_for_a_box_in_the_way_is_planned_once_that_box_is_moved():
     # the arm refused a at its centre: its wrist would strike d. In the plans' predicted
     # scenes the refusal stands while d stays where it was seen, so d goes first
@@ -831,6 +833,7 @@ def test_a_step_after_which_nothing_moved_is_missed_though_its_symbols_hold():
     assert planner.refiner.missed == {step.action: 1, move.action: 1}
 
 
+@pytest.mark.slow
 def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
     planner = object.__new__(BilevelMode)  # the monitor's side alone
     planner.refiner = Refiner(list(STACK.values()), Stacking(), defer=None)

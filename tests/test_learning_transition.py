@@ -35,6 +35,7 @@ def _fit(train, weight: float, seed: int):
     return model.eval()
 
 
+@pytest.mark.slow
 def test_the_transition_objective_makes_the_symbolic_effects_deterministic():
     torch.set_num_threads(1)
     train, held_out = sticky_rule(3000, seed=0), sticky_rule(500, seed=2)

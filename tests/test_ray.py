@@ -66,6 +66,7 @@ def reference(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_the_same_command_on_ray_gives_the_same_data(local_ray, reference, tmp_path, capsys):
     out = tmp_path / "data"
     assert main([*collect_args(SEED, CHUNK, out, 16), "--ray", "--workers", "2"]) == 0

@@ -175,6 +175,7 @@ def symplan(args: list[str], env: dict) -> subprocess.CompletedProcess:
 
 
 
+@pytest.mark.slow
 def test_collect_on_two_nodes_gives_the_local_data(cluster, tmp_path):
     address, env = cluster
     reference = tmp_path / "local"
@@ -198,6 +199,7 @@ def test_collect_on_two_nodes_gives_the_local_data(cluster, tmp_path):
             assert np.array_equal(x[k], y[k]), (c, k)
 
 
+@pytest.mark.slow
 def test_eval_planning_on_two_nodes_gives_the_local_records(cluster, tmp_path):
     from drake_symplan.evaluation.planning import evaluate_planning
     from drake_symplan.goals.problems import make_problems
@@ -230,6 +232,7 @@ def test_eval_planning_on_two_nodes_gives_the_local_records(cluster, tmp_path):
     ({"RAY_AUTH_MODE": None}, "uses token authentication: export RAY_AUTH_MODE=token"),
     ({"RAY_AUTH_TOKEN": "0" * 64}, "refused the token from RAY_AUTH_TOKEN"),
 ])
+@pytest.mark.slow
 def test_a_driver_without_the_token_is_one_line(cluster, tmp_path, auth, message):
     address, env = cluster
     env = dict(env)
@@ -243,6 +246,7 @@ def test_a_driver_without_the_token_is_one_line(cluster, tmp_path, auth, message
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_a_token_driver_at_a_head_without_tokens_is_one_line(tmp_path):
     """Its workers could not call back to a driver that wants a token (Ray 2.60: the actors
     die unstarted), so the driver says so before joining."""
