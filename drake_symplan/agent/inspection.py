@@ -26,7 +26,12 @@ from __future__ import annotations
 import html as _html
 from pathlib import Path
 
-from drake_symplan.abstraction.abstraction import Abstraction, Observation, reliability
+from drake_symplan.abstraction.abstraction import (
+    Abstraction,
+    Observation,
+    relation_goal,
+    reliability,
+)
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.inspection_draw import PREFIX as PREFIX
@@ -254,11 +259,12 @@ def write_recording(meshcat, path: str | Path, panel: str) -> Path:
 def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None, record=None,
             config: SolveConfig = DEFAULT_SOLVE, robot: str = "arm",
             title: str = "symplan inspect", camera_noise: str = "none",
-            clouds: bool = False) -> dict:
+            clouds: bool = False, relations=()) -> dict:
     """Perceives `start_scene` (and `goal_scene`) with cameras of the sensor model
     `camera_noise`, reads and draws their symbols, plans from start to goal (config's
-    planner and timeout); with `clouds`, also the start scene's raw point clouds (their
-    sizes in the result); returns the JSON result and writes the recording to `record`."""
+    planner and timeout; with `relations`, to the goal of relations `goal_scene` is an
+    example of); with `clouds`, also the start scene's raw point clouds (their sizes in
+    the result); returns the JSON result and writes the recording to `record`."""
     agent = Agent(robot, meshcat=meshcat, camera_noise=camera_noise)
     goal = agent.look(goal_scene) if goal_scene is not None else None
     start = agent.look(start_scene)  # the table stays in the start scene
@@ -273,12 +279,13 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
     if clouds:
         result["start"]["cloud_points"] = [len(c) for c in raw]
     if goal is not None:
-        goal_reading = abstraction.read_scene(goal.scene)
-        result["goal"] = symbol_view(goal.scene, goal_reading)
-        result["goal"]["atoms"] = sorted(a.text() for a in abstraction.goal_atoms(goal_reading))
+        wanted = Observation(goal.scene, abstraction.read_scene(goal.scene), Boxes.of(goal.scene))
+        if relations:
+            wanted = relation_goal(wanted, relations)
+        result["goal"] = symbol_view(goal.scene, wanted.reading)
+        result["goal"]["atoms"] = sorted(a.text() for a in abstraction.goal_atoms(wanted.reading))
         found = make_planner(abstraction, config).plan(
-            Observation(start.scene, start_reading, Boxes.of(start.scene)),
-            Observation(goal.scene, goal_reading, Boxes.of(goal.scene)))
+            Observation(start.scene, start_reading, Boxes.of(start.scene)), wanted)
         result["plan_status"], result["plan_level"] = found.status, found.level
         result["plan"] = plan_view(found.steps, abstraction.believed(start_reading),
                                    abstraction.bundle.operators)

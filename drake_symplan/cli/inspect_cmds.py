@@ -127,7 +127,8 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     try:
         result = inspect(start, Abstraction(bundle), goal, meshcat, args.record, config,
                          title=f"symplan inspect {args.scene.name}",
-                         camera_noise=args.camera_noise, clouds=args.clouds)
+                         camera_noise=args.camera_noise, clouds=args.clouds,
+                         relations=structures if args.goal_spec else ())
     except (RuntimeError, PerceptionFailure) as e:  # the scene file cannot be perceived
         raise CommandError(f"{args.scene}: {e}") from e
     result["scene"] = str(args.scene)
