@@ -349,16 +349,17 @@ class _Run:
     # --- check ----------------------------------------------------------------------
 
     def _end(self, final, cause: str, message: str) -> SolveResult:
-        """The check on the last perceived scene `final`: success if every goal object is
-        within GOAL_TOLERANCE (boxes.goal_reached), else the status for `cause`."""
+        """The check on the last perceived scene `final` (module docstring, 5.), else the
+        status for `cause`."""
         result = self.result
-        truth = {n: s.position for n, s in self.agent.robot.ground_truth_states().items()}
+        true_states = self.agent.robot.ground_truth_states()  # reported beside, never read
         result.objects = beliefs.goal_report(beliefs.positions(self.goal_scene),
-                                             beliefs.positions(final), truth)
+                                             beliefs.positions(final),
+                                             {n: s.position for n, s in true_states.items()})
         errors = {n: o["error_cm"] for n, o in result.objects.items()}
         if self.relations:
             result.unmet = unmet(self.relations, final.object_states())
-            result.unmet_true = unmet(self.relations, self.agent.robot.ground_truth_states())
+            result.unmet_true = unmet(self.relations, true_states)
             reached = not result.unmet
         else:  # error_cm is rounded to 0.01 cm: the check reads what the result reports
             reached = goal_reached({n: None if e is None else e / 100

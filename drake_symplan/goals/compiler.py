@@ -66,12 +66,12 @@ def with_supports(structures: list[Relation], objects: dict[str, ObjectState]) -
     rows = {frozenset(r.objects) for r in structures if r.word == "row"}
     first = []
     for s in structures:
-        span, a, b = s.objects if s.word == "bridge" else (None, None, None)
+        _, a, b = s.objects if s.word == "bridge" else (None, None, None)
         if a in tops and b in tops:
             bottoms = (tops[a], tops[b])
             cubes = all(objects[n].type == "cube" for n in bottoms)
             if cubes and frozenset(bottoms) not in rows and not _bridge_fits(
-                    span, objects[bottoms[0]], objects[bottoms[1]]):
+                    objects[bottoms[0]], objects[bottoms[1]]):
                 first.append(Relation("row", bottoms))
     return first + list(structures)
 
@@ -137,7 +137,7 @@ def _beside(mover: ObjectState, anchor: ObjectState, side: str) -> ObjectSpec:
     return ObjectSpec(mover.name, mover.type, [*xy, HALF_EXTENTS[mover.type][2]], anchor.yaw)
 
 
-def _bridge_fits(span: str, a: ObjectState, b: ObjectState) -> bool:
+def _bridge_fits(a: ObjectState, b: ObjectState) -> bool:
     d = np.abs(b.position[:2] - a.position[:2])
     return d[0] <= ALIGN and BRIDGE_SPAN[0] <= d[1] <= BRIDGE_SPAN[1]
 
@@ -145,7 +145,7 @@ def _bridge_fits(span: str, a: ObjectState, b: ObjectState) -> bool:
 def _bridge_actions(s: Relation, objects: dict[str, ObjectState]) -> list[tuple[Action, bool]]:
     """A bridge's actions: its supports brought together first where they stand apart."""
     span, a, b = s.objects
-    if _bridge_fits(span, objects[a], objects[b]):
+    if _bridge_fits(objects[a], objects[b]):
         if abs(top(objects[a]) - top(objects[b])) > LEVEL:
             raise SpecError(f"{s.text()!r}: the supports' tops are not level ({a} at "
                             f"{100 * top(objects[a]):.0f} cm, {b} at "
