@@ -55,8 +55,7 @@ from drake_symplan.world.visualization import StartMeshcat
 
 # Planner statuses -> the agent's status (= failure cause) when the plan cannot be had.
 PLANNER_STATUS = {"unsolvable": "no_plan", "timeout": "timeout", "error": "error"}
-# Plans made at subgoals per object at most: a tower of n boxes from a scattered start is
-# n - 1 of them; unstacking first about doubles that.
+# Plans made at subgoals per object at most: a tower of n boxes is n - 1 (unstacking: ~2x).
 SUBGOALS_PER_OBJECT = 3
 # Steps the arm refused (nothing moved) planned around per object at most, apart from the
 # replans on a departure: a refusal costs a plan, not a step.
