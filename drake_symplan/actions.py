@@ -120,12 +120,13 @@ def grasp_on_box(grasp: str, half_length: float) -> bool:
     return abs(OFFSET_METRES[grasp]) < half_length
 
 
-def relevant_objects(scene, action: Action) -> list[str]:
+def relevant_objects(scene, action: Action, pairs=None) -> list[str]:
     """The objects a transition records and an effect model sees (the Relevance contract):
-    [source, target] + the objects in contact with either in `scene` (its `contacts`)."""
+    [source, target] + the objects related to either in `scene`: by `pairs`, its relevance
+    graph (boxes.neighbour_pairs), its `contacts` when not given."""
     args = (action.source, action.target)
     touching = set()
-    for a, b in scene.contacts:
+    for a, b in scene.contacts if pairs is None else pairs:
         if a in args and b not in args:
             touching.add(b)
         elif b in args and a not in args:

@@ -51,6 +51,10 @@ def goal_reached(distances: Mapping[str, float | None],
                                    for d in distances.values())
 
 CONTACT_TOLERANCE = 0.006  # m; perceived boxes are a few mm off, sampled objects >= 2 cm apart
+# Relevance by vicinity (the paper's alternative to contact): surfaces within this are
+# neighbours, so a cube released beside another (a 2.5 cm gap, actions.OFFSET_METRES) and
+# a row's neighbours are related; the next-but-one box of a tower (5 cm) is not.
+VICINITY = 0.035  # m
 
 
 def _unit_surface(n: int = 7) -> np.ndarray:
@@ -96,6 +100,18 @@ def contact_graph(boxes: dict, tolerance: float = CONTACT_TOLERANCE) -> set[tupl
             if box_distance(ca, Ra, ha, cb, Rb, hb) <= tolerance:
                 pairs.add((a, b))
     return pairs
+
+
+def neighbour_pairs(scene, radius: float) -> set[tuple[str, str]]:
+    """The relevance graph of a perceived scene (names, objects with position, R, type;
+    contacts): its contact pairs, and with `radius` above CONTACT_TOLERANCE every pair whose
+    surfaces are within `radius` (sorted names)."""
+    pairs = {tuple(sorted(p)) for p in scene.contacts}
+    if radius <= CONTACT_TOLERANCE:
+        return pairs
+    return pairs | contact_graph({o.name: (np.asarray(o.position), np.asarray(o.R),
+                                           np.asarray(HALF_EXTENTS[o.type]))
+                                  for o in scene.objects}, radius)
 
 
 def tilt_of(R: np.ndarray) -> float:

@@ -17,7 +17,7 @@ from drake_symplan.data.recipes import read_recipes, recipe, recipe_config
 PAPER = {"backend": "hand", "hand_twin": False, "box_modulus": 1e7, "time_step": 0.01,
          "min_objects": 2, "max_objects": 4, "episode_length": 10, "long_fraction": 0.5,
          "chunk_size": 100, "noise_sigma": 0.0, "noise_dropout": 0.0, "camera_noise": "none",
-         "explorer": "random"}
+         "explorer": "random", "relevance_radius": 0.006}
 
 
 def test_a_recipe_loads_into_the_collection_config():
@@ -46,7 +46,7 @@ def test_an_unknown_recipe_is_one_line_and_exit_2(tmp_path, capsys):
     code, out, err = run(["collect", "--recipe", "nope", "--transitions", "10", "--out",
                           out_dir], capsys)
     assert_bad_input(code, out, err, "symplan collect: error: unknown data recipe 'nope'; "
-                     "configs/recipes.yaml has ['current', 'paper', 'shipped']")
+                     "configs/recipes.yaml has ['current', 'paper', 'shipped', 'vicinity']")
     assert not out_dir.exists()
 
 

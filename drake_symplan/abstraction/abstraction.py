@@ -20,6 +20,7 @@ from functools import partial
 import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes
+from drake_symplan.boxes import neighbour_pairs
 from drake_symplan.learning.readout import read_symbols
 from drake_symplan.planning.budget import Budget
 from drake_symplan.planning.grounding import fast_downward_task
@@ -212,7 +213,8 @@ class Abstraction:
 
     def read_scene(self, scene) -> Reading:
         """`read` of a perceived scene (names, features(), contacts)."""
-        return self.read(scene.names, scene.features(), scene.contacts)
+        return self.read(scene.names, scene.features(),
+                         neighbour_pairs(scene, self.bundle.relevance_radius))
 
     def observe(self, scene) -> Observation:
         """A perceived scene with its symbols and its boxes (Observation)."""

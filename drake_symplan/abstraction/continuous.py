@@ -37,7 +37,7 @@ from drake_symplan.abstraction.stability import (
     under_of,
 )
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
-from drake_symplan.boxes import HALF_EXTENTS, contact_graph, goal_distances
+from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph, goal_distances
 from drake_symplan.datasets import ObjectState
 from drake_symplan.features import box_of
 
@@ -141,10 +141,20 @@ class Boxes:
                         if over_top(points, top, COVER_INSET).any()}
         return out
 
-    def involved(self, action: Action) -> list[int]:
+    def neighbours(self, radius: float) -> frozenset:
+        """The relevance graph at `radius` (boxes.neighbour_pairs): the contacts, and with
+        a radius above the contact rule's every pair whose surfaces are within it."""
+        if radius <= CONTACT_TOLERANCE:
+            return self.contacts
+        geometry = {name: (centre, R, np.asarray(HALF_EXTENTS[kind]))
+                    for name, (kind, centre, R) in zip(self.names, self.shapes, strict=True)}
+        return self.contacts | frozenset(contact_graph(geometry, radius))
+
+    def involved(self, action: Action, radius: float = CONTACT_TOLERANCE) -> list[int]:
         """The indices, in scene order, of the objects the action involves
-        (actions.relevant_objects)."""
-        return sorted(self.names.index(n) for n in relevant_objects(self, action))
+        (actions.relevant_objects), related by the relevance graph at `radius`."""
+        pairs = self.neighbours(radius)
+        return sorted(self.names.index(n) for n in relevant_objects(self, action, pairs))
 
 
 class ContinuousModel:
@@ -154,7 +164,8 @@ class ContinuousModel:
     box's spread is the members' largest distance from it: where the robot's data leave
     the outcome open, the members disagree."""
 
-    def __init__(self, models: torch.nn.Module | list[torch.nn.Module], snap: float | None = None):
+    def __init__(self, models: torch.nn.Module | list[torch.nn.Module], snap: float | None = None,
+                 radius: float = CONTACT_TOLERANCE):
         members = models if isinstance(models, (list, tuple)) else [models]
         if not members:
             raise ValueError("a continuous model needs at least one effect model")
@@ -162,6 +173,7 @@ class ContinuousModel:
         # a carried box predicted to land nearer its release than this lands at it
         # (_positions; 0: where the members put it, as an explorer asks them)
         self.snap = SNAP if snap is None else snap
+        self.radius = radius  # the relevance the models were trained with (boxes.VICINITY)
 
     def predict(self, boxes: Boxes, actions: list[Action]) -> list[Boxes]:
         """The predicted scene after each of `actions` from `boxes`, in one batch."""
@@ -183,7 +195,7 @@ class ContinuousModel:
         """Per action, each member's predicted positions [members, n, 3], in one batch."""
         if not actions:
             return []
-        rows = [boxes.involved(a) for a in actions]
+        rows = [boxes.involved(a, self.radius) for a in actions]
         width = max(len(r) for r in rows)
         d = boxes.features.shape[1]
         state = np.zeros((len(actions), width, d), np.float32)

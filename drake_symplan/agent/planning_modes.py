@@ -220,7 +220,8 @@ class _ContinuousModelMode(PlanningMode):
         from drake_symplan.abstraction.refiner import Refiner
 
         self.refiner = Refiner(abstraction.bundle.planning,
-                               ContinuousModel(abstraction.bundle.continuous))
+                               ContinuousModel(abstraction.bundle.continuous,
+                                               radius=abstraction.bundle.relevance_radius))
         # costs added to the skeletons' moves, by their leading arguments (`observed`)
         self.penalties: Counter = Counter()
 

@@ -47,7 +47,7 @@ from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.reposition import REPOSITIONS_PER_OBJECT, reposition_step
 from drake_symplan.agent.result import PhaseClock, SolveResult
-from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
+from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached, neighbour_pairs
 from drake_symplan.relations import riders, unmet
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
 from drake_symplan.symbolic.structs import PlanStep, Step
@@ -235,9 +235,9 @@ class _Run:
         if not (self._completes() and isinstance(step, Step)):
             return step
         with self.clock("symbols"):
+            related = neighbour_pairs(self.goal_scene, self.abs.bundle.relevance_radius)
             scorer = GeometricScorer(beliefs.positions(self.scene),
-                                     beliefs.positions(self.goal_scene),
-                                     self.goal_scene.contacts)
+                                     beliefs.positions(self.goal_scene), related)
             boxes = Boxes.of(self.scene)
             return choose(self.abs.bundle.planning, step, self.rest, self.believed,
                           self.goal_atoms, scorer,

@@ -16,6 +16,7 @@ from drake_symplan.cli.options import (
     positive_float,
     positive_int,
     probability,
+    relevance_radius,
     seed,
 )
 
@@ -84,6 +85,11 @@ def add_data_arguments(collect) -> None:
     collect.add_argument("--time-step", type=positive_float, default=None,
                          help="physics step (s) (default 0.01); 0.005 extends a collection "
                               "made before 10 ms became the step")
+    collect.add_argument("--relevance", type=relevance_radius, default=None,
+                         metavar="contact|vicinity|METRES",
+                         help="which objects a transition records beside the action's "
+                              "arguments: contact (default, the paper's rule) or vicinity "
+                              "(surfaces within 3.5 cm), or a radius in metres")
     collect.add_argument("--box-modulus", type=positive_float, default=None,
                          help="the boxes' hydroelastic modulus (Pa) (default 1e6); the "
                               "shipped model's data had stiffer boxes (--recipe paper)")
@@ -135,6 +141,7 @@ def collect_config(args: argparse.Namespace):
              "noise_sigma": args.noise_sigma, "noise_dropout": args.noise_dropout,
              "time_step": args.time_step, "camera_noise": args.camera_noise,
              "box_modulus": args.box_modulus, "explorer": args.explorer,
+             "relevance_radius": args.relevance,
              "hand_twin": None if args.hand_twin is None else args.hand_twin == "on"}
     if args.objects is not None:
         given["min_objects"], given["max_objects"] = parse_objects(args.objects)

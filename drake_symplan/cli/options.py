@@ -31,6 +31,14 @@ probability = bounded(float, lambda v: 0 <= v <= 1, "a probability in [0, 1]")
 fraction_lost = bounded(float, lambda v: 0 <= v < 1, "a fraction in [0, 1)")
 degrees = bounded(float, lambda v: 0 <= v <= 180, "a number of degrees in [0, 180]")
 seed = bounded(int, lambda v: 0 <= v < SEED_LIMIT, "an integer seed in [0, 2**32)")
+# boxes.CONTACT_TOLERANCE and boxes.VICINITY, spelled here so that the parser imports no numpy
+RELEVANCE = {"contact": 0.006, "vicinity": 0.035}
+_radius = bounded(float, lambda v: 0.006 <= v <= 0.1, "contact, vicinity or metres in [0.006, 0.1]")
+
+
+def relevance_radius(text: str) -> float:
+    """--relevance: a named rule or a radius in metres."""
+    return RELEVANCE[text] if text in RELEVANCE else _radius(text)
 
 
 class RegistryChoices:

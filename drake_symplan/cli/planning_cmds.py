@@ -227,6 +227,7 @@ def cmd_bundle(args) -> dict:
     import shlex
     import sys
 
+    from drake_symplan.data.storage import relevance_radius
     from drake_symplan.json_files import read_json
     from drake_symplan.learning.checkpoint import load_run
     from drake_symplan.learning.readout import readout_scenes
@@ -253,6 +254,7 @@ def cmd_bundle(args) -> dict:
     data, _ = readout_scenes(model, args.data, args.margin)
     operators, semantics, info = learn_bundle_operators(
         data, args.learner, args.min_count, args.support, args.contact_degree == "on")
+    info["relevance_radius"] = relevance_radius(args.data)
     run_config = read_json(args.run / "config.json") \
         if (args.run / "config.json").is_file() else {}
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]),

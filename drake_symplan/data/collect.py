@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.cluster import RayRun, cluster_cpus, ray_session, run_jobs
 from drake_symplan.data import storage
 from drake_symplan.data.exploration import EpisodeConfig, random_choice, run_episode
@@ -80,6 +81,8 @@ class CollectConfig:
     # ActiveConfig as a dict); the data layer records them, the explorers layer acts on them.
     explorer: str = "random"
     active: dict = dc.field(default_factory=dict)
+    # Relevance (m): the contact rule (boxes.CONTACT_TOLERANCE) or vicinity (boxes.VICINITY)
+    relevance_radius: float = CONTACT_TOLERANCE
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -91,9 +94,10 @@ class CollectConfig:
                 raise ValueError(f"{key} must be a positive number{unit}, got {value}")
         if not 0 <= self.seed < 2**32:
             raise ValueError(f"seed must be an integer in [0, 2**32), got {self.seed}")
-        if not 0 <= self.long_fraction <= 1:
-            raise ValueError(f"long_fraction must be a probability in [0, 1], got "
-                             f"{self.long_fraction}")
+        for key, low, high, what in (("long_fraction", 0, 1, "a probability"),
+                                     ("relevance_radius", CONTACT_TOLERANCE, 0.1, "metres")):
+            if not low <= (value := getattr(self, key)) <= high:
+                raise ValueError(f"{key} must be {what} in [{low}, {high}], got {value}")
         if not 0 <= self.noise_sigma < math.inf:
             raise ValueError(f"noise_sigma must be a finite number >= 0 (m), got "
                              f"{self.noise_sigma}")
@@ -115,7 +119,7 @@ class CollectConfig:
 
     def episode_config(self) -> EpisodeConfig:
         return EpisodeConfig(self.min_objects, self.max_objects, self.episode_length,
-                             self.long_fraction)
+                             self.long_fraction, relevance_radius=self.relevance_radius)
 
 
 def collection_backend(name: str, time_step: float, sensor: str = "none",
@@ -302,8 +306,8 @@ def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int
         stored = manifest.get("config")
         if isinstance(stored, dict):  # settings added since: what such a set was made with
             stored = {"time_step": LEGACY_TIME_STEP, "explorer": "random", "active": {},
-                      "camera_noise": "none", "hand_twin": False,
-                      "box_modulus": LEGACY_BOX_MODULUS, **stored}
+                      "camera_noise": "none", "hand_twin": False, "box_modulus":
+                      LEGACY_BOX_MODULUS, "relevance_radius": CONTACT_TOLERANCE, **stored}
         if stored != identity:
             if not _extends(stored, identity):
                 raise ValueError(

@@ -55,6 +55,7 @@ from drake_symplan.actions import (
     encode_action,
     relevant_objects,
 )
+from drake_symplan.boxes import CONTACT_TOLERANCE, neighbour_pairs
 from drake_symplan.perception.perceive import associate
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.robot.backends import PerceptionFailure
@@ -76,6 +77,9 @@ class EpisodeConfig:
     length: int = 10  # actions per episode before a new scene
     long_fraction: float = 0.5
     max_infeasible: int = 10  # unreachable actions in a row before giving up the episode
+    # Relevance: contact (boxes.CONTACT_TOLERANCE) or vicinity (a wider radius, m); the
+    # recorded scenes' "contacts" are this relevance graph (boxes.neighbour_pairs).
+    relevance_radius: float = CONTACT_TOLERANCE
 
 
 MAX_SCENE_OBJECTS = 8  # scene slots stored per transition (scenes hold 2-8 objects)
@@ -134,8 +138,9 @@ def random_choice(rng: np.random.Generator, scene) -> tuple[Action, str]:
 
 
 def scene_record(before, after, after_map, ids: dict[str, int], names: list[str],
-                 chain: int) -> SceneRecord:
-    """The scene before and after in identity slots `ids` (perceived name before -> slot)."""
+                 chain: int, radius: float = CONTACT_TOLERANCE) -> SceneRecord:
+    """The scene before and after in identity slots `ids` (perceived name before -> slot),
+    its pairs those of the relevance graph at `radius`."""
     d = before.objects[0].features.shape[0]
     m = MAX_SCENE_OBJECTS
     state, next_state = np.zeros((m, d), np.float32), np.zeros((m, d), np.float32)
@@ -146,9 +151,9 @@ def scene_record(before, after, after_map, ids: dict[str, int], names: list[str]
         mask[i] = True
     back = {v: k for k, v in after_map.items()}
     contacts, next_contacts = np.zeros((m, m), bool), np.zeros((m, m), bool)
-    for a, b in before.contacts:
+    for a, b in neighbour_pairs(before, radius):
         contacts[ids[a], ids[b]] = contacts[ids[b], ids[a]] = True
-    for a, b in after.contacts:
+    for a, b in neighbour_pairs(after, radius):
         if a in back and b in back:
             i, j = ids[back[a]], ids[back[b]]
             next_contacts[i, j] = next_contacts[j, i] = True
@@ -268,7 +273,8 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
         if ids is None:
             ids, chain = {k: i for i, k in enumerate(before.names)}, chain + 1
         _record(log, action, before, lift, after, after_map, ids=ids, chain=chain,
-                episode=episode, step=step - 1, mode=mode, on_transition=on_transition)
+                episode=episode, step=step - 1, mode=mode, on_transition=on_transition,
+                radius=config.relevance_radius)
         ids = {after_map[k]: i for k, i in ids.items()}
         before = after
     if lost:
@@ -299,14 +305,14 @@ def _execute_chosen_action(backend, rng, config: EpisodeConfig, before, log: Epi
 
 def _record(log: EpisodeLog, action: Action, before, lift, after, after_map: dict, *,
             ids: dict[str, int], chain: int, episode: int, step: int, mode: str,
-            on_transition) -> None:
+            on_transition, radius: float = CONTACT_TOLERANCE) -> None:
     """Counts the action's outcome and records its transition (unless the lift scene lost
     one of the relevant objects)."""
     lift_map = associate(before, lift, action) if lift is not before else \
         {k: k for k in before.names}
     outcome = classify(before, lift, after, lift_map, after_map)
     log.outcomes[outcome] += 1
-    names = relevant_objects(before, action)
+    names = relevant_objects(before, action, neighbour_pairs(before, radius))
     if any(k not in lift_map for k in names):
         log.skipped["lift_unobserved"] += 1
         return
@@ -318,7 +324,7 @@ def _record(log: EpisodeLog, action: Action, before, lift, after, after_map: dic
         effect=effects(before, lift, after, lift_map, after_map, names, carry_xy),
         next_state=np.stack([after.object(after_map[k]).features for k in names]),
         outcome=outcome, episode=episode, step=step,
-        scene=scene_record(before, after, after_map, ids, names, chain), mode=mode,
+        scene=scene_record(before, after, after_map, ids, names, chain, radius), mode=mode,
     ))
     if on_transition:
         on_transition()

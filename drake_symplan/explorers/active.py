@@ -132,7 +132,8 @@ class ActiveExplorer:
     def __init__(self, bundle, config: ActiveConfig, predicates):
         self.abstraction = Abstraction(bundle)
         self.operators = bundle.operators
-        self.ensemble = ContinuousModel(bundle.continuous, snap=0.0)  # every disagreement
+        self.ensemble = ContinuousModel(bundle.continuous, snap=0.0,
+                                        radius=bundle.relevance_radius)  # every disagreement
         self.config = config
         self.predicates = tuple(tuple(p) for p in predicates)
 

@@ -114,6 +114,7 @@ def learn_round(out_dir: Path, r: int, config: CollectConfig, active: ActiveConf
     model, _ = load_run(runs[0])
     symbols, _ = readout_scenes(model, data)
     operators, semantics, info = learn_bundle_operators(symbols, "effect", active.min_count)
+    info["relevance_radius"] = storage.relevance_radius(data)
     record = {"round": r, "transitions": n, "data_fingerprint": fingerprint(data),
               "members": [{"val_error_cm": round(x["val"]["error_cm"], 4),
                            "epochs": x["epochs"]} for x in metrics],

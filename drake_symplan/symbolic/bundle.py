@@ -24,6 +24,7 @@ from importlib import resources
 from pathlib import Path
 
 from drake_symplan.atomic import write_atomic
+from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.json_files import read_json, type_name
 from drake_symplan.learning.checkpoint import (
     BEST,
@@ -110,6 +111,9 @@ class ModelBundle:
             semantics, info, provenance, margin)
         self.by_name = {op.name: op for op in operators}
         self.n_unary, self.n_relations = info["n_unary"], info["n_relations"]
+        # the relevance its data were collected with (data/collect.py): the graph of pairs
+        # the model and the operators read, the contact rule for a bundle that names none
+        self.relevance_radius = float(info.get("relevance_radius", CONTACT_TOLERANCE))
         self.planning = PlanningOperators(operators)
         self.planned = self.planning.planned
         self.domain = domain_pddl(self.planned, self.n_unary, self.n_relations, costs=True)
