@@ -64,6 +64,25 @@ def test_a_goal_of_relations_is_planned_in_stages_from_the_lowest_pairs():
         bottom, bottom | {("r0", "d", "e")}, atoms]
 
 
+class UnaryOnly:
+    """Semantics of a model with unary symbols alone (Attentive): u0 of a and c, one
+    neighbour of b."""
+
+    def read(self, *args, **kwargs):
+        return {("u0", 0), ("u0", 2), ("touching1", 1)}, set()
+
+
+def test_a_model_without_relations_keeps_the_named_objects_atoms_of_a_relation_goal():
+    names = ("a", "b", "c")
+    reading = Reading(SymbolicState(names, np.zeros((3, 1)), np.zeros((0, 3, 3))),
+                      np.zeros((3, 1), bool), np.zeros((0, 3, 3), bool),
+                      pairs={("a", "b"): (0, 0)})
+    bundle = SimpleNamespace(n_relations=0, semantics=UnaryOnly())
+    atoms = Abstraction(bundle).goal_atoms(reading)
+    assert atoms == {("u0", "a"), ("touching1", "b")}  # c is not named: free
+    assert Abstraction(bundle).stages(reading, atoms) == [atoms]
+
+
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),
                ObjectSpec("o1", "long", [0.80, 0.10, 0.025]),
                ObjectSpec("o2", "cube", [0.60, 0.05, 0.025]),

@@ -238,13 +238,18 @@ class Abstraction:
         return self.atoms(reading, guess=True)[0]
 
     def goal_atoms(self, goal: Reading) -> frozenset:
-        """Unary atoms, and relation atoms only between objects in contact (paper IV-C);
-        of a goal of relations (Reading.pairs), the relation atoms between the objects in
-        contact of the pairs they name: the paper's contact-graph filter on the structure
-        a person asked for, not on the whole scene."""
+        """Unary atoms, and relation atoms only between related objects (paper IV-C: in
+        contact, or near under relevance by vicinity); of a goal of relations
+        (Reading.pairs), the relation atoms of the related pairs they name: the paper's
+        contact-graph filter on the structure a person asked for, not on the whole scene.
+        A model without relations (Attentive: unary symbols alone) says of such a goal only
+        what its atoms of the named objects say."""
         atoms = self.atoms(goal, contacts_only=True)[0]
         if goal.pairs is None:
             return atoms
+        if not self.bundle.n_relations:
+            named = {n for pair in goal.pairs for n in pair}
+            return frozenset(a for a in atoms if set(a[1:]) <= named)
         return frozenset(a for a in atoms if len(a) == 3 and (a[1], a[2]) in goal.pairs)
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
@@ -295,6 +300,8 @@ class Abstraction:
         layer of the example, then the next relation's in that layer with them, and so on
         up: structures planned from the bottom up, as a person builds them, one at a time,
         with no move that carries a built part."""
+        if any(len(a) != 3 for a in atoms):  # a model without relations: one stage
+            return [atoms]
         stages = sorted(set(goal.pairs.values()))
         return [frozenset(a for a in atoms if goal.pairs[(a[1], a[2])] <= stage)
                 for stage in stages]
