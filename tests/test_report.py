@@ -6,7 +6,17 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
-from drake_symplan.evaluation.report import BLOCK, keep, load_records, render, replace_blocks
+import pytest
+from conftest import assert_bad_input, run
+
+from drake_symplan.evaluation.report import (
+    BLOCK,
+    keep,
+    load_records,
+    render,
+    replace_blocks,
+    success_by_objects,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -48,3 +58,35 @@ def test_the_readme_tables_are_the_records_and_a_changed_digit_shows():
     first = next(iter(changed[0]["sets"].values()))
     first["success"] = first["success"] - 1 if first["success"] else 1
     assert replace_blocks(readme, changed) != readme
+
+
+def made_up(name, column, sets, table="t"):
+    return {"name": name, "table": table, "column": column,
+            "sets": {key: {"problems": p, "success": s, "objects": objects}
+                     for key, (p, s, objects) in sets.items()}}
+
+
+def test_the_plot_points_pool_sets_of_equal_objects():
+    records = [made_up("t-2", "search", {"o4": (4, 4, [4]), "o8": (5, 1, [8])}),
+               made_up("t-1", "symbols", {"row4": (2, 1, [6, 8]), "tower4": (6, 1, [6]),
+                                          "o4": (4, 0, [4]), "empty": (0, 0, [3])}),
+               made_up("u-1", "other", {"o4": (1, 1, [4])}, table="u")]
+    # columns in the order of the records' names; a set at its fewest objects; 6: 2 / 8
+    assert success_by_objects(records, "t") == {"symbols": [(4, 0.0), (6, 0.25)],
+                                                "search": [(4, 1.0), (8, 0.2)]}
+    with pytest.raises(ValueError, match=r"no records for the table 'v'; the records have "
+                                         r"\['t', 'u'\]"):
+        success_by_objects(records, "v")
+
+
+def test_report_plot_draws_a_table_from_the_records(tmp_path, capsys):
+    out = tmp_path / "scale.png"
+    code, stdout, err = run(["report", "plot", "scale", "--out", out, "--results",
+                             REPO / "results"], capsys)
+    assert code == 0 and err == "" and str(out) in stdout
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 1000
+    code, stdout, err = run(["report", "plot", "nope", "--out", tmp_path / "nope.png",
+                             "--results", REPO / "results"], capsys)
+    assert_bad_input(code, stdout, err, "symplan report plot: error: no records for the "
+                     "table 'nope'")
+    assert not (tmp_path / "nope.png").exists()

@@ -3,6 +3,7 @@
     symplan solve --start start.yaml --goal goal.yaml [--model DIR] [--planner fd|pyperplan]
                   [--timeout 10] [--no-monitor] [--meshcat] [--record out.html] --json
     symplan problems make --out DIR --objects N --k K [K ...] --count C --seed S
+    symplan problems make --out DIR --set NAME   (a set of configs/problem_sets.yaml)
     symplan eval planning --runs RUN [RUN ...] --problems DIR --json --plot out.png
 
 Each takes --camera-noise none|realsense|heavy, the cameras' sensor model: problem.json
@@ -23,6 +24,7 @@ from pathlib import Path
 from drake_symplan.cli.learning_cmds import eval_subparsers
 from drake_symplan.cli.main import CommandError, NegativeAnswer, nonnegative_int, positive_int
 from drake_symplan.cli.options import (
+    ROBOTS,
     add_camera_noise_argument,
     add_goal_spec_argument,
     add_json_argument,
@@ -78,13 +80,22 @@ def _register_problems(subparsers) -> None:
         "make", help="random non-trivial problems: a start scene, k random actions, the end "
         "state as goal")
     p.add_argument("--out", required=True, type=Path, help="directory (a re-run resumes)")
-    p.add_argument("--objects", required=True, type=positive_int, help="objects per scene")
-    p.add_argument("--k", required=True, type=positive_int, nargs="+",
-                   help="actions per problem; several values are taken in turn")
-    p.add_argument("--count", required=True, type=positive_int, help="problems to keep")
-    p.add_argument("--seed", type=nonnegative_int, default=0,
-                   help="seed of the set: attempt i samples from (seed, i)")
+    p.add_argument("--set", default=None, metavar="NAME",
+                   help="make every subset of the evaluation set NAME of "
+                   "configs/problem_sets.yaml (written, scale, ...) under --out DIR, as "
+                   "DIR/SUBFOLDER; the set gives each subset's --objects, --k, --count, "
+                   "--task, --seed, --long-fraction, --max-attempts and --backend")
+    p.add_argument("--objects", type=positive_int, help="objects per scene (required "
+                   "without --set)")
+    p.add_argument("--k", type=positive_int, nargs="+",
+                   help="actions per problem; several values are taken in turn (required "
+                   "without --set)")
+    p.add_argument("--count", type=positive_int, help="problems to keep (required without "
+                   "--set)")
+    p.add_argument("--seed", type=nonnegative_int, default=None,
+                   help="seed of the set: attempt i samples from (seed, i) (default 0)")
     add_robot_argument(p)
+    p.set_defaults(backend=None)  # "arm" unless given: told apart from a --set's own
     add_camera_noise_argument(p)
     p.add_argument("--max-attempts", type=positive_int, default=None,
                    help="give up after this many attempts (default 20 x count)")
@@ -99,7 +110,7 @@ def _register_problems(subparsers) -> None:
                    "towers, bridges on towers and rows on boxes of their own; tower4, "
                    "towers3, bridge2, row4, bridge_towers: goals as a person writes them; "
                    "default: k random actions")
-    p.add_argument("--long-fraction", type=probability, default=0.5,
+    p.add_argument("--long-fraction", type=probability, default=None,
                    help="the share of long blocks among the start's boxes (default 0.5)")
     p.add_argument("--start-k", type=nonnegative_int, default=0,
                    help="with --task: the start is two towers that this many actions build "
@@ -201,12 +212,31 @@ def check_task(task: str | None, ks: list[int], objects: int, start_k: int) -> N
                            f"{2 * objects} actions to build")
 
 
-def cmd_problems_make(args: argparse.Namespace) -> dict:
-    from drake_symplan.goals.problems import make_problems
+# What a --set gives each of its subsets (goals/sets.py Subset): not options beside it.
+SET_GIVES = ("objects", "k", "count", "task", "seed", "long_fraction", "max_attempts",
+             "backend")
 
+
+def _summary_line(out: Path, summary: dict) -> str:
+    return (f"{summary['kept']} problem(s) in {out} after {summary['attempts']} "
+            f"attempt(s); dropped: {summary['rejected']}")
+
+
+def cmd_problems_make(args: argparse.Namespace) -> dict:
+    if args.set is not None:
+        return _make_set(args)
+    if missing := [f"--{name}" for name in ("objects", "k", "count")
+                   if getattr(args, name) is None]:
+        raise CommandError(f"the following arguments are required without --set: "
+                           f"{', '.join(missing)}")
+    args.seed = 0 if args.seed is None else args.seed
+    args.long_fraction = 0.5 if args.long_fraction is None else args.long_fraction
+    args.backend = args.backend or "arm"
     check_objects(args.objects)
     check_task(args.task, args.k, args.objects, args.start_k)
     check_output_dir(args.out)
+    from drake_symplan.goals.problems import make_problems
+
     summary = make_problems(args.out, args.objects, args.k, args.count, args.seed,
                             args.backend, args.max_attempts,
                             reproducible=args.reproducible, camera_noise=args.camera_noise,
@@ -214,9 +244,33 @@ def cmd_problems_make(args: argparse.Namespace) -> dict:
                             long_fraction=args.long_fraction)
     out = {"out": str(args.out), **summary}
     if not args.json:
-        print(f"{summary['kept']} problem(s) in {args.out} after {summary['attempts']} "
-              f"attempt(s); dropped: {summary['rejected']}")
+        print(_summary_line(args.out, summary))
     return out if summary["kept"] >= args.count else NegativeAnswer(out)
+
+
+def _make_set(args: argparse.Namespace) -> dict:
+    """`problems make --set NAME`: every subset of the set, each as the plain command."""
+    from drake_symplan.goals.sets import make_set, problem_set
+
+    if given := [f"--{name.replace('_', '-')}" for name in SET_GIVES
+                 if getattr(args, name) is not None]:
+        raise CommandError(f"argument --set: not allowed with {', '.join(given)} (the set "
+                           "gives each subset its own, configs/problem_sets.yaml)")
+    chosen = problem_set(args.set, backends=ROBOTS)
+    for subset in chosen.subsets:
+        check_task(subset.task, list(subset.k), subset.objects, args.start_k)
+    check_output_dir(args.out)
+
+    def progress(subset, summary) -> None:
+        if not args.json:
+            print(_summary_line(args.out / subset.folder, summary))
+
+    summaries = make_set(chosen, args.out, progress=progress,
+                         reproducible=args.reproducible, camera_noise=args.camera_noise,
+                         start_k=args.start_k)
+    out = {"out": str(args.out), "set": chosen.name, "subsets": summaries}
+    short = [s.folder for s in chosen.subsets if summaries[s.folder]["kept"] < s.count]
+    return NegativeAnswer(out) if short else out
 
 
 def cmd_eval_planning(args: argparse.Namespace) -> dict:

@@ -3,11 +3,13 @@
     symplan report keep --records R.jsonl --eval E.json --name NAME --table TABLE \\
         --column COLUMN [--rows set|kind] --command "..." [--out results/NAME.json]
     symplan report render [--results results] [TABLE ...] [--write FILE ...] [--check FILE ...]
+    symplan report plot TABLE --out FILE.png [--results results]
 
 `keep` makes one record of an `eval planning` run (its --records file and its --json
 output); `render` prints tables, `--write` puts them between a page's
 `<!-- report:TABLE -->` markers, `--check` exits 1 where a page's tables differ from the
-records (evaluation/report.py).
+records (evaluation/report.py); `plot` draws a table's success rate against the number of
+objects, a line per column.
 """
 
 from __future__ import annotations
@@ -51,6 +53,12 @@ def register(subparsers) -> None:
                         help="pages whose report blocks must match the records, else exit 1 "
                         "(default none)")
     render.set_defaults(func=cmd_render)
+    plot = sub.add_parser("plot", help="a table's success rate against the number of objects")
+    plot.add_argument("table", help="the table (a record's \"table\")")
+    plot.add_argument("--out", required=True, type=Path, help="the figure (a PNG) to write")
+    plot.add_argument("--results", type=Path, default=Path("results"),
+                      help="the folder of records (default results)")
+    plot.set_defaults(func=cmd_plot)
 
 
 def cmd_keep(args: argparse.Namespace) -> dict:
@@ -99,3 +107,18 @@ def cmd_render(args: argparse.Namespace) -> dict:
               file=sys.stderr)
         return NegativeAnswer({"stale": stale})
     return {"written": [str(p) for p in args.write], "checked": [str(p) for p in args.check]}
+
+
+def cmd_plot(args: argparse.Namespace) -> dict:
+    from drake_symplan.evaluation.report import load_records, plot, success_by_objects
+
+    check_output_file(args.out, "--out")
+    records = load_records(args.results)
+    if not records:
+        raise CommandError(f"no records (*.json) in {args.results}")
+    points = success_by_objects(records, args.table)  # an unknown table: bad input
+    plot(records, args.table, args.out)
+    print(f"{args.out}: the table {args.table}'s success rate by objects, "
+          f"{', '.join(points)}")
+    return {"out": str(args.out), "table": args.table,
+            "points": {column: [list(p) for p in xy] for column, xy in points.items()}}

@@ -7,7 +7,9 @@ One record answers one question: a rerun replaces it, the old one stays in git. 
 writes each table (a record's "table") as markdown, one column per record, one row per
 problem set, with when and on what it was measured; `replace_blocks` puts the tables
 between `<!-- report:NAME -->` and `<!-- /report -->` in a page, so that the README's
-numbers are the records' (tests/test_report.py fails on a changed digit).
+numbers are the records' (tests/test_report.py fails on a changed digit). `plot` draws a
+table's success rate against the number of objects, a line per column
+(`success_by_objects` computes its points).
 """
 
 from __future__ import annotations
@@ -83,9 +85,7 @@ def render(records: list[dict], table: str) -> str:
     """The markdown table `table` of `records`: a row per problem set, a column per record
     (successes on the perceived verdict, the simulator's in brackets, the median plan
     seconds), and a line saying when, where and by what it was measured."""
-    chosen = sorted((r for r in records if r["table"] == table), key=lambda r: r["name"])
-    if not chosen:
-        raise ValueError(f"no records for the table {table!r}")
+    chosen = _chosen(records, table)
     keys = sorted({k for r in chosen for k in r["sets"]}, key=_natural)
     lines = ["| set | boxes | actions | " + " | ".join(r["column"] for r in chosen) + " |",
              "|---|---|---|" + "---|" * len(chosen)]
@@ -105,6 +105,57 @@ def render(records: list[dict], table: str) -> str:
                  "(on the simulator's), median plan seconds. Records: "
                  + ", ".join(f"`results/{r['name']}.json`" for r in chosen) + ".")
     return "\n".join(lines) + "\n"
+
+
+def _chosen(records: list[dict], table: str) -> list[dict]:
+    chosen = sorted((r for r in records if r["table"] == table), key=lambda r: r["name"])
+    if not chosen:
+        raise ValueError(f"no records for the table {table!r}; the records have "
+                         f"{sorted({r['table'] for r in records})}")
+    return chosen
+
+
+def success_by_objects(records: list[dict], table: str) -> dict[str, list[tuple[int, float]]]:
+    """The points of table `table`'s plot: {column: [(objects, success rate), ...]}, a
+    set at its fewest objects, sets of equal objects pooled (their successes over their
+    problems), objects ascending, columns in the order of their records' names."""
+    pooled: dict[str, dict[int, list[int]]] = {}
+    for record in _chosen(records, table):
+        by_objects = pooled.setdefault(record["column"], {})
+        for s in record["sets"].values():
+            counts = by_objects.setdefault(min(s["objects"]), [0, 0])
+            counts[0] += s["success"]
+            counts[1] += s["problems"]
+    return {column: [(n, success / problems) for n, (success, problems)
+                     in sorted(by_objects.items()) if problems]
+            for column, by_objects in pooled.items()}
+
+
+def plot(records: list[dict], table: str, path: str | Path) -> Path:
+    """Writes table `table`'s success rate against the number of objects to `path` (a
+    PNG), a line per column; returns the path."""
+    points = success_by_objects(records, table)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from drake_symplan.atomic import save_figure
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for i, (column, xy) in enumerate(points.items()):  # lines that coincide stay apart
+        ax.plot([n for n, _ in xy], [rate for _, rate in xy], label=column,
+                marker="osD^v"[i % 5], linestyle=("-", "--", ":", "-.")[i % 4],
+                markersize=max(3, 9 - 2 * i))
+    ax.set_xticks(sorted({n for xy in points.values() for n, _ in xy}))
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("objects")
+    ax.set_ylabel("success rate (perceived verdict)")
+    ax.set_title(f"Table {table}: success rate by number of objects")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return save_figure(fig, path, dpi=110)
 
 
 def _natural(key: str) -> list:
