@@ -8,9 +8,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from bilevel_fixtures import STACK, Skeletons, Stacking, boxes, observed, solve
+from bilevel_fixtures import START as BOXES
 from conftest import run
-from test_abstraction_bilevel import STACK, Skeletons, Stacking, boxes, observed, solve
-from test_abstraction_bilevel import START as BOXES
 
 from drake_symplan.abstraction.abstraction import (
     Abstraction,
