@@ -83,6 +83,25 @@ def test_a_model_without_relations_keeps_the_named_objects_atoms_of_a_relation_g
     assert Abstraction(bundle).stages(reading, atoms) == [atoms]
 
 
+class RowBits:
+    """Semantics reading a row a b (b beside a) as on and beside read in the learned bits:
+    r1 r2 from a to b, r0 from b to a; c on the table apart, in relation to nothing."""
+
+    def read(self, *args, **kwargs):
+        return {("r1", 0, 1), ("r2", 0, 1), ("r0", 1, 0), ("r0", 2, 0), ("u0", 0)}, set()
+
+
+def test_a_named_pairs_relation_is_its_bits_both_ways_and_nothing_of_other_pairs():
+    names = ("a", "b", "c")
+    reading = Reading(SymbolicState(names, np.zeros((3, 1)), np.zeros((3, 3, 3))),
+                      np.zeros((3, 1), bool), np.zeros((3, 3, 3), bool),
+                      pairs={("a", "b"): (0, 0)})
+    abstraction = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits()))
+    atoms = abstraction.goal_atoms(reading)
+    assert atoms == {("r1", "a", "b"), ("r2", "a", "b"), ("r0", "b", "a")}
+    assert abstraction.stages(reading, atoms) == [atoms]
+
+
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),
                ObjectSpec("o1", "long", [0.80, 0.10, 0.025]),
                ObjectSpec("o2", "cube", [0.60, 0.05, 0.025]),

@@ -99,6 +99,15 @@ def relation_goal(goal: Observation, relations) -> Observation:
     return Observation(goal.scene, reading, boxes, tuple(relations))
 
 
+def pair_of(pairs: dict, atom) -> tuple | None:
+    """The named pair (upper, lower) a relation atom is about, in either order, or None: a
+    pair's relation is its bits both ways (on and beside read the same bits one way)."""
+    for key in ((atom[1], atom[2]), (atom[2], atom[1])):
+        if key in pairs:
+            return key
+    return None
+
+
 @dataclass(frozen=True)
 class Level:
     """What the level that found a plan implies for running it: `predicts_positions`, the
@@ -240,8 +249,8 @@ class Abstraction:
     def goal_atoms(self, goal: Reading) -> frozenset:
         """Unary atoms, and relation atoms only between related objects (paper IV-C: in
         contact, or near under relevance by vicinity); of a goal of relations
-        (Reading.pairs), the relation atoms of the related pairs they name: the paper's
-        contact-graph filter on the structure a person asked for, not on the whole scene.
+        (Reading.pairs), the relation atoms of the related pairs they name, both ways: the
+        paper's contact-graph filter on the structure a person asked for, not the scene.
         A model without relations (Attentive: unary symbols alone) says of such a goal only
         what its atoms of the named objects say."""
         atoms = self.atoms(goal, contacts_only=True)[0]
@@ -250,7 +259,7 @@ class Abstraction:
         if not self.bundle.n_relations:
             named = {n for pair in goal.pairs for n in pair}
             return frozenset(a for a in atoms if set(a[1:]) <= named)
-        return frozenset(a for a in atoms if len(a) == 3 and (a[1], a[2]) in goal.pairs)
+        return frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a))
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""
@@ -303,7 +312,7 @@ class Abstraction:
         if any(len(a) != 3 for a in atoms):  # a model without relations: one stage
             return [atoms]
         stages = sorted(set(goal.pairs.values()))
-        return [frozenset(a for a in atoms if goal.pairs[(a[1], a[2])] <= stage)
+        return [frozenset(a for a in atoms if goal.pairs[pair_of(goal.pairs, a)] <= stage)
                 for stage in stages]
 
     def _plan_stages(self, task: Task, start: Reading, goal: Reading, planner: str,
