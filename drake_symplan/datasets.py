@@ -205,6 +205,10 @@ class SceneSymbols:
     episode: np.ndarray  # [T] int64
     step: np.ndarray  # [T] step within the episode
     chain: np.ndarray  # [T] identity chain within the episode (see data/exploration.py)
+    # The pairs in contact where `contacts` is a wider relevance graph (vicinity): what the
+    # degree atoms count; None: `contacts` themselves.
+    touching: np.ndarray | None = None
+    next_touching: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.mask.shape[0]

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.atomic import write_atomic
+from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.datasets import TransitionArrays
 from drake_symplan.json_files import read_json
 
@@ -260,3 +261,11 @@ def load_extra(data_dir: str | Path, key: str, pad_value=None) -> np.ndarray | N
                                                                       strict=True)],
                         constant_values=pad_value) for p in parts]
     return np.concatenate(parts)
+
+
+def relevance_radius(data_dir: str | Path) -> float:
+    """The relevance a data set was collected with (CollectConfig.relevance_radius, m): the
+    contact rule for a set whose manifest names none."""
+    config = read_manifest(data_dir).get("config") if (Path(data_dir) / MANIFEST).is_file() \
+        else None
+    return float((config or {}).get("relevance_radius", CONTACT_TOLERANCE))

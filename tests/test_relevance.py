@@ -93,3 +93,32 @@ def test_a_data_set_without_the_setting_was_collected_by_contact(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps({"schema_version": 1,
                                                          "config": {"relevance_radius": 0.035}}))
     assert data_relevance(tmp_path) == 0.035
+
+
+def test_the_degree_atoms_count_what_touches_while_relations_follow_vicinity():
+    from drake_symplan.symbolic.effect_operators import EFFECT
+
+    # a and b side by side (related, not touching), c on b (touching)
+    related = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], bool)
+    touch = np.array([[0, 0, 0], [0, 0, 1], [0, 1, 0]], bool)
+    unary, rel = np.zeros((3, 1), np.uint8), np.zeros((1, 3, 3), np.uint8)
+    rel[0, 0, 1] = 1
+    atoms, _ = EFFECT.read(unary, None, rel, None, related, degree=touch.sum(-1))
+    assert {a for a in atoms if a[0].startswith("touching")} == {
+        ("touching0", 0), ("touching1", 1), ("touching1", 2)}
+    assert ("r0", 0, 1) in atoms and ("not_r0", 1, 2) in atoms
+    assert not any(a[1:] == (0, 2) for a in atoms)  # a and c are not related
+
+
+def test_the_pairs_in_contact_of_recorded_scenes_come_from_their_geometry():
+    from drake_symplan.learning.readout import touching
+
+    boxes = ROW_AND_TOWER
+    state = np.zeros((1, 8, 9), np.float32)
+    state[0, :len(boxes.objects)] = boxes.features()
+    mask = np.zeros((1, 8), bool)
+    mask[0, :len(boxes.objects)] = True
+    got = touching(state, mask)[0]
+    names = boxes.names
+    pairs = {tuple(sorted((names[i], names[j]))) for i, j in np.argwhere(got)}
+    assert pairs == {("t0", "t1"), ("t1", "t2")}  # the row's 2.5 cm gap is no contact

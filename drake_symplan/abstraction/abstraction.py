@@ -20,7 +20,7 @@ from functools import partial
 import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.boxes import neighbour_pairs
+from drake_symplan.boxes import CONTACT_TOLERANCE, neighbour_pairs
 from drake_symplan.learning.readout import read_symbols
 from drake_symplan.planning.budget import Budget
 from drake_symplan.planning.grounding import fast_downward_task
@@ -45,21 +45,26 @@ class Reading:
     state: SymbolicState
     unary_uncertain: np.ndarray  # [n, P] bool
     relational_uncertain: np.ndarray  # [K, n, n] bool
-    contacts: set = field(default_factory=set)  # {(a, b)} perceived in contact
+    contacts: set = field(default_factory=set)  # {(a, b)} related: the relevance graph
     # A goal of relations (relations.py): the (upper, lower) pairs they name, each
     # with (the layer its lower box stands in in the example, 0 on the table; the index of
     # its relation); its goal atoms are those pairs' relation atoms alone (goal_atoms, stages).
     # None: a whole-scene goal.
     pairs: dict | None = None
+    # The pairs in contact, which the degree atoms count, where the relevance graph is
+    # wider (vicinity); None: `contacts`.
+    touching: set | None = None
 
     @property
     def objects(self) -> tuple[str, ...]:
         return self.state.objects
 
-    def contact_matrix(self) -> np.ndarray:
+    def contact_matrix(self, touching: bool = False) -> np.ndarray:
+        """[n, n] bool of the related pairs, or with `touching` of the pairs in contact."""
         names = {n: i for i, n in enumerate(self.objects)}
         c = np.zeros((len(names), len(names)), bool)
-        for a, b in self.contacts:
+        pairs = self.touching if touching and self.touching is not None else self.contacts
+        for a, b in pairs:
             c[names[a], names[b]] = c[names[b], names[a]] = True
         return c
 
@@ -212,18 +217,21 @@ class Abstraction:
 
     # --- symbols and atoms ------------------------------------------------------------
 
-    def read(self, names, features: np.ndarray, contacts=()) -> Reading:
-        """The symbols of a perceived scene: object names, features [n, d_o], contact pairs."""
+    def read(self, names, features: np.ndarray, contacts=(), touching=None) -> Reading:
+        """The symbols of a perceived scene: object names, features [n, d_o], the pairs of
+        the relevance graph and (where it is wider than contact) those in contact."""
         names = [check_name(n) for n in names]
         unary, unary_unc, rel, rel_unc = read_symbols(self.bundle.model, features,
                                                       margin=self.bundle.margin)
         return Reading(SymbolicState(tuple(names), unary, rel), unary_unc.astype(bool),
-                       rel_unc.astype(bool), {tuple(p) for p in contacts})
+                       rel_unc.astype(bool), {tuple(p) for p in contacts},
+                       touching=None if touching is None else {tuple(p) for p in touching})
 
     def read_scene(self, scene) -> Reading:
         """`read` of a perceived scene (names, features(), contacts)."""
-        return self.read(scene.names, scene.features(),
-                         neighbour_pairs(scene, self.bundle.relevance_radius))
+        radius = self.bundle.relevance_radius
+        return self.read(scene.names, scene.features(), neighbour_pairs(scene, radius),
+                         scene.contacts if radius > CONTACT_TOLERANCE else None)
 
     def observe(self, scene) -> Observation:
         """A perceived scene with its symbols and its boxes (Observation)."""
@@ -237,7 +245,8 @@ class Abstraction:
         s = reading.state
         atoms, unknown = self.bundle.semantics.read(
             s.unary, reading.unary_uncertain, s.relational, reading.relational_uncertain,
-            reading.contact_matrix(), guess=guess, contacts_only=contacts_only)
+            reading.contact_matrix(), guess=guess, contacts_only=contacts_only,
+            degree=reading.contact_matrix(touching=True).sum(-1))
         names = s.objects
         return (frozenset(Atom(a[0], *(names[i] for i in a[1:])) for a in atoms),
                 frozenset((k[0], *(names[i] for i in k[1:])) for k in unknown))

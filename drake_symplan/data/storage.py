@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 
 from drake_symplan.atomic import remove_stale_tmp, write_atomic  # noqa: F401 - re-exported
-from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.shards import (  # noqa: F401 - the format, re-exported for data/*
     MANIFEST,
     REQUIRED_KEYS,
@@ -24,6 +23,7 @@ from drake_symplan.shards import (  # noqa: F401 - the format, re-exported for d
     load_transitions,
     read_manifest,
     read_shard_arrays,
+    relevance_radius,
     shard_path,
     shard_paths,
     write_manifest,
@@ -49,14 +49,6 @@ def shard_length(path: str | Path) -> int:
             return int(z["episode"].shape[0])
     except UNREADABLE:
         return -1
-
-
-def relevance_radius(data_dir: str | Path) -> float:
-    """The relevance a data set was collected with (CollectConfig.relevance_radius, m): the
-    contact rule for a set whose manifest names none."""
-    config = read_manifest(data_dir).get("config") if (Path(data_dir) / MANIFEST).is_file() \
-        else None
-    return float((config or {}).get("relevance_radius", CONTACT_TOLERANCE))
 
 
 def write_json(out_dir: str | Path, name: str, data: dict) -> Path:

@@ -19,11 +19,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph
 from drake_symplan.datasets import SceneSymbols, SymbolDataset, TransitionArrays
+from drake_symplan.features import box_of
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN, read_bits
 from drake_symplan.learning.models import EffectModel
-from drake_symplan.shards import load_extra, load_transitions
+from drake_symplan.shards import load_extra, load_transitions, relevance_radius
 
 READOUT_BATCH = 8192
 
@@ -164,13 +166,30 @@ def scenes_symbols(data_dir: str | Path, bits) -> tuple[SymbolDataset, SceneSymb
         read.update({f"{prefix}unary": unary, f"{prefix}relational": rel,
                      f"{prefix}unary_uncertain": unary_unc,
                      f"{prefix}relational_uncertain": rel_unc})
+    wider = relevance_radius(data_dir) > CONTACT_TOLERANCE
     scenes = SceneSymbols(**read, mask=mask, contacts=extra["scene_contacts"].astype(bool),
                           next_contacts=extra["scene_next_contacts"].astype(bool),
                           episode=arrays.episode, step=extra["step"].astype(np.int64),
-                          chain=extra["chain"].astype(np.int64))
+                          chain=extra["chain"].astype(np.int64),
+                          touching=touching(extra["scene_state"], mask) if wider else None,
+                          next_touching=touching(extra["scene_next_state"], mask)
+                          if wider else None)
     slots = extra["scene_slots"].astype(np.int64)
     rel_mask = arrays.mask.astype(bool)
     return _gather(scenes, slots, rel_mask, arrays.action), scenes
+
+
+def touching(state: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """[T, M, M] bool: the pairs of each scene's boxes (features [T, M, D]) in contact by
+    their geometry (boxes.contact_graph), as perception finds them."""
+    out = np.zeros(mask.shape + mask.shape[-1:], bool)
+    for t in range(len(state)):
+        slots = np.flatnonzero(mask[t])
+        shapes = {int(i): box_of(state[t, i]) for i in slots}
+        for i, j in contact_graph({i: (c, R, np.asarray(HALF_EXTENTS[k]))
+                                   for i, (k, c, R) in shapes.items()}):
+            out[t, i, j] = out[t, j, i] = True
+    return out
 
 
 def _gather(scenes: SceneSymbols, slots: np.ndarray, mask: np.ndarray,
@@ -193,7 +212,9 @@ def _gather(scenes: SceneSymbols, slots: np.ndarray, mask: np.ndarray,
         whole = getattr(scenes, f"{prefix}contacts")
         c = whole[t[:, :, None], s[:, :, None], s[:, None, :]]
         out[f"{prefix}contacts"] = c & pair
-        out[f"{prefix}degree"] = (whole.sum(-1)[t, s] * mask).astype(np.int8)
+        touch = getattr(scenes, f"{prefix}touching")
+        touch = whole if touch is None else touch
+        out[f"{prefix}degree"] = (touch.sum(-1)[t, s] * mask).astype(np.int8)
     return SymbolDataset(action=action.astype(np.float32, copy=False), mask=mask, **out)
 
 

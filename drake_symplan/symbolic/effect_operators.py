@@ -162,19 +162,21 @@ class Semantics:
 
 
     def read(self, unary, unary_unc, rel, rel_unc, contacts, real=None, guess: bool = False,
-             contacts_only: bool | None = None) -> tuple[frozenset, frozenset]:
+             contacts_only: bool | None = None, degree=None) -> tuple[frozenset, frozenset]:
         """(atoms, unknown keys) of one scene's symbols over slots under these semantics:
         unary [N, P], rel [K, N, N] and their uncertainty flags, contacts [N, N] bool (the
         whole scene's: the degrees count them), real [N] (None: all). With `guess` (a
         problem's initial state) uncertain bits are read by their sign where
         `guess_uncertain` says so; `contacts_only` overrides the relation rule (goals:
-        only pairs in contact)."""
+        only pairs in contact); `degree` [N], the contact counts where the relevance graph
+        is wider than contact (None: the counts of `contacts`)."""
         certain = self.certain_only and not (guess and self.guess_uncertain)
         only = self.contacts_only if contacts_only is None else contacts_only
         real = np.ones(len(unary), bool) if real is None else real
         return atoms_and_unknown(unary, unary_unc if certain else None, rel,
                                  rel_unc if certain else None, contacts if only else None,
-                                 real, contacts.sum(-1) if self.degree else None)
+                                 real, (contacts.sum(-1) if degree is None else degree)
+                                 if self.degree else None)
 
 
 EFFECT = Semantics()
