@@ -21,6 +21,7 @@ from drake_symplan.abstraction.abstraction import (
 )
 from drake_symplan.abstraction.bilevel import Search, plan_bilevel
 from drake_symplan.abstraction.refiner import Refiner
+from drake_symplan.boxes import CONTACT_TOLERANCE, VICINITY
 from drake_symplan.planning.budget import Budget
 from drake_symplan.relations import parse
 from drake_symplan.symbolic.states import SymbolicState
@@ -91,15 +92,19 @@ class RowBits:
         return {("r1", 0, 1), ("r2", 0, 1), ("r0", 1, 0), ("r0", 2, 0), ("u0", 0)}, set()
 
 
-def test_a_named_pairs_relation_is_its_bits_both_ways_and_nothing_of_other_pairs():
+def test_under_vicinity_a_named_pairs_relation_is_its_bits_both_ways_and_no_other_pairs():
     names = ("a", "b", "c")
     reading = Reading(SymbolicState(names, np.zeros((3, 1)), np.zeros((3, 3, 3))),
                       np.zeros((3, 1), bool), np.zeros((3, 3, 3), bool),
                       pairs={("a", "b"): (0, 0)})
-    abstraction = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits()))
-    atoms = abstraction.goal_atoms(reading)
+    vicinity = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
+                                           relevance_radius=VICINITY))
+    atoms = vicinity.goal_atoms(reading)
     assert atoms == {("r1", "a", "b"), ("r2", "a", "b"), ("r0", "b", "a")}
-    assert abstraction.stages(reading, atoms) == [atoms]
+    assert vicinity.stages(reading, atoms) == [atoms]
+    contact = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
+                                          relevance_radius=CONTACT_TOLERANCE))
+    assert contact.goal_atoms(reading) == {("r1", "a", "b"), ("r2", "a", "b")}
 
 
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),

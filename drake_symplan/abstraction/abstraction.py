@@ -104,10 +104,12 @@ def relation_goal(goal: Observation, relations) -> Observation:
     return Observation(goal.scene, reading, boxes, tuple(relations))
 
 
-def pair_of(pairs: dict, atom) -> tuple | None:
-    """The named pair (upper, lower) a relation atom is about, in either order, or None: a
-    pair's relation is its bits both ways (on and beside read the same bits one way)."""
-    for key in ((atom[1], atom[2]), (atom[2], atom[1])):
+def pair_of(pairs: dict, atom, both: bool = True) -> tuple | None:
+    """The named pair (upper, lower) a relation atom is about, or None; with `both`, in
+    either order: under vicinity a pair's relation is its bits both ways (b on a and b
+    beside a read the same bits from a to b), under contact the bits from upper to lower
+    say it (more are incidental and cost plans: measured on the written goals)."""
+    for key in ((atom[1], atom[2]), (atom[2], atom[1]))[:2 if both else 1]:
         if key in pairs:
             return key
     return None
@@ -258,7 +260,7 @@ class Abstraction:
     def goal_atoms(self, goal: Reading) -> frozenset:
         """Unary atoms, and relation atoms only between related objects (paper IV-C: in
         contact, or near under relevance by vicinity); of a goal of relations
-        (Reading.pairs), the relation atoms of the related pairs they name, both ways: the
+        (Reading.pairs), the relation atoms of the related pairs they name (pair_of): the
         paper's contact-graph filter on the structure a person asked for, not the scene.
         A model without relations (Attentive: unary symbols alone) says of such a goal only
         what its atoms of the named objects say."""
@@ -268,7 +270,8 @@ class Abstraction:
         if not self.bundle.n_relations:
             named = {n for pair in goal.pairs for n in pair}
             return frozenset(a for a in atoms if set(a[1:]) <= named)
-        return frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a))
+        both = self.bundle.relevance_radius > CONTACT_TOLERANCE
+        return frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both))
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""
