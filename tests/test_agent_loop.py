@@ -17,6 +17,7 @@ from drake_symplan.actions import Action
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import SolveConfig
 from drake_symplan.agent.solve import REFUSALS_PER_OBJECT, Agent, SolveResult
+from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.datasets import ObjectState
 from drake_symplan.features import object_features
 from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
@@ -101,6 +102,7 @@ class OracleBundle:
     planning = PlanningOperators(operators)
     planned, by_name = operators, {op.name: op for op in operators}
     path = "oracle"
+    relevance_radius = CONTACT_TOLERANCE  # the paper's relevance: contact
 
     def domain_for(self, n_objects: int, costs: bool = True) -> str:
         return self.domain if costs else self.domain_strips

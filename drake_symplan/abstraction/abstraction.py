@@ -219,21 +219,22 @@ class Abstraction:
 
     # --- symbols and atoms ------------------------------------------------------------
 
-    def read(self, names, features: np.ndarray, contacts=(), touching=None) -> Reading:
+    def read(self, names, features: np.ndarray, contacts=()) -> Reading:
         """The symbols of a perceived scene: object names, features [n, d_o], the pairs of
-        the relevance graph and (where it is wider than contact) those in contact."""
+        the relevance graph."""
         names = [check_name(n) for n in names]
         unary, unary_unc, rel, rel_unc = read_symbols(self.bundle.model, features,
                                                       margin=self.bundle.margin)
         return Reading(SymbolicState(tuple(names), unary, rel), unary_unc.astype(bool),
-                       rel_unc.astype(bool), {tuple(p) for p in contacts},
-                       touching=None if touching is None else {tuple(p) for p in touching})
+                       rel_unc.astype(bool), {tuple(p) for p in contacts})
 
     def read_scene(self, scene) -> Reading:
         """`read` of a perceived scene (names, features(), contacts)."""
         radius = self.bundle.relevance_radius
-        return self.read(scene.names, scene.features(), neighbour_pairs(scene, radius),
-                         scene.contacts if radius > CONTACT_TOLERANCE else None)
+        reading = self.read(scene.names, scene.features(), neighbour_pairs(scene, radius))
+        if radius <= CONTACT_TOLERANCE:
+            return reading
+        return replace(reading, touching={tuple(p) for p in scene.contacts})
 
     def observe(self, scene) -> Observation:
         """A perceived scene with its symbols and its boxes (Observation)."""
