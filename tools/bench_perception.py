@@ -10,7 +10,9 @@ transitions executed by the arm on perceived beliefs. `--camera-noise` picks the
 sensor's model (world/depth_sensor.py; its calibration error is drawn from --seed); given
 several (`--camera-noise none realsense`), each is benchmarked on the same scenes and
 `cost_over_none` says what perception costs under each against none (median wall and CPU
-time; on a shared machine CPU time is the steadier).
+time, on a shared machine CPU time the steadier; and both without the sensing, the cost of
+perceiving a real camera's frames). Each scene is perceived under every model in turn, so
+that a shared machine's load weighs on all alike.
 `perceive_ms` splits each perception into its stages: sensing (the station's frames: the
 rendering and the sensor model, a simulator's cost), clouds (the depth filter: what a real
 camera's frames cost too) and fitting.
@@ -33,7 +35,7 @@ from tqdm import tqdm
 from drake_symplan.actions import OFFSETS, Action
 from drake_symplan.evaluation.perception import compare, match_to_truth
 from drake_symplan.perception.association import associate
-from drake_symplan.perception.perceive import Perceiver
+from drake_symplan.perception.perceive import Perceiver, station_views
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.skills.pick_place import PickPlaceMotions, pick_place
 from drake_symplan.world.cameras import DepthNoise, default_cameras
@@ -42,54 +44,85 @@ from drake_symplan.world.scenes import load_scene, sample_structured_scene
 from drake_symplan.world.station import Station, StationConfig
 
 
-def bench_scenes(station, perceiver, n_scenes: int, seed: int, noise: DepthNoise,
+def bench_scenes(models: dict, n_scenes: int, seed: int, noise: DepthNoise,
                  scenes: list | None = None) -> dict:
-    """`scenes`, where given, are perceived instead of `n_scenes` sampled ones."""
-    rng = np.random.default_rng(seed)
+    """Each sensor model's (`models`: name -> (station, perceiver)) benchmark on the same
+    scenes, perceived side by side (every scene under each model in turn, so that a shared
+    machine's load weighs on all alike); `scenes`, where given, instead of `n_scenes`
+    sampled ones."""
+    rng = np.random.default_rng(seed)  # the scenes
+    noise_rng = {name: np.random.default_rng(seed + 2) for name in models}  # `noise`'s draws
+    tallies = {name: _Tally() for name in models}
     n_scenes = len(scenes) if scenes else n_scenes
-    pos, yaw, type_ok, count_ok, contacts_ok, wall, cpu = [], [], [], [], [], [], []
-    stages = {}
-    invented = missed = 0
-    failures = []
     for i in tqdm(range(n_scenes), desc="scenes"):
         scene = scenes[i] if scenes else sample_structured_scene(rng, 2 + i % 7)
-        station.reset(scene)
-        station.settle(0.8)
-        t, c = time.perf_counter(), time.process_time()
-        perceived = perceiver.perceive(station, noise, rng)
-        wall.append(time.perf_counter() - t)
-        cpu.append(time.process_time() - c)
-        for stage, seconds in perceiver.stage_seconds.items():
-            stages.setdefault(stage, []).append(seconds)
-        r = compare(perceived, station.object_states(), station.contact_graph())
+        for name, (station, perceiver) in models.items():
+            station.reset(scene)
+            station.settle(0.8)
+            # Perceiver.perceive, its sensing (the simulator's) timed apart.
+            t, c = time.perf_counter(), time.process_time()
+            views = station_views(station, perceiver.depth_filter.frames)
+            sensed = time.perf_counter() - t, time.process_time() - c
+            perceived = perceiver.perceive_views(views, noise, noise_rng[name])
+            tallies[name].add(i, scene, (time.perf_counter() - t, time.process_time() - c),
+                              sensed, perceiver.stage_seconds,
+                              compare(perceived, station.object_states(), station.contact_graph()))
+    return {name: tally.result() for name, tally in tallies.items()}
+
+
+class _Tally:
+    """One sensor model's scenes: errors, counts, failures and times."""
+
+    def __init__(self):
+        self.pos, self.yaw, self.type_ok, self.count_ok, self.contacts_ok = [], [], [], [], []
+        self.wall, self.cpu, self.stages, self.failures = [], [], {}, []
+        self.without_sensing_cpu = []
+        self.invented = self.missed = 0
+
+    def add(self, i: int, scene, took: tuple, sensed: tuple, stages: dict, r: dict) -> None:
+        """Scene i's perception: `took` and `sensed` (its sensing) as (wall, CPU) seconds,
+        `stages` (Perceiver.stage_seconds), `r` (evaluation.perception.compare)."""
+        self.wall.append(took[0])
+        self.cpu.append(took[1])
+        # Without the sensing: what perceiving a real camera's frames costs.
+        for stage, seconds in {"sensing": sensed[0], **stages,
+                               "without_sensing": took[0] - sensed[0]}.items():
+            self.stages.setdefault(stage, []).append(seconds)
+        self.without_sensing_cpu.append(took[1] - sensed[1])
         for e in r["errors"].values():
-            pos.append(e["position_mm"])
-            yaw.append(e["yaw_deg"])
-            type_ok.append(e["type_ok"])
-        count_ok.append(r["count_ok"])
-        contacts_ok.append(r["contacts_ok"])
-        invented += r["invented"]
-        missed += r["missed"]
+            self.pos.append(e["position_mm"])
+            self.yaw.append(e["yaw_deg"])
+            self.type_ok.append(e["type_ok"])
+        self.count_ok.append(r["count_ok"])
+        self.contacts_ok.append(r["contacts_ok"])
+        self.invented += r["invented"]
+        self.missed += r["missed"]
         if not (r["count_ok"] and r["contacts_ok"]):
-            failures.append({"scene": i, "names": [f"{o.name}:{o.type}" for o in scene.objects],
-                             "count_ok": r["count_ok"], "contacts_ok": r["contacts_ok"]})
-    return {
-        "scenes": n_scenes,
-        "objects": len(pos),
-        "position_error_mm": {"median": float(np.median(pos)),
-                              "p95": float(np.percentile(pos, 95))},
-        "yaw_error_deg": {"median": float(np.median(yaw)), "p95": float(np.percentile(yaw, 95))},
-        "type_accuracy": float(np.mean(type_ok)),
-        "count_exact_fraction": float(np.mean(count_ok)),
-        "contact_graph_exact_fraction": float(np.mean(contacts_ok)),
-        "invented_objects": invented,
-        "missed_objects": missed,
-        "perceive_ms": {"median_wall": 1000 * statistics.median(wall),
-                        "median_cpu": 1000 * statistics.median(cpu),
-                        **{f"median_{k}_wall": 1000 * statistics.median(v)
-                           for k, v in stages.items()}},
-        "failures": failures[:20],
-    }
+            self.failures.append({"scene": i, "names": [f"{o.name}:{o.type}" for o in scene.objects],
+                                  "count_ok": r["count_ok"], "contacts_ok": r["contacts_ok"]})
+
+    def result(self) -> dict:
+        pos, yaw = self.pos, self.yaw
+        return {
+            "scenes": len(self.wall),
+            "objects": len(pos),
+            "position_error_mm": {"median": float(np.median(pos)),
+                                  "p95": float(np.percentile(pos, 95))},
+            "yaw_error_deg": {"median": float(np.median(yaw)),
+                              "p95": float(np.percentile(yaw, 95))},
+            "type_accuracy": float(np.mean(self.type_ok)),
+            "count_exact_fraction": float(np.mean(self.count_ok)),
+            "contact_graph_exact_fraction": float(np.mean(self.contacts_ok)),
+            "invented_objects": self.invented,
+            "missed_objects": self.missed,
+            "perceive_ms": {"median_wall": 1000 * statistics.median(self.wall),
+                            "median_cpu": 1000 * statistics.median(self.cpu),
+                            "median_without_sensing_cpu":
+                                1000 * statistics.median(self.without_sensing_cpu),
+                            **{f"median_{k}_wall": 1000 * statistics.median(v)
+                               for k, v in self.stages.items()}},
+            "failures": self.failures[:20],
+        }
 
 
 def bench_association(station, perceiver, n: int, seed: int) -> dict:
@@ -161,7 +194,7 @@ def main() -> None:
     problems = [load_scene(f) for d in sorted(Path(args.problems).rglob("problem.json"))
                 for f in (d.parent / "start.yaml", d.parent / "goal.yaml")] \
         if args.problems else None
-    runs = {name: bench_one(args, name, problems) for name in args.camera_noise}
+    runs = bench_all(args, problems)
     result = {
         "benchmark": "perception",
         "cameras": [c.name for c in default_cameras()],
@@ -177,27 +210,35 @@ def main() -> None:
             clean = runs["none"]["scenes"]["perceive_ms"]
             result["cost_over_none"] = {
                 name: {k: round(r["scenes"]["perceive_ms"][f"median_{k}"] / clean[f"median_{k}"], 2)
-                       for k in ("wall", "cpu")} for name, r in runs.items()}
+                       for k in ("wall", "cpu", "without_sensing_wall", "without_sensing_cpu")}
+                for name, r in runs.items()}
     with open(args.out, "w") as f:
         json.dump(result, f, indent=2)
     print(json.dumps(result, indent=2) if args.json else json.dumps(summary(result)))
 
 
-def bench_one(args, camera_noise: str, problems) -> dict:
-    """The scenes' and the association's benchmarks under one sensor model."""
-    station = Station(StationConfig(cameras=default_cameras(), camera_noise=camera_noise,
-                                    camera_seed=args.seed))
-    perceiver = Perceiver()
-    station.reset(sample_structured_scene(np.random.default_rng(0), 2))
-    perceiver.perceive(station)  # renderer start-up is not per-state cost
-    out = {}
+def bench_all(args, problems) -> dict:
+    """The scenes' benchmark under every sensor model, side by side, then each one's
+    association's."""
+    models = {}
+    for name in args.camera_noise:
+        station = Station(StationConfig(cameras=default_cameras(), camera_noise=name,
+                                        camera_seed=args.seed))
+        perceiver = Perceiver()
+        station.reset(sample_structured_scene(np.random.default_rng(0), 2))
+        perceiver.perceive(station)  # renderer start-up is not per-state cost
+        models[name] = station, perceiver
+    runs = {name: {} for name in models}
     if args.scenes:
-        out["scenes"] = bench_scenes(station, perceiver, args.scenes, args.seed,
-                                     DepthNoise(args.noise, args.dropout), problems)
+        scenes = bench_scenes(models, args.scenes, args.seed,
+                              DepthNoise(args.noise, args.dropout), problems)
+        for name in models:
+            runs[name]["scenes"] = scenes[name]
     if args.transitions:
-        out["association"] = bench_association(station, perceiver, args.transitions,
-                                                args.seed)
-    return out
+        for name, (station, perceiver) in models.items():
+            runs[name]["association"] = bench_association(station, perceiver,
+                                                          args.transitions, args.seed)
+    return runs
 
 
 def summary(result: dict) -> dict:

@@ -4,6 +4,11 @@ edge-preserving local plane fit (which also drops flying pixels), and the table'
 The sensor is world/depth_sensor.py's; these are the filters a RealSense user runs (the
 SDK's temporal and edge-preserving spatial filters) plus a check of each camera's
 calibration against the table, whose top is the plane z = 0.
+
+Most of an image is the table, which perception crops away: the table's plane is read from
+a grid of pixels (every 4th of every 4th row), and the filter runs only on the 16-px tiles
+where that grid sees something stand on the table in the workspace, with their neighbours'
+pixels; a noisy perception costs about what a perfect sensor's does (docs/perception.md).
 """
 
 from __future__ import annotations
@@ -13,10 +18,11 @@ import dataclasses as dc
 import numpy as np
 from scipy import ndimage
 
-from drake_symplan.perception.segmentation import CROP_X, CROP_Y
-from drake_symplan.world.cameras import DepthCamera, back_project
+from drake_symplan.perception.segmentation import CROP_X, CROP_Y, CROP_Z
+from drake_symplan.world.cameras import DepthCamera
 
 MEDIAN_EFFICIENCY = 1.25  # the median of n normal samples has about 1.25 / sqrt(n) their std
+WORKSPACE_MARGIN = 0.05  # m: what the grid sees this near the workspace is filtered
 
 
 @dc.dataclass
@@ -33,10 +39,16 @@ class DepthFilter:
     table_band: float = 0.03  # m: points this near z = 0 in the workspace are the table's
     table_iterations: int = 3
     table_sigmas: float = 4.0  # a point this many sigma (in z) above the table's crop is kept
+    grid: int = 4  # px: the table's plane, and where things stand on it, from every 4th pixel
+    reach: int = 1  # grid steps around a grid pixel that sees a thing, filtered with it
+    tile: int = 16  # px: the filter runs on the squares of this side the things are in
 
     def __post_init__(self):
         if self.frames < 1 or self.radius < 0:
             raise ValueError("DepthFilter: frames must be >= 1 and radius >= 0")
+        if self.grid < 1 or self.reach < 0 or self.tile < 1 or self.tile % self.grid:
+            raise ValueError("DepthFilter: grid must be >= 1, reach >= 0 and tile a multiple "
+                             "of grid")
 
 
 @dc.dataclass
@@ -47,7 +59,7 @@ class CameraReading:
     pixels: int
     returns: int  # pixels with a return (in the first frame)
     holes: int  # pixels without: out of range or lost
-    kept: int  # points after the filter, above the table
+    kept: int  # points after the filter, above the table (in the workspace, or near)
     table_tilt_deg: float  # the table's plane as this camera sees it, before correction
     table_height_mm: float
 
@@ -59,54 +71,140 @@ class CameraReading:
 def filtered_clouds(cameras: list[DepthCamera], frames: list[np.ndarray], noise, cfg: DepthFilter,
                     z_min: float | None = None) -> tuple[list[np.ndarray], list[CameraReading]]:
     """World-frame points of each camera from its frames [F, H, W], each camera's cloud
-    put back on the table's plane; and what each camera gave."""
+    put back on the table's plane; and what each camera gave.
+
+    With `z_min`, only the points above the table's crop (z_min plus `table_sigmas` of the
+    point's own noise, after levelling) in the workspace: the table's plane is read from a
+    grid of pixels (every `grid`-th row and column), and the filter runs only on the tiles
+    of the image where that grid sees something stand on the table (most of an image is
+    the table). Without it, every point."""
     clouds, readings = [], []
     for cam, stack in zip(cameras, frames, strict=True):
-        rows, cols = _workspace_window(cam, stack[0], cfg.radius)
-        depth = temporal_median(stack[:, rows, cols], cfg.min_returns)
-        sigma = noise.axial_sigma(depth, cam.info.focal_x()) * np.float32(
-            MEDIAN_EFFICIENCY / np.sqrt(len(stack)))
-        smooth = np.full(stack.shape[1:], np.nan, np.float32)
-        spread = np.zeros(stack.shape[1:], np.float32)
-        smooth[rows, cols], spread[rows, cols] = local_plane_depth(
-            depth, np.nan_to_num(sigma), cfg)
-        idx = np.flatnonzero(np.isfinite(smooth))
-        xyz = back_project(cam, smooth)  # the points of pixels idx
-        R, p, tilt, height = table_levelling(xyz, cam.X_WB.translation(), cfg)
+        R, p, tilt, height, tiles = _table_and_tiles(cam, stack, noise, cfg, z_min)
+        origin = cam.X_WB.translation()
+        idx, depth, spread = _filtered_tiles(cam, stack, noise, cfg, tiles)
         if z_min is not None:
             # The table's own points reach a few sigma above it: its crop grows with them.
-            # Most points are the table's: only those kept are levelled in full.
-            sigma_z = spread.flat[idx] * np.abs(cam.rays[idx, 2])
-            z = np.einsum("ij,j->i", xyz, R[2]) + p[2]
-            xyz = xyz[z > z_min + cfg.table_sigmas * sigma_z]
+            # Levelled, a pixel's height is linear in its depth: z = R[2] . (o + d ray) + p.
+            slope = _height_slopes(cam, R, idx)
+            keep = R[2] @ origin + p[2] + depth * slope > z_min + cfg.table_sigmas * spread * (
+                np.abs(slope))
+            idx, depth = idx[keep], depth[keep]
+        xyz = np.take(cam.rays, idx, axis=0)  # the points of pixels idx, as believed
+        xyz *= depth[:, None]
+        xyz += origin
         clouds.append(np.einsum("ij,kj->ik", xyz, R) + p)  # (BLAS is slow for [N, 3])
-        returns = int(np.isfinite(stack[0]).sum())
+        returns = int(np.count_nonzero(np.isfinite(stack[0])))
         pixels = stack[0].size
         readings.append(CameraReading(cam.config.name, pixels, returns, pixels - returns,
                                       len(xyz), tilt, height))
     return clouds, readings
 
 
-def _workspace_window(cam: DepthCamera, depth: np.ndarray, margin: int) -> tuple[slice, slice]:
-    """The image rows and columns (with `margin`) that see the workspace: filtering the
-    rest would be wasted."""
-    d = np.nan_to_num(depth).reshape(-1).astype(np.float64)
-    x, y, z = (o + d * cam.rays[:, k] for k, o in enumerate(cam.X_WB.translation()))
-    inside = ((x > CROP_X[0] - 0.05) & (x < CROP_X[1] + 0.05) & (y > CROP_Y[0] - 0.05)
-              & (y < CROP_Y[1] + 0.05) & (z > -0.05)).reshape(depth.shape)
-    if not inside.any():
-        return slice(0, 0), slice(0, 0)
-    r, c = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
-    h, w = depth.shape
-    return (slice(max(r[0] - margin, 0), min(r[-1] + margin + 1, h)),
-            slice(max(c[0] - margin, 0), min(c[-1] + margin + 1, w)))
+def _height_slopes(cam: DepthCamera, R: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """R[2] . ray of the pixels `idx` (flat): how their heights, levelled by R, grow with
+    depth; the ray (u - cx) / fx, (v - cy) / fy, 1 turned to the world, separably."""
+    info = cam.info
+    q = cam.X_WB.rotation().matrix().T @ R[2]
+    v, u = np.divmod(idx, info.width())
+    return (q[0] / info.focal_x()) * (u - info.center_x()) + (
+        (q[1] / info.focal_y()) * (v - info.center_y()) + q[2])
+
+
+def _table_and_tiles(cam: DepthCamera, stack: np.ndarray, noise, cfg: DepthFilter,
+                     z_min: float | None) -> tuple:
+    """(R, p, tilt, height): `table_levelling` of the grid's pixels' medians; and the
+    image's tiles (a boolean [rows, columns] of `tile` px squares) where the grid sees
+    something above the table in the workspace (all of them without `z_min`)."""
+    g, h, w = cfg.grid, *stack.shape[1:]
+    med = temporal_median(stack[:, g // 2::g, g // 2::g], cfg.min_returns)
+    rays = _grid_rays(cam, g)  # [3, rows, columns]
+    origin = cam.X_WB.translation()
+    xyz = [o + med * ray for o, ray in zip(origin, rays, strict=True)]  # NaN: no median
+    R, p, tilt, height = table_levelling(xyz, origin, cfg, min_points=max(1000 // (g * g), 10))
+    if z_min is None:
+        blocks = np.ones(med.shape, bool)
+    else:
+        x, y, z = (R[k, 0] * xyz[0] + R[k, 1] * xyz[1] + R[k, 2] * xyz[2] + p[k]
+                   for k in range(3))
+        # The median's noise in height, for the levelled ray's slope at each point.
+        slope = np.abs(R[2, 0] * rays[0] + R[2, 1] * rays[1] + R[2, 2] * rays[2])
+        sigma_z = noise.axial_sigma(med, cam.info.focal_x()) * slope * (
+            MEDIAN_EFFICIENCY / np.sqrt(len(stack)))
+        m = WORKSPACE_MARGIN
+        blocks = ((z > z_min + 3 * sigma_z) & (z < CROP_Z[1] + m) & (x > CROP_X[0] - m)
+                  & (x < CROP_X[1] + m) & (y > CROP_Y[0] - m) & (y < CROP_Y[1] + m))
+        # A grid pixel stands for its block; the neighbours' blocks hold the edges and the
+        # low rows of what stands there, which the grid may have missed.
+        blocks = _window_extreme(blocks, 2 * cfg.reach + 1, np.maximum, False)
+    k = cfg.tile // g
+    rows, cols = -(-h // cfg.tile), -(-w // cfg.tile)
+    padded = np.zeros((rows * k, cols * k), bool)
+    padded[:blocks.shape[0], :blocks.shape[1]] = blocks
+    return R, p, tilt, height, padded.reshape(rows, k, cols, k).any(axis=(1, 3))
+
+
+def _grid_rays(cam: DepthCamera, g: int) -> np.ndarray:
+    """The rays (world/cameras.pixel_rays) of every g-th pixel of every g-th row, from
+    g // 2, as [3, rows, columns]: the camera's rotation of (u - cx) / fx, (v - cy) / fy, 1."""
+    info, R = cam.info, cam.X_WB.rotation().matrix()
+    u = (np.arange(g // 2, info.width(), g) - info.center_x()) / info.focal_x()
+    v = (np.arange(g // 2, info.height(), g) - info.center_y()) / info.focal_y()
+    return R[:, 0, None, None] * u + R[:, 1, None, None] * v[:, None] + R[:, 2, None, None]
+
+
+def _filtered_tiles(cam: DepthCamera, stack: np.ndarray, noise, cfg: DepthFilter,
+                    tiles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(pixels, as flat indices; their filtered depths; their standard deviations) of the
+    pixels in `tiles` that the filter keeps: `temporal_median` and `local_plane_depth` of
+    each tile with a margin of `radius` px (all tiles in one tall image, so that no
+    window of a tile's own pixels reaches another)."""
+    f, h, w = stack.shape
+    t, r = cfg.tile, cfg.radius
+    ty, tx = np.divmod(np.flatnonzero(tiles), tiles.shape[1])
+    k = np.arange(-r, t + r)
+    rows, cols = ty[:, None] * t + k, tx[:, None] * t + k  # [tiles, t + 2r]
+    inside = ((rows >= 0) & (rows < h))[:, :, None] & ((cols >= 0) & (cols < w))[:, None, :]
+    rows, cols = np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)
+    flat = rows[:, :, None] * w + cols[:, None, :]
+    side = t + 2 * r
+    windows = np.take(stack.reshape(f, -1), flat.reshape(-1, side), axis=1)
+    depth = temporal_median(windows, cfg.min_returns)  # [tiles * side, side]
+    depth[~inside.reshape(depth.shape)] = np.nan
+    sigma = np.nan_to_num(noise.axial_sigma(depth, cam.info.focal_x()) * np.float32(
+        MEDIAN_EFFICIENCY / np.sqrt(f)))
+    core = np.zeros((len(ty), side, side), bool)
+    core[:, r:r + t, r:r + t] = True
+    core = core.reshape(depth.shape)
+    smooth, spread = local_plane_depth(depth, sigma, cfg, core)  # (a margin's: not needed)
+    keep = np.flatnonzero(core & np.isfinite(smooth) & inside.reshape(depth.shape))
+    return flat.ravel()[keep], smooth.ravel()[keep], spread.ravel()[keep]
 
 
 def temporal_median(stack: np.ndarray, min_returns: float) -> np.ndarray:
     """Per-pixel median of the frames' returns [F, H, W] -> [H, W] (float32); NaN where
     fewer than `min_returns` of the frames returned."""
     f = len(stack)
-    returns = np.isfinite(stack)
+    n = np.isfinite(stack).sum(axis=0, dtype=np.uint8 if f < 256 else np.int64)
+    if f == 5:
+        # Five frames (the filter's): the median by nine minima and maxima where every
+        # frame returned (NaN where none did); sorted only where some did.
+        a, b, c, d, e = stack
+        lo = np.maximum(np.minimum(a, b), np.minimum(c, d))
+        hi = np.minimum(np.maximum(a, b), np.maximum(c, d))
+        med = np.maximum(np.minimum(e, lo), np.minimum(np.maximum(e, lo), hi))
+        some = np.flatnonzero((n > 0) & (n < f))
+        if len(some):
+            med.flat[some] = _sorted_median(stack.reshape(f, -1)[:, some], n.flat[some])
+    else:
+        med = _sorted_median(stack, n)
+    med[n < max(1, np.ceil(min_returns * f))] = np.nan
+    return med
+
+
+def _sorted_median(stack: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """The median of each pixel's `n` returns among the frames [F, ...] (float32)."""
+    f = len(stack)
     # The frames sorted pixel by pixel (no return: inf, last) by an odd-even transposition
     # network: f rounds of elementwise min and max, much faster than np.sort across frames.
     s = [np.fmin(frame, np.float32(np.inf)) for frame in stack]
@@ -115,11 +213,9 @@ def temporal_median(stack: np.ndarray, min_returns: float) -> np.ndarray:
             lo = np.minimum(s[j], s[j + 1])
             np.maximum(s[j], s[j + 1], out=s[j + 1])
             s[j] = lo
-    n = returns.sum(axis=0)
-    med = _pick(s, (n - 1) // 2)
+    med = _pick(s, (n.astype(np.int64) - 1) // 2)
     med += _pick(s, n // 2)
     med *= np.float32(0.5)
-    med[n < max(1, np.ceil(min_returns * f))] = np.nan
     return med
 
 
@@ -131,8 +227,8 @@ def _pick(planes: list[np.ndarray], k: np.ndarray) -> np.ndarray:
     return out
 
 
-def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter,
+                      where: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Each pixel's depth from a plane fitted to it and its neighbours on the same surface
     (depth within `same_surface` + 3 sigma): an edge-preserving smoothing that stays
     unbiased on slanted surfaces and at edges. Pixels with fewer than `min_support` such
@@ -143,7 +239,8 @@ def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
     least squares of 1/depth on the pixel offsets (du, dv); where the whole window is on
     one surface that is the window's mean (the offsets are symmetric), elsewhere a small
     fit per pixel. Returns the depths and their standard deviations (sigma over the root of
-    the pixels fitted), float32."""
+    the pixels fitted), float32; with `where` (boolean, the image's shape), only those
+    pixels' (the others' are NaN or a window's mean)."""
     r = cfg.radius
     size = 2 * r + 1
     depth = np.asarray(depth, np.float32)
@@ -163,7 +260,7 @@ def local_plane_depth(depth: np.ndarray, sigma: np.ndarray, cfg: DepthFilter
     mean = ndimage.uniform_filter(inv, size, mode="constant")
     out = np.full(depth.shape, np.nan, np.float32)
     np.divide(1, mean, out=out, where=whole)
-    idx = np.flatnonzero(valid & ~whole)
+    idx = np.flatnonzero(valid & ~whole if where is None else valid & ~whole & where)
     if len(idx) == 0:
         return out, sigma / size
     fitted = np.full(depth.shape, size * size, np.float32)
@@ -228,27 +325,33 @@ def _window_extreme(a: np.ndarray, size: int, extreme, outside: float) -> np.nda
     return out
 
 
-def table_levelling(xyz: np.ndarray, origin: np.ndarray, cfg: DepthFilter
+def table_levelling(xyz, origin: np.ndarray, cfg: DepthFilter, min_points: int = 1000
                     ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(R, p): the turn and lift, xyz -> xyz R^T + p, that put the table's points of the
-    cloud of the camera at `origin` on z = 0, correcting the camera's calibration in tilt
-    and height; with the plane's tilt (deg) and its height at the workspace's centre (mm)
-    before. The identity when too little table is seen."""
+    cloud (x, y, z: arrays of one shape; NaN: none) of the camera at `origin` on z = 0,
+    correcting the camera's calibration in tilt and height; with the plane's tilt (deg)
+    and its height at the workspace's centre (mm) before. The identity when fewer than
+    `min_points` of the table are seen."""
     centre = np.array([np.mean(CROP_X), np.mean(CROP_Y), 0.0])
-    x, y, z = xyz.T
+    x, y, z = (np.ravel(v) for v in xyz)
     on_table = np.flatnonzero((np.abs(z) < cfg.table_band) & (x > CROP_X[0]) & (x < CROP_X[1])
                               & (y > CROP_Y[0]) & (y < CROP_Y[1]))
-    if len(on_table) < 1000:
+    if len(on_table) < min_points:
         return np.eye(3), np.zeros(3), float("nan"), float("nan")
-    table = xyz[on_table[::max(1, len(on_table) // 20000)]]  # plenty for three parameters
-    keep = np.ones(len(table), bool)
+    on_table = on_table[::-(-len(on_table) // 4000)]  # plenty for three parameters
+    dx, dy, tz = x[on_table] - centre[0], y[on_table] - centre[1], z[on_table]
+    keep = np.ones(len(tz), bool)
     for _ in range(cfg.table_iterations):
-        # z = a x + b y + c, the boxes' low side points trimmed by their residuals.
-        pts = table[keep]
-        A = np.column_stack([pts[:, 0] - centre[0], pts[:, 1] - centre[1], np.ones(len(pts))])
-        (a, b, c), *_ = np.linalg.lstsq(A, pts[:, 2], rcond=None)
-        res = table[:, 2] - (a * (table[:, 0] - centre[0]) + b * (table[:, 1] - centre[1]) + c)
-        keep = np.abs(res) <= max(3 * 1.4826 * np.median(np.abs(res[keep])), 1e-4)
+        # z = a x + b y + c, the boxes' low side points trimmed by their residuals (three
+        # parameters: the normal equations, well conditioned about the centre).
+        u, v, w = dx[keep], dy[keep], tz[keep]
+        su, sv = u.sum(), v.sum()
+        a, b, c = np.linalg.solve([[u @ u, u @ v, su], [u @ v, v @ v, sv], [su, sv, len(w)]],
+                                  [u @ w, v @ w, w.sum()])
+        res = np.abs(tz - (a * dx + b * dy + c))
+        kept = res[keep]
+        median = np.partition(kept, len(kept) // 2)[len(kept) // 2]  # (np.median: slower)
+        keep = res <= max(3 * 1.4826 * median, 1e-4)
     n = np.array([-a, -b, 1.0]) / np.linalg.norm([-a, -b, 1.0])
     # A tilt is the camera turned (its rotation moves far points most): turn the cloud
     # about the camera back onto the plane, then the height left is its offset.
