@@ -1,11 +1,13 @@
 """Frames on disk (perception/frames.py): `symplan frames record` writes a scene's depth
-frames, `symplan perceive --frames` perceives them as the simulator's cameras would; a
-folder that cannot be read is one line and exit status 2."""
+frames, `symplan perceive --frames` perceives them as the simulator's cameras would, and
+`symplan solve --start-frames/--goal-frames` solves from them; a folder that cannot be read
+is one line and exit status 2."""
 
 from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +23,7 @@ SCENE = Scene([ObjectSpec("a", "cube", [0.70, 0.10, 0.025]),
                ObjectSpec("c", "long", [0.80, -0.12, 0.025], 0.4),
                ObjectSpec("d", "cube", [0.55, -0.15, 0.025], -0.3)])
 SEED = 3
+DEMO = Path(__file__).resolve().parents[1] / "models" / "demo"
 
 
 def in_memory_views(noise: str):
@@ -168,3 +171,46 @@ def test_recording_into_a_folder_in_use_writes_nothing(clean_folder, scene_file,
     assert_bad_input(code, stdout, err, f"--out {out} is not empty")
     assert [p.name for p in out.iterdir()] == ["notes.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["used"]
+
+
+@pytest.mark.parametrize("option", ["--start-frames", "--goal-frames"])
+def test_solve_from_bad_frames_is_one_line_and_writes_nothing(option, spoilt, tmp_path,
+                                                               capsys):
+    make, message = SPOILERS["PNG of the wrong size"]
+    make(spoilt)
+    record = tmp_path / "solve.html"
+    goal = [] if option == "--goal-frames" else ["--goal", DEMO / "goal.yaml"]
+    code, out, err = run(["solve", "--start", DEMO / "start.yaml", *goal, option, spoilt,
+                          "--backend", "hand", "--record", record, "--json"], capsys)
+    assert_bad_input(code, out, err, "symplan solve: error: ", str(spoilt / message))
+    assert not record.exists()
+    code, out, err = run(["solve", "--start", DEMO / "start.yaml", "--goal", DEMO / "goal.yaml",
+                          "--goal-frames", spoilt], capsys)
+    assert_bad_input(code, out, err, "argument --goal-frames: not allowed with argument --goal")
+
+
+@pytest.mark.slow
+def test_solve_reaches_a_goal_seen_only_in_frames(tmp_path, capsys):
+    """The demo's goal recorded as frames, and its start too: the hand solves from them,
+    with no goal scene file (the goal's boxes take the start's names by type)."""
+    folders = {}
+    for scene in ("start", "goal"):
+        folders[scene] = tmp_path / scene
+        code, _, err = run(["frames", "record", "--scene", DEMO / f"{scene}.yaml", "--out",
+                            folders[scene], "--json"], capsys)
+        assert code == 0, err
+    code, out, err = run(["solve", "--start", DEMO / "start.yaml", "--start-frames",
+                          folders["start"], "--goal-frames", folders["goal"], "--backend",
+                          "hand", "--json"], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["status"] == "success", (err, result)
+    assert result["start_frames"] == str(folders["start"])
+    assert result["goal_frames"] == str(folders["goal"])
+    # The goal as the simulator built it, by type: every box of the file's goal has a box
+    # of its type within 5 cm of it at the end, as the simulator has them.
+    types = {o["name"]: o["type"]
+             for o in yaml.safe_load((DEMO / "start.yaml").read_text())["objects"]}
+    at_end = [(types[name], np.array(o["final_true"])) for name, o in result["objects"].items()]
+    for o in yaml.safe_load((DEMO / "goal.yaml").read_text())["objects"]:
+        assert min(np.linalg.norm(p - o["position"]) for kind, p in at_end
+                   if kind == o["type"]) < 0.05, (o, result["objects"])

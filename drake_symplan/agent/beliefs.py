@@ -7,6 +7,8 @@ result), so:
 - `name_by_file`: a perceived box takes the name of the scene-file object nearest to it
   (perception/matching.match_by_position, one-to-one, within MATCH_RADIUS). Nothing else is
   read from the file: positions, orientations, contacts and symbols are all perceived.
+  A goal seen in frames on disk has no file: `name_by_type` names its boxes after the
+  start's objects of their type, moving the boxes least.
 - `follow`: after an action, perception's association (the grasp hypotheses of
   perception/association.associate) says which box seen after it is which object before
   it, and the scene seen after is renamed accordingly.
@@ -26,6 +28,19 @@ from drake_symplan.perception.perceive import associate
 from drake_symplan.symbolic.states import check_name
 
 MATCH_RADIUS = 0.10  # m: a perceived box this far from every scene-file object is unnamed
+
+
+@dc.dataclass(frozen=True)
+class Frames:
+    """Frames on disk (perception.perceive.DepthViews) perceived in place of the cameras'
+    (`symplan solve --start-frames/--goal-frames`): the start's first look, its world still
+    from its scene file, and the goal's, which has no scene file (`name_by_type`)."""
+
+    start: object = None
+    goal: object = None
+
+
+NO_FRAMES = Frames()  # the cameras' perceptions only
 
 
 class ScenePairError(ValueError):
@@ -59,6 +74,24 @@ def name_by_file(perceived, spec) -> Named:
     mapping = {box: name for name, box in match.items()}
     return Named(rename(perceived, mapping), [n for n in file if n not in match],
                  [n for n in seen if n not in mapping])
+
+
+def name_by_type(perceived, spec) -> Named:
+    """Names the boxes of `perceived` (a goal seen in frames on disk, which no scene file
+    names) after the objects of `spec`, the start's scene file: per type, by the one-to-one
+    assignment that moves the boxes least. Boxes of a type are alike, so every such naming
+    asks for the same arrangement."""
+    named = Named(type(perceived)([], set()), [], [])
+    mapping = {}
+    for kind in sorted({o.type for o in spec.objects} | {o.type for o in perceived.objects}):
+        file = {o.name: np.asarray(o.position, float) for o in spec.objects if o.type == kind}
+        seen = {o.name: o.position for o in perceived.objects if o.type == kind}
+        match = match_by_position(file, seen)
+        mapping.update({box: name for name, box in match.items()})
+        named.lost += [n for n in file if n not in match]
+        named.extra += [n for n in seen if n not in match.values()]
+    named.scene = rename(perceived, mapping)
+    return named
 
 
 def follow(before, after, action) -> Named:

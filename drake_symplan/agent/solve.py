@@ -71,37 +71,39 @@ class Agent:
         self.robot = (make_backend(robot, meshcat=meshcat, camera_noise=camera_noise)
                       if isinstance(robot, str) else robot)
 
-    def look(self, scene, clock: PhaseClock | None = None) -> beliefs.Named:
-        """Puts `scene` on the table (robot home, physics settled) and perceives it, the
-        boxes named after the file's objects; the perception counts on `clock`."""
+    def look(self, scene, clock: PhaseClock | None = None, views=None,
+             named=beliefs.name_by_file) -> beliefs.Named:
+        """Puts `scene` on the table (robot home, physics settled) and perceives it (or
+        `views`, frames on disk), the boxes `named` after its objects; on `clock`."""
         self.robot.reset(scene)
-        if clock is None:
-            return self.see(scene)
-        with clock("perceive"):
-            return self.see(scene)
+        with (clock or PhaseClock(self.robot))("perceive"):
+            return self.see(scene, views, named)
 
-    def see(self, scene) -> beliefs.Named:
-        """Perceives the table as it is now, the boxes named after `scene`'s objects."""
-        return beliefs.name_by_file(self.robot.perceive(), scene)
+    def see(self, scene, views=None, named=beliefs.name_by_file) -> beliefs.Named:
+        """Perceives the table now (or `views`), the boxes `named` after `scene`'s objects."""
+        return named(self.robot.perceive(**({} if views is None else {"views": views})), scene)
 
     def solve(self, start_scene, goal_scene, abstraction: Abstraction,
               config: SolveConfig = DEFAULT_SOLVE, record=None, on_plan=None,
-              given=None, relations=()) -> SolveResult:
+              given=None, relations=(), frames=beliefs.NO_FRAMES) -> SolveResult:
         """Solves `goal_scene` from `start_scene` (world.scenes.Scene); `record`: an HTML
         file for the Meshcat recording of the execution (with a Meshcat); `on_plan(plan,
         start, goal)` is told the first plan (abstraction.Plan, solved or not) and the
         perceived scenes (beliefs.Named) before anything moves; `given`: the actions the
         oracle replays (a mode that needs_recorded_actions); `relations`: a goal of
         relations (relations.Relation), `goal_scene` an example of them, judged by the
-        relations alone wherever they stand (else: every box within 5 cm of the scene)."""
-        beliefs.check_scene_pair(start_scene, goal_scene)
+        relations alone wherever they stand (else: every box within 5 cm of the scene);
+        `frames`: perceptions from frames on disk (beliefs.Frames; a goal's: no goal_scene)."""
+        if frames.goal is None:
+            beliefs.check_scene_pair(start_scene, goal_scene)
         clock = PhaseClock(self.robot)
         t0 = time.perf_counter()
         run = _Run(self, abstraction, clock, config, on_plan, given, tuple(relations))
         try:
-            goal = self.look(goal_scene, clock)
+            goal = self.look(goal_scene, clock) if frames.goal is None else \
+                self.look(start_scene, clock, frames.goal, beliefs.name_by_type)
             with self.robot.recording(record):  # from the start scene on
-                start = self.look(start_scene, clock)
+                start = self.look(start_scene, clock, frames.start)
                 result = run.go(start, goal)
         except PerceptionFailure as e:  # perception raised: the loop cannot go on
             result = run.result
@@ -384,17 +386,15 @@ class _Run:
 
 def solve(start_scene, goal_scene, abstraction: Abstraction,
           config: SolveConfig = DEFAULT_SOLVE, meshcat=None, record=None,
-          robot: str = "arm", camera_noise: str = "none", relations=()) -> SolveResult:
+          robot: str = "arm", camera_noise: str = "none", **options) -> SolveResult:
     """Solves one goal with a new robot (its cameras' sensor model `camera_noise`);
     `record`: write a Meshcat HTML recording there (a `meshcat` is started for it if none
-    is given); `relations`: a goal of relations, `goal_scene` an example (Agent.solve).
-    seconds["setup"] is the station build."""
+    is given); `options`: Agent.solve's (relations, frames). seconds["setup"]: the station build."""
     t0 = time.perf_counter()
     if record is not None and meshcat is None:
         meshcat = StartMeshcat()
     agent = Agent(robot, meshcat=meshcat, camera_noise=camera_noise)
     setup = time.perf_counter() - t0
-    result = agent.solve(start_scene, goal_scene, abstraction, config, record,
-                         relations=relations)
+    result = agent.solve(start_scene, goal_scene, abstraction, config, record, **options)
     result.seconds["setup"] = setup
     return result

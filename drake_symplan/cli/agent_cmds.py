@@ -2,6 +2,7 @@
 
     symplan solve --start start.yaml --goal goal.yaml [--model DIR] [--planner fd|pyperplan]
                   [--timeout 10] [--no-monitor] [--meshcat] [--record out.html] --json
+    symplan solve --start start.yaml [--start-frames DIR] --goal-frames DIR ...
     symplan problems make --out DIR --objects N --k K [K ...] --count C --seed S
     symplan problems make --out DIR --set NAME   (a set of configs/problem_sets.yaml)
     symplan eval planning --runs RUN [RUN ...] --problems DIR --json --plot out.png
@@ -55,14 +56,21 @@ def _register_solve(subparsers) -> None:
         "executes the plan with the robot and checks every object within 5 cm of the "
         "perceived goal. Scene files come from `symplan scene sample` (a start) or a "
         "problem set of `symplan problems make` (PROBLEM/start.yaml, PROBLEM/goal.yaml); "
-        "models/demo/ holds the demo's.")
+        "models/demo/ holds the demo's. Either scene may be perceived from depth frames on "
+        "disk instead (`symplan frames record`, or a real camera's: docs/perception.md).")
     p.add_argument("--start", required=True, type=Path,
-                   help="start scene YAML (world/scenes.py format)")
+                   help="start scene YAML (world/scenes.py format): the world the robot acts in")
+    p.add_argument("--start-frames", type=Path, metavar="DIR",
+                   help="perceive the start from this frames folder (of the start scene) "
+                   "instead of the simulator's cameras; the world still comes from --start")
     goal = p.add_mutually_exclusive_group(required=True)
     goal.add_argument("--goal", type=Path,
                       help="goal scene YAML with the start's objects (only perceived; the "
                       "file names the objects)")
     add_goal_spec_argument(goal, "built from the start by the robot before solving")
+    goal.add_argument("--goal-frames", type=Path, metavar="DIR",
+                      help="perceive the goal from this frames folder (no goal scene file): "
+                      "its boxes take the names of the start's, per type, moving them least")
     add_model_argument(p)
     add_solve_arguments(p)
     add_robot_argument(p)
@@ -151,19 +159,23 @@ def cmd_solve(args: argparse.Namespace) -> dict:
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
     check_output_file(args.record, "--record")
+    if args.goal is not None:
+        start, goal = load_scene_pair(args.start, args.goal)
+    else:
+        from drake_symplan.cli.world_cmds import load_scene_file
+
+        start, goal = load_scene_file(args.start), None
+    frames = solve_frames(args.start_frames, args.goal_frames)
     structures = []
     if args.goal_spec:
         from drake_symplan.cli.goal_cmds import checked_specs, goal_of_specs
-        from drake_symplan.cli.world_cmds import load_scene_file
 
-        start = load_scene_file(args.start)
         structures = checked_specs(start, args.goal_spec)
         bundle = load_bundle(args.model)
         goal = goal_of_specs("solve", start, structures, args.backend, args.camera_noise)
         if isinstance(goal, NegativeAnswer):
             return goal
     else:
-        start, goal = load_scene_pair(args.start, args.goal)
         bundle = load_bundle(args.model)
 
     from drake_symplan.abstraction.abstraction import Abstraction
@@ -176,8 +188,12 @@ def cmd_solve(args: argparse.Namespace) -> dict:
             meshcat = StartMeshcat()
     result = solve(start, goal, Abstraction(bundle), config, meshcat=meshcat,
                    record=args.record, robot=args.backend, camera_noise=args.camera_noise,
-                   relations=structures if config.goal_check == "relations" else ())
+                   relations=structures if config.goal_check == "relations" else (),
+                   **frames)
     out = result.to_json()
+    for key, folder in (("start_frames", args.start_frames), ("goal_frames", args.goal_frames)):
+        if folder is not None:
+            out[key] = str(folder)
     if args.goal_spec:
         out["goal_spec"] = [" ".join(spec.split()) for spec in args.goal_spec]
     if args.camera_noise != "none":
@@ -198,6 +214,22 @@ def cmd_solve(args: argparse.Namespace) -> dict:
         print("Meshcat is serving the scene; press Enter to quit.", file=sys.stderr)
         input()
     return out if result.success else NegativeAnswer(out)
+
+
+def solve_frames(start: Path | None, goal: Path | None) -> dict:
+    """{"frames": the agent.beliefs.Frames of --start-frames and --goal-frames}, read and
+    checked ({} without them): a folder that cannot be read (perception/frames.py's
+    BadFrames) is bad input."""
+    if start is None and goal is None:
+        return {}
+    from drake_symplan.agent.beliefs import Frames
+    from drake_symplan.perception.frames import BadFrames, read_frames
+
+    try:
+        return {"frames": Frames(*(None if f is None else read_frames(f)
+                                   for f in (start, goal)))}
+    except BadFrames as e:
+        raise CommandError(str(e)) from e
 
 
 def check_task(task: str | None, ks: list[int], objects: int, start_k: int) -> None:

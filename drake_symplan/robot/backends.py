@@ -108,10 +108,14 @@ class Backend:
         self.station.mirror(types, poses)
         self.station.settle(RESET_SETTLE)
 
-    def perceive(self, prior=None):
-        """The scene as perceived now; `prior`: the scene perceived before the action."""
+    def perceive(self, prior=None, views=None):
+        """The scene as perceived now; `prior`: the scene perceived before the action;
+        `views` (perception.perceive.DepthViews: frames on disk): perceived instead of
+        what the station's cameras see."""
         start = time.perf_counter()
         try:
+            if views is not None:
+                return self.perceiver.perceive_views(views, self.noise, self.rng, prior)
             return self.perceiver.perceive(self.station, noise=self.noise, rng=self.rng,
                                            prior=prior)
         except (ValueError, ArithmeticError, QhullError) as e:
