@@ -159,6 +159,16 @@ def check_fields(cls: type, data: object, source: str) -> dict:
     return out
 
 
+def read_config(path: str | Path | None, name: str, what: str) -> tuple[Path, dict]:
+    """(the file, its non-empty top-level mapping): `path`, or configs/`name` when None; a
+    ValueError naming the file and `what` the mapping should hold otherwise."""
+    path = Path(path) if path is not None else shipped_config(name)
+    data = read_yaml(path)
+    if not isinstance(data, dict) or not data:
+        raise ValueError(f"{path}: expected a mapping of {what}")
+    return path, data
+
+
 def shipped_config(name: str) -> Path:
     """The configuration file `name` of configs/: the checkout's, beside the package, or,
     installed from a wheel, the package data drake_symplan_configs (pyproject.toml)."""

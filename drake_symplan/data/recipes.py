@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from drake_symplan.data.collect import CollectConfig
-from drake_symplan.typed_yaml import check_fields, read_yaml, shipped_config
+from drake_symplan.typed_yaml import check_fields, read_config
 
 RECIPES = "recipes.yaml"
 PER_RUN = ("transitions", "seed")  # a recipe leaves these to each run
@@ -21,10 +21,7 @@ PER_RUN = ("transitions", "seed")  # a recipe leaves these to each run
 
 def read_recipes(path: str | Path | None = None) -> dict[str, dict]:
     """Every recipe in `path` (configs/recipes.yaml when None), name -> checked settings."""
-    path = Path(path) if path is not None else shipped_config(RECIPES)
-    data = read_yaml(path)
-    if not isinstance(data, dict) or not data:
-        raise ValueError(f"{path}: expected a mapping of recipe names to settings")
+    path, data = read_config(path, RECIPES, "recipe names to settings")
     recipes = {}
     for name, settings in data.items():
         settings = check_fields(CollectConfig, settings, f"{path}: {name}")

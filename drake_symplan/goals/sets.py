@@ -16,7 +16,7 @@ from collections.abc import Callable, Collection
 from pathlib import Path, PurePosixPath
 
 from drake_symplan.goals.sampling import TASKS
-from drake_symplan.typed_yaml import check_fields, read_yaml, shipped_config
+from drake_symplan.typed_yaml import check_fields, read_config
 from drake_symplan.world.scene_model import MAX_OBJECTS
 
 PROBLEM_SETS = "problem_sets.yaml"
@@ -103,10 +103,7 @@ def read_problem_sets(path: str | Path | None = None,
                       backends: Collection[str] | None = None) -> dict[str, ProblemSet]:
     """Every set in `path` (configs/problem_sets.yaml when None), by name; with `backends`,
     each subset's back-end must be one of them (the robots' registry imports Drake)."""
-    path = Path(path) if path is not None else shipped_config(PROBLEM_SETS)
-    data = read_yaml(path)
-    if not isinstance(data, dict) or not data:
-        raise ValueError(f"{path}: expected a mapping of set names to a comment and subsets")
+    path, data = read_config(path, PROBLEM_SETS, "set names to a comment and subsets")
     sets = {}
     for name, settings in data.items():
         source = f"{path}: {name}"
