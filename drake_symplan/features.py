@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan.boxes import YAW_PERIOD
+from drake_symplan.datasets import ObjectState
 
 FEATURE_NAMES = ("x", "y", "z", "cos_tilt", "long_axis_up", "cos_k_yaw", "sin_k_yaw",
                  "is_cube", "is_long")
@@ -32,6 +33,13 @@ def box_of(features: np.ndarray) -> tuple[str, np.ndarray, np.ndarray]:
     c, s = np.cos(yaw), np.sin(yaw)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return kind, np.asarray(features[:3], float), R
+
+
+def object_state(name: str, features: np.ndarray) -> ObjectState:
+    """The box of a feature row as the skills and relations.py read one (box_of: upright,
+    the yaw the features keep)."""
+    kind, centre, R = box_of(features)
+    return ObjectState(name, kind, centre, float(np.arctan2(R[1, 0], R[0, 0])))
 
 
 def object_features(kind: str, position: np.ndarray, R: np.ndarray) -> np.ndarray:

@@ -36,6 +36,10 @@ ALIGN = 0.02  # m: a row's members (and a bridge's supports) this near each othe
 ROW_GAP = 0.05  # m: at most this between the faces of a row's neighbours along y
 
 ARITY = {"on": (2, 2), "tower": (2, None), "bridge": (3, 3), "row": (2, None)}
+# The kind of pair (Relation.pairs) each word names: `pair_unmet` checks one, and the
+# learned symbols' signature of each kind says it in atoms (symbolic/signatures.py).
+PAIR_KIND = {"on": "on", "tower": "on", "bridge": "bears", "row": "beside"}
+PAIR_KINDS = ("on", "bears", "beside")
 
 
 class SpecError(ValueError):
@@ -189,27 +193,30 @@ def _row_pair(first: ObjectState, second: ObjectState) -> str | None:
     return None
 
 
+def pair_unmet(kind: str, first: ObjectState, second: ObjectState) -> str | None:
+    """None if the pair (first, second), as Relation.pairs orders it, is of `kind`
+    (PAIR_KINDS): first on second, upright; first bearing on second; second beside first
+    in a row. Else what does not hold (one line)."""
+    if kind == "beside":
+        return _row_pair(first, second)
+    if kind == "bears":
+        return None if bears_on(first, second) else \
+            f"{first.name} does not bear on {second.name}"
+    if kind == "on":
+        return None if _upright(first) and rests_on(first, second) else \
+            f"{first.name} is not on {second.name}"
+    raise ValueError(f"unknown pair kind {kind!r}; one of {PAIR_KINDS}")
+
+
 def unmet_one(relation: Relation, objects: Mapping[str, ObjectState]) -> str | None:
     """None if `objects` hold `relation`, else what does not hold (one line)."""
     missing = [n for n in relation.objects if n not in objects]
     if missing:
         return f"{', '.join(missing)} not seen"
-    o = {n: objects[n] for n in relation.objects}
-    if relation.word == "row":
-        for a, b in relation.pairs():
-            wrong = _row_pair(o[a], o[b])
-            if wrong:
-                return wrong
-        return None
-    if relation.word == "bridge":
-        span = o[relation.objects[0]]
-        for _, support in relation.pairs():
-            if not bears_on(span, o[support]):
-                return f"{span.name} does not bear on {support}"
-        return None
-    for upper, lower in relation.pairs():
-        if not (_upright(o[upper]) and rests_on(o[upper], o[lower])):
-            return f"{upper} is not on {lower}"
+    for first, second in relation.pairs():
+        wrong = pair_unmet(PAIR_KIND[relation.word], objects[first], objects[second])
+        if wrong:
+            return wrong
     return None
 
 

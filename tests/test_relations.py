@@ -97,3 +97,17 @@ def test_specs_parse_into_relations_and_bad_ones_say_why():
                       ("tower a b a", "a named twice")):
         with pytest.raises(SpecError, match=why):
             parse([spec])
+
+
+def test_pair_kinds_each_on_a_pair_built_to_hold_it_and_one_that_misses():
+    from drake_symplan.relations import pair_unmet
+
+    a, b = box("a", "cube", 0.7, 0.0, 0.075), box("b", "cube", 0.7, 0.0, 0.025)
+    assert pair_unmet("on", a, b) is None and pair_unmet("bears", a, b) is None
+    assert pair_unmet("on", b, a) == "b is not on a"
+    first, second = box("f", "cube", 0.6, 0.0, 0.025), box("s", "cube", 0.6, 0.09, 0.025)
+    assert pair_unmet("beside", first, second) is None  # a 4 cm gap along +y
+    assert pair_unmet("beside", second, first) is not None  # -y: the wrong way
+    assert pair_unmet("beside", first, box("s", "cube", 0.6, 0.11, 0.025)) is not None
+    with pytest.raises(ValueError, match="unknown pair kind"):
+        pair_unmet("under", a, b)
