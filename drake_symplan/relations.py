@@ -1,5 +1,6 @@
 """What rests on what, and the goal relations a person names: one geometry, one set of
-tolerances, for the skills, the continuous model, the agent, evaluation and the goal compiler.
+tolerances, for the skills, the continuous model and its stability rules (through
+continuous.Boxes.object_states), the agent, evaluation and the goal compiler.
 
 Boxes are ObjectStates (name, type, centre, yaw, tilt), from a scene file, from perception
 or predicted. `top` is the height of a box's top face; `rests_on(a, b)` says that a's
