@@ -153,6 +153,7 @@ def closure(name, pairs):
 
 @pytest.mark.parametrize("title", KNOWN)
 def test_every_user_of_rests_on_agrees_with_the_one_definition(title):
+    from drake_symplan.abstraction.goal_order import GoalOrder
     from drake_symplan.abstraction.stability import supports_of
 
     objects, resting, held = KNOWN[title]
@@ -164,3 +165,8 @@ def test_every_user_of_rests_on_agrees_with_the_one_definition(title):
         assert boxes.riding(name) == closure(name, resting)  # the continuous model's
     assert {(u, boxes.names[j]) for i, u in enumerate(boxes.names)
             for j, *_ in supports_of(boxes, i)} == held  # stability's: held up in part
+    # the goal's order (positions, no yaw): a centre within the lower box's longest half
+    # extent, so not the cube 3 cm off
+    order = GoalOrder({n: o.position for n, o in states.items()}, boxes.kinds())
+    assert {(u, low) for u, below in order.under.items() for low in below} == {
+        (u, low) for u, low in resting if "3 cm off" not in title}
