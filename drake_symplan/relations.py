@@ -1,5 +1,6 @@
 """What rests on what, and the goal relations a person names: one geometry, one set of
-tolerances, for the skills, the continuous model, the agent, evaluation and the goal compiler.
+tolerances, for the skills, the continuous model and its stability rules (through
+continuous.Boxes.object_states), the agent, evaluation and the goal compiler.
 
 Boxes are ObjectStates (name, type, centre, yaw, tilt), from a scene file, from perception
 or predicted. `top` is the height of a box's top face; `rests_on(a, b)` says that a's
@@ -132,9 +133,17 @@ def covers(o: ObjectState, p: np.ndarray, tol=FOOTPRINT_TOL) -> bool:
     return bool(np.all(np.abs(local_xy(o, p)) <= np.array(HALF_EXTENTS[o.type][:2]) + tol))
 
 
+def meets_at(upper_type: str, upper_z: float, lower_type: str, lower_z: float) -> bool:
+    """Does the bottom of an upright box of `upper_type` centred at height `upper_z` meet
+    the top of one of `lower_type` centred at `lower_z` (within REST_TOL)? `meets` on
+    heights alone, for a goal of positions (abstraction/goal_order.py)."""
+    gap = (upper_z - HALF_EXTENTS[upper_type][2]) - (lower_z + HALF_EXTENTS[lower_type][2])
+    return abs(gap) <= REST_TOL
+
+
 def meets(upper: ObjectState, lower: ObjectState) -> bool:
     """Does `upper`'s bottom meet `lower`'s top (within REST_TOL)?"""
-    return abs(bottom(upper) - (lower.position[2] + HALF_EXTENTS[lower.type][2])) <= REST_TOL
+    return meets_at(upper.type, upper.position[2], lower.type, lower.position[2])
 
 
 def rests_on(upper: ObjectState, lower: ObjectState) -> bool:

@@ -111,3 +111,76 @@ def test_pair_kinds_each_on_a_pair_built_to_hold_it_and_one_that_misses():
     assert pair_unmet("beside", first, box("s", "cube", 0.6, 0.11, 0.025)) is not None
     with pytest.raises(ValueError, match="unknown pair kind"):
         pair_unmet("under", a, b)
+
+
+# Scenes with known answers for every user of rests-on: (boxes, the pairs (upper, lower)
+# that rest on each other, the pairs where the upper is held up by the lower in part).
+KNOWN = {
+    "a cube on a cube": ([box("a", "cube", 0.7, 0, 0.025), box("b", "cube", 0.7, 0, 0.075)],
+                         {("b", "a")}, {("b", "a")}),
+    "a cube 2 cm off a cube": ([box("a", "cube", 0.7, 0, 0.025),
+                                box("b", "cube", 0.72, 0, 0.075)], {("b", "a")}, {("b", "a")}),
+    "a cube 3 cm off a cube (its centre within FOOTPRINT_TOL)": (
+        [box("a", "cube", 0.7, 0, 0.025), box("b", "cube", 0.73, 0, 0.075)],
+        {("b", "a")}, {("b", "a")}),
+    "a block across two cubes": ([box("a", "cube", 0.7, -0.1, 0.025),
+                                  box("b", "cube", 0.7, 0.1, 0.025),
+                                  box("l", "long", 0.7, 0, 0.075)],
+                                 set(), {("l", "a"), ("l", "b")}),
+    "two cubes side by side, touching": ([box("a", "cube", 0.7, 0, 0.025),
+                                          box("b", "cube", 0.75, 0, 0.025)], set(), set()),
+    "a cube 1 cm above a cube": ([box("a", "cube", 0.7, 0, 0.025),
+                                  box("b", "cube", 0.7, 0, 0.085)], {("b", "a")}, {("b", "a")}),
+    "a cube 1.8 cm above a cube (beyond REST_TOL)": (
+        [box("a", "cube", 0.7, 0, 0.025), box("b", "cube", 0.7, 0, 0.093)], set(), set()),
+    "a tower of three": (list(TOWER.values()), {("a", "b"), ("b", "c")},
+                         {("a", "b"), ("b", "c")}),
+    "a block on two towers over a lone cube": (
+        [box("p", "cube", 0.7, -0.1, 0.025), box("q", "cube", 0.7, -0.1, 0.075),
+         box("r", "cube", 0.7, 0.1, 0.025), box("s", "cube", 0.7, 0.1, 0.075),
+         box("l", "long", 0.7, 0, 0.125), box("m", "cube", 0.7, 0, 0.025)],
+        {("q", "p"), ("s", "r")}, {("q", "p"), ("s", "r"), ("l", "q"), ("l", "s")}),
+}
+
+
+def as_boxes(objects):
+    """The scene as the continuous model sees it (feature rows, continuous.Boxes)."""
+    from drake_symplan.abstraction.continuous import Boxes
+    from drake_symplan.features import object_features
+
+    rows = np.stack([object_features(o.type, o.position, np.array(
+        [[np.cos(o.yaw), -np.sin(o.yaw), 0], [np.sin(o.yaw), np.cos(o.yaw), 0], [0, 0, 1]]))
+        for o in objects])
+    return Boxes(tuple(o.name for o in objects), rows, frozenset()).moved(rows[:, :3])
+
+
+def closure(name, pairs):
+    """What rests on `name`, and on those, and so on, from the (upper, lower) `pairs`."""
+    found, frontier = set(), [name]
+    while frontier:
+        below = frontier.pop()
+        new = {u for u, low in pairs if low == below} - found
+        found |= new
+        frontier += new
+    return found
+
+
+@pytest.mark.parametrize("title", KNOWN)
+def test_every_user_of_rests_on_agrees_with_the_one_definition(title):
+    from drake_symplan.abstraction.goal_order import GoalOrder
+    from drake_symplan.abstraction.stability import supports_of
+
+    objects, resting, held = KNOWN[title]
+    states, boxes = scene(*objects), as_boxes(objects)
+    assert {(u, low) for u in states for low in states
+            if u != low and rests_on(states[u], states[low])} == resting
+    for name in states:
+        assert set(riders(name, states)) == closure(name, resting)
+        assert boxes.riding(name) == closure(name, resting)  # the continuous model's
+    assert {(u, boxes.names[j]) for i, u in enumerate(boxes.names)
+            for j, *_ in supports_of(boxes, i)} == held  # stability's: held up in part
+    # the goal's order (positions, no yaw): a centre within the lower box's longest half
+    # extent, so not the cube 3 cm off
+    order = GoalOrder({n: o.position for n, o in states.items()}, boxes.kinds())
+    assert {(u, low) for u, below in order.under.items() for low in below} == {
+        (u, low) for u, low in resting if "3 cm off" not in title}

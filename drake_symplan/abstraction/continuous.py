@@ -32,7 +32,6 @@ from drake_symplan.abstraction.stability import (
     covers,
     covers_any,
     footprint_points,
-    inside,
     over_top,
     under_of,
 )
@@ -40,6 +39,7 @@ from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centr
 from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph, goal_distances
 from drake_symplan.datasets import ObjectState
 from drake_symplan.features import box_of
+from drake_symplan.relations import riders
 
 
 @dataclass(frozen=True)
@@ -115,19 +115,8 @@ class Boxes:
         return HALF_EXTENTS[self.shapes[self.names.index(name)][0]][1]
 
     def riding(self, name: str) -> set[str]:
-        """The boxes on box `name`: those whose centre is over its top face and higher than
-        it, and those on them, and so on."""
-        found, frontier = set(), [name]
-        while frontier:
-            below = self.names.index(frontier.pop())
-            kind, centre, R = self.shapes[below]
-            top = centre[2] + HALF_EXTENTS[kind][2]
-            for j, other in enumerate(self.names):
-                if other != name and other not in found and self.positions[j][2] > top \
-                        and inside(kind, R, centre, self.positions[j]):
-                    found.add(other)
-                    frontier.append(other)
-        return found
+        """The boxes on box `name`, and on those, and so on (relations.riders)."""
+        return set(riders(name, self.object_states()))
 
     def covered(self) -> set[str]:
         """The boxes with another resting on their top, wholly or in part (a block's end

@@ -13,17 +13,18 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan.boxes import HALF_EXTENTS
+from drake_symplan.relations import REST_TOL, meets_at
 
-STACK_TOL = 0.015  # m: a goal box's bottom this near another's top stands on it
 REACH = 0.2  # m: a box set down beside another lands at most this far from it
 
 
 def _stands_on(top: np.ndarray, top_kind: str, below: np.ndarray, below_kind: str) -> bool:
     """Does a box of `top_kind` centred at `top` stand on one of `below_kind` at `below`
-    (bottom on its top, centre within its longest half extent)?"""
-    gap = top[2] - HALF_EXTENTS[top_kind][2] - below[2] - HALF_EXTENTS[below_kind][2]
+    (its bottom meets the top, relations.meets_at; its centre within the lower box's
+    longest half extent: a goal of positions has no yaw)?"""
     reach = max(HALF_EXTENTS[below_kind][:2])
-    return abs(gap) <= STACK_TOL and float(np.linalg.norm(top[:2] - below[:2])) <= reach
+    return meets_at(top_kind, top[2], below_kind, below[2]) and \
+        float(np.linalg.norm(top[:2] - below[:2])) <= reach
 
 
 class GoalOrder:
@@ -35,8 +36,8 @@ class GoalOrder:
         self.under = {n: [m for m in self.goal if m != n and _stands_on(
             self.goal[n], kinds[n], self.goal[m], kinds[m])] for n in self.goal}
         self.beneath = {n: self._beneath(n) for n in self.goal}
-        # a box whose centre is higher than this stands on another box
-        self.goal_floor = {n: HALF_EXTENTS[kinds[n]][2] + STACK_TOL for n in self.goal}
+        # a box whose bottom is higher than REST_TOL stands on another box
+        self.goal_floor = {n: HALF_EXTENTS[kinds[n]][2] + REST_TOL for n in self.goal}
 
     def _beneath(self, name: str) -> set[str]:
         found, frontier = set(), list(self.under[name])

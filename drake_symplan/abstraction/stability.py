@@ -1,6 +1,8 @@
 """Whether boxes rest where a prediction puts them: what holds a box up, its footprint
 over the tops under it, a box that tips off its supports, a load off its one support.
-Geometry on the boxes' features only (continuous.Boxes); no simulator."""
+Geometry on the boxes' features only (continuous.Boxes); no simulator. Which box's bottom
+meets which top, what stands on the table and what rides on a box are relations.py's
+(meets, on_table, riders: one set of tolerances with the skills and the goal checks)."""
 
 from __future__ import annotations
 
@@ -10,12 +12,11 @@ import numpy as np
 
 from drake_symplan.boxes import HALF_EXTENTS, MASS
 from drake_symplan.features import box_of
+from drake_symplan.relations import meets, on_table
 
 if TYPE_CHECKING:
     from drake_symplan.abstraction.continuous import Boxes
 
-RAISED = 0.01  # m: a box whose bottom is this far above the table stands on something
-STACK_GAP = 0.02  # m: a box's top this near another's bottom holds it up
 HULL_TOL = 0.005  # m: a centre this far outside where a box is held still stands
 EDGE_TOL = 0.001  # m: a footprint this near a top's edge rests on it (a block 15 cm off a cube)
 COVER_INSET = 0.005  # m: a box over another's top this far inside its edges rests on it
@@ -112,8 +113,7 @@ def unstable(boxes: Boxes, names) -> bool:
     """Does one of `names` topple (tips), rest on a block's free end (on_overhang), or it
     or a box it rests on, down to the table, hold its load off its one support
     (overloaded)? Only a raised block loads a box."""
-    raised = any(k == "long" and c[2] - HALF_EXTENTS[k][2] >= RAISED
-                 for k, c, _ in boxes.shapes)
+    raised = any(o.type == "long" and not on_table(o) for o in boxes.object_states().values())
     for name in names:
         if tips(boxes, name) or raised and on_overhang(boxes, name):
             return True
@@ -130,17 +130,14 @@ def unstable(boxes: Boxes, names) -> bool:
 
 
 def under_of(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-    """The boxes whose top is within STACK_GAP of box i's bottom, i raised off the table:
-    (index, centre xy, yaw's 2x2 rotation, top's half extents) each."""
-    kind, centre, _ = boxes.shapes[i]
-    bottom = centre[2] - HALF_EXTENTS[kind][2]
-    if bottom < RAISED:
+    """The boxes whose top box i's bottom meets (relations.meets), i off the table
+    (relations.on_table): (index, centre xy, yaw's 2x2 rotation, top's half extents) each."""
+    states = list(boxes.object_states().values())  # in boxes.names' order
+    if on_table(states[i]):
         return []
-    out = []
-    for j, (kind_j, centre_j, R_j) in enumerate(boxes.shapes):
-        if j != i and abs(centre_j[2] + HALF_EXTENTS[kind_j][2] - bottom) <= STACK_GAP:
-            out.append((j, centre_j[:2], R_j[:2, :2], np.asarray(HALF_EXTENTS[kind_j][:2])))
-    return out
+    return [(j, lower.position[:2], boxes.shapes[j][2][:2, :2],
+             np.asarray(HALF_EXTENTS[lower.type][:2]))
+            for j, lower in enumerate(states) if j != i and meets(states[i], lower)]
 
 
 def supports_of(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
@@ -165,14 +162,7 @@ def footprint_points(boxes: Boxes, i: int) -> np.ndarray:
 def covers(row: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
     """Is `point`'s xy over the top face of the box of features `row` standing at
     `centre`?"""
-    kind, _, R = box_of(row)
-    return inside(kind, R, centre, point)
-
-
-def inside(kind: str, R: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
-    """Is `point`'s xy over the top face of a box of type `kind`, axes R, at `centre`?"""
-    local = R[:2, :2].T @ (point - centre)[:2]
-    return bool(np.all(np.abs(local) <= np.asarray(HALF_EXTENTS[kind][:2])))
+    return covers_any(row, centre, np.asarray(point)[None, :2])
 
 
 def covers_any(row: np.ndarray, centre: np.ndarray, points: np.ndarray) -> bool:
