@@ -38,7 +38,7 @@ from drake_symplan.abstraction.stability import (
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
 from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph, goal_distances
 from drake_symplan.datasets import ObjectState
-from drake_symplan.features import box_of
+from drake_symplan.features import box_of, shape_state
 from drake_symplan.relations import riders
 
 
@@ -100,8 +100,8 @@ class Boxes:
     @cached_property
     def _states(self) -> dict[str, ObjectState]:
         # the planner asks the skills' rules of a scene once per step it predicts from it
-        return {name: ObjectState(name, kind, centre, float(np.arctan2(R[1, 0], R[0, 0])))
-                for name, (kind, centre, R) in zip(self.names, self.shapes, strict=True)}
+        return {name: shape_state(name, *shape)
+                for name, shape in zip(self.names, self.shapes, strict=True)}
 
     @cached_property
     def shapes(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
