@@ -35,14 +35,9 @@ def box_of(features: np.ndarray) -> tuple[str, np.ndarray, np.ndarray]:
     return kind, np.asarray(features[:3], float), R
 
 
-def object_state(name: str, features: np.ndarray) -> ObjectState:
-    """The box of a feature row as the skills and relations.py read one (box_of: upright,
-    the yaw the features keep)."""
-    return shape_state(name, *box_of(features))
-
-
 def shape_state(name: str, kind: str, centre: np.ndarray, R: np.ndarray) -> ObjectState:
-    """`object_state` of a box already read by box_of: (type, centre, axes R)."""
+    """The box as the skills and relations.py read one, from what box_of reads of its
+    features (type, centre, axes R): upright, the yaw the features keep."""
     return ObjectState(name, kind, centre, float(np.arctan2(R[1, 0], R[0, 0])))
 
 

@@ -37,8 +37,7 @@ ALIGN = 0.02  # m: a row's members (and a bridge's supports) this near each othe
 ROW_GAP = 0.05  # m: at most this between the faces of a row's neighbours along y
 
 ARITY = {"on": (2, 2), "tower": (2, None), "bridge": (3, 3), "row": (2, None)}
-# The kind of pair (Relation.pairs) each word names: `pair_unmet` checks one, and the
-# learned symbols' signature of each kind says it in atoms (symbolic/signatures.py).
+# The kind of pair (Relation.pairs) each word names, which `pair_unmet` checks.
 PAIR_KIND = {"on": "on", "tower": "on", "bridge": "bears", "row": "beside"}
 PAIR_KINDS = ("on", "bears", "beside")
 

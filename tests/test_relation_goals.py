@@ -24,7 +24,6 @@ from drake_symplan.abstraction.refiner import Refiner
 from drake_symplan.boxes import CONTACT_TOLERANCE, VICINITY
 from drake_symplan.planning.budget import Budget
 from drake_symplan.relations import parse
-from drake_symplan.symbolic.signatures import Signature
 from drake_symplan.symbolic.states import SymbolicState
 from drake_symplan.symbolic.structs import Step
 from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
@@ -79,7 +78,7 @@ def test_a_model_without_relations_keeps_the_named_objects_atoms_of_a_relation_g
     reading = Reading(SymbolicState(names, np.zeros((3, 1)), np.zeros((0, 3, 3))),
                       np.zeros((3, 1), bool), np.zeros((0, 3, 3), bool),
                       pairs={("a", "b"): (0, 0)})
-    bundle = SimpleNamespace(n_relations=0, semantics=UnaryOnly(), signatures={})
+    bundle = SimpleNamespace(n_relations=0, semantics=UnaryOnly())
     atoms = Abstraction(bundle).goal_atoms(reading)
     assert atoms == {("u0", "a"), ("touching1", "b")}  # c is not named: free
     assert Abstraction(bundle).stages(reading, atoms) == [atoms]
@@ -99,27 +98,13 @@ def test_under_vicinity_a_named_pairs_relation_is_its_bits_both_ways_and_no_othe
                       np.zeros((3, 1), bool), np.zeros((3, 3, 3), bool),
                       pairs={("a", "b"): (0, 0)})
     vicinity = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
-                                           relevance_radius=VICINITY, signatures={}))
+                                           relevance_radius=VICINITY))
     atoms = vicinity.goal_atoms(reading)
     assert atoms == {("r1", "a", "b"), ("r2", "a", "b"), ("r0", "b", "a")}
     assert vicinity.stages(reading, atoms) == [atoms]
     contact = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
-                                          relevance_radius=CONTACT_TOLERANCE, signatures={}))
+                                          relevance_radius=CONTACT_TOLERANCE))
     assert contact.goal_atoms(reading) == {("r1", "a", "b"), ("r2", "a", "b")}
-
-
-def test_a_pair_whose_kind_has_a_signature_asks_for_its_atoms_not_the_examples():
-    names = ("a", "b", "c", "d")
-    reading = Reading(SymbolicState(names, np.zeros((4, 1)), np.zeros((3, 4, 4))),
-                      np.zeros((4, 1), bool), np.zeros((3, 4, 4), bool),
-                      pairs={("a", "b"): (0, 0), ("c", "d"): (0, 1)},
-                      pair_kinds={("a", "b"): "beside", ("c", "d"): "on"})
-    beside = Signature("beside", 100, ((2, 1),), ((0, 0),))
-    bundle = SimpleNamespace(n_relations=3, semantics=RowBits(), relevance_radius=VICINITY,
-                             signatures={"beside": beside})
-    # a b: the signature's r2 one way and not r0 the other, not the example's r1 and r0;
-    # c d, an "on" pair without a signature: what the example reads of it (nothing here)
-    assert Abstraction(bundle).goal_atoms(reading) == {("r2", "a", "b"), ("not_r0", "b", "a")}
 
 
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),

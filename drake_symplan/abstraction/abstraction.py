@@ -51,9 +51,6 @@ class Reading:
     # its relation); its goal atoms are those pairs' relation atoms alone (goal_atoms, stages).
     # None: a whole-scene goal.
     pairs: dict | None = None
-    # Each of those pairs' kind (relations.PAIR_KIND: on, bears, beside), whose signature
-    # in the bundle's symbols says its goal atoms (symbolic/signatures.py).
-    pair_kinds: dict | None = None
     # The pairs in contact, which the degree atoms count, where the relevance graph is
     # wider (vicinity); None: `contacts`.
     touching: set | None = None
@@ -91,21 +88,19 @@ def relation_goal(goal: Observation, relations) -> Observation:
     the relations name (Reading.pairs), each pair with the layer of its lower box and
     its relation's index."""
     from drake_symplan.boxes import SIDE
-    from drake_symplan.relations import PAIR_KIND, bottom, named
+    from drake_symplan.relations import bottom, named
 
     names = [n for n in named(relations) if n in goal.boxes.names]
     rows = [goal.boxes.names.index(n) for n in names]
     boxes = Boxes(tuple(names), goal.boxes.features[rows],
                   frozenset(p for p in goal.boxes.contacts if set(p) <= set(names)))
     states = goal.boxes.object_states()
-    pairs, kinds = {}, {}
+    pairs = {}
     for index, r in enumerate(relations):
         for upper, lower in r.pairs():
             layer = max(0, int(round(bottom(states[lower]) / SIDE))) if lower in states else 0
             pairs[(upper, lower)] = (layer, index)
-            kinds[(upper, lower)] = PAIR_KIND[r.word]
-    reading = None if goal.reading is None else replace(goal.reading, pairs=pairs,
-                                                         pair_kinds=kinds)
+    reading = None if goal.reading is None else replace(goal.reading, pairs=pairs)
     return Observation(goal.scene, reading, boxes, tuple(relations))
 
 
@@ -266,25 +261,18 @@ class Abstraction:
     def goal_atoms(self, goal: Reading) -> frozenset:
         """Unary atoms, and relation atoms only between related objects (paper IV-C: in
         contact, or near under relevance by vicinity); of a goal of relations
-        (Reading.pairs), the atoms of the pairs they name: the paper's contact-graph filter
-        on the structure a person asked for, not the scene. A pair whose kind has a
-        signature in the bundle (symbolic/signatures.py) asks for the signature's atoms,
-        what every example of its kind reads; else for what the example reads of it
-        (pair_of). A model without relations (Attentive: unary symbols alone) says of such
-        a goal only what its atoms of the named objects say."""
+        (Reading.pairs), the relation atoms of the related pairs they name (pair_of): the
+        paper's contact-graph filter on the structure a person asked for, not the scene.
+        A model without relations (Attentive: unary symbols alone) says of such a goal only
+        what its atoms of the named objects say."""
         atoms = self.atoms(goal, contacts_only=True)[0]
         if goal.pairs is None:
             return atoms
         if not self.bundle.n_relations:
             named = {n for pair in goal.pairs for n in pair}
             return frozenset(a for a in atoms if set(a[1:]) <= named)
-        signatures, kinds = self.bundle.signatures, goal.pair_kinds or {}
-        said = {pair for pair in goal.pairs if kinds.get(pair) in signatures}
         both = self.bundle.relevance_radius > CONTACT_TOLERANCE
-        read = {a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both)
-                and pair_of(goal.pairs, a, both) not in said}
-        return frozenset(read).union(*(
-            (Atom(*a) for a in signatures[kinds[pair]].atoms(*pair)) for pair in said))
+        return frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both))
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""

@@ -231,7 +231,7 @@ def cmd_bundle(args) -> dict:
     from drake_symplan.json_files import read_json
     from drake_symplan.learning.checkpoint import load_run
     from drake_symplan.learning.readout import readout_scenes
-    from drake_symplan.shards import fingerprint, load_extra
+    from drake_symplan.shards import fingerprint
     from drake_symplan.symbolic.bundle import (
         CONTINUOUS,
         ModelBundle,
@@ -239,7 +239,6 @@ def cmd_bundle(args) -> dict:
         learn_bundle_operators,
         write_bundle,
     )
-    from drake_symplan.symbolic.signatures import learn_signatures, to_json
 
     check_output_dir(args.out)
     if args.run is None and args.continuous is not None:
@@ -252,13 +251,10 @@ def cmd_bundle(args) -> dict:
         raise CommandError("give --run and --data (or --continuous RUN alone, to add it to "
                            "the bundle in --out)")
     model, _ = load_run(args.run)
-    data, scenes = readout_scenes(model, args.data, args.margin)
+    data, _ = readout_scenes(model, args.data, args.margin)
     operators, semantics, info = learn_bundle_operators(
         data, args.learner, args.min_count, args.support, args.contact_degree == "on")
     info["relevance_radius"] = relevance_radius(args.data)
-    if model.n_relations:
-        info["relation_signatures"] = to_json(learn_signatures(
-            scenes.next_relational, load_extra(args.data, "scene_next_state"), scenes.mask))
     run_config = read_json(args.run / "config.json") \
         if (args.run / "config.json").is_file() else {}
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]),

@@ -46,7 +46,6 @@ from drake_symplan.symbolic.effect_operators import (
 )
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
 from drake_symplan.symbolic.pddl import domain_pddl
-from drake_symplan.symbolic.signatures import from_json
 from drake_symplan.symbolic.structs import LiftedOperator, PlanningOperators
 
 FILES = ("model.pt", "operators.json", "domain.pddl", "domain_strips.pddl", "provenance.json")
@@ -115,9 +114,6 @@ class ModelBundle:
         # the relevance its data were collected with (data/collect.py): the graph of pairs
         # the model and the operators read, the contact rule for a bundle that names none
         self.relevance_radius = float(info.get("relevance_radius", CONTACT_TOLERANCE))
-        # which atoms say each kind of goal pair (symbolic/signatures.py); none: a bundle
-        # made before them, whose goals of relations keep their example's atoms
-        self.signatures = from_json(info.get("relation_signatures"))
         self.planning = PlanningOperators(operators)
         self.planned = self.planning.planned
         self.domain = domain_pddl(self.planned, self.n_unary, self.n_relations, costs=True)
