@@ -95,3 +95,21 @@ def test_no_repositioning_by_a_grasp_the_arm_refuses():
     assert str(reposition_step([], tower(0.0, 2), tower(-0.075, 2), 0.05)) == \
         "(reposition_center_left t0 t1)"
     assert reposition_step([], tower(0.0, 3), tower(-0.075, 3), 0.05) is None
+
+
+def test_a_free_box_in_the_arms_way_is_set_aside_as_far_as_there_is_from_the_step():
+    from drake_symplan.agent.reposition import clearing_step
+
+    now = cubes(a=(0.6, 0.0), b=(0.6, 0.07), c=(0.4, -0.3), d=(0.75, 0.3))
+    refused = step("(pick_center_place_center_n10_op0 a c)")
+    # b, beside a, is set down beside d (the only box that is neither a nor c), on d's
+    # far side from a
+    assert clearing_step(["b"], refused, now, set()) == \
+        Reposition(Action("b", "center", "d", "right"))
+    assert clearing_step(["b"], refused, now, {"b"}) is None  # part of a goal that holds
+    assert clearing_step(["x"], refused, now, set()) is None  # not seen
+    stacked = scene({"a": ("cube", (0.6, 0.0, 0.025)), "b": ("cube", (0.6, 0.07, 0.025)),
+                     "e": ("cube", (0.6, 0.07, 0.075)), "c": ("cube", (0.4, -0.3, 0.025)),
+                     "d": ("cube", (0.75, 0.3, 0.025))})
+    assert clearing_step(["b", "e"], refused, stacked, set()) == \
+        Reposition(Action("e", "center", "d", "right"))  # not b: it carries e

@@ -1,4 +1,5 @@
-"""Putting a box down at its goal spot on the table, which the symbols do not say.
+"""Putting a box down at its goal spot on the table, which the symbols do not say, and
+setting aside a box that stands in the arm's way (`clearing_step`).
 
 The symbols do not say where on the table a box stands, so a plan can reach the
 goal's atoms with a stack built 20 cm from where the goal has it. `reposition_step` fills
@@ -79,6 +80,34 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
             if all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
                    for n, o in boxes.items() if n != src and n not in load):
                 best = (miss, move)
+        if best is not None:
+            return best[1]
+    return None
+
+
+def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Reposition | None:
+    """A step that sets aside a box the arm would strike running `refused` (`obstacles`,
+    what the arm named): the first with nothing on it that is not in `keep` (the boxes of
+    the goal's pairs that hold already), put down beside another box on a free spot of the
+    table, as far as there is from the refused action's boxes; or None. The symbols do
+    not say what stands in the arm's way; a person would move it."""
+    boxes = {o.name: o for o in now.objects}
+    objects = now.object_states()
+    ends = {refused.action.source, refused.action.target} & set(boxes)
+    away = [boxes[n].position[:2] for n in ends]
+    for name in obstacles:
+        if name not in boxes or name in keep or carried(now, name):
+            continue
+        size, best = footprint(boxes[name]), None
+        for move in moves(list(boxes), {name}, lambda _, length=size[1]: length):
+            if move.action.target in ends or grasp_refused(move.action, objects):
+                continue
+            land = release_centre(boxes[move.action.target].position[:2], move.action)
+            free = all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
+                       for n, o in boxes.items() if n != name)
+            far = min(float(np.linalg.norm(land - p)) for p in away) if away else 0.0
+            if free and (best is None or far > best[0]):
+                best = (far, move)
         if best is not None:
             return best[1]
     return None

@@ -45,12 +45,17 @@ from drake_symplan.abstraction.refiner import set_down_tips
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
-from drake_symplan.agent.reposition import REPOSITIONS_PER_OBJECT, reposition_step
+from drake_symplan.agent.reposition import (
+    REPOSITIONS_PER_OBJECT,
+    clearing_step,
+    reposition_step,
+)
 from drake_symplan.agent.result import PhaseClock, SolveResult
-from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached, neighbour_pairs
-from drake_symplan.relations import riders, unmet
+from drake_symplan.agent.verdict import verdict
+from drake_symplan.boxes import GOAL_TOLERANCE, neighbour_pairs
+from drake_symplan.relations import holding, riders
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
-from drake_symplan.symbolic.structs import PlanStep, Step
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 from drake_symplan.world.visualization import StartMeshcat
 
 # Planner statuses -> the agent's status (= failure cause) when the plan cannot be had.
@@ -319,14 +324,31 @@ class _Run:
         if not (self.config.monitor and self.result.refusals < limit):
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message)
+        self.result.refusals += 1
+        clear = self._clearing(step, obstacles)
+        if clear is not None:  # what stands in the way is set aside, and the step tried again
+            self.todo = [_Planned(clear), _Planned(step), *self.todo]
+            return
         where = self.now.boxes.where()
         self.planner.refused(step, {n: where[n] for n in obstacles if n in where}, at)
-        self.result.refusals += 1
         try:
             self.todo = self._steps(self._search())
         except _Stop:
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message) from None
+
+    def _clearing(self, step: PlanStep, obstacles) -> Reposition | None:
+        """Completing a plan on symbols, with repositionings left: a step that sets aside
+        a box the arm named in its way (reposition.clearing_step), keeping the goal's
+        pairs that hold already."""
+        if not (self._completes() and obstacles and self.repositions
+                < REPOSITIONS_PER_OBJECT * len(self.scene.names)):
+            return None
+        states = self.scene.object_states()
+        keep = holding(self.relations, states) if self.relations else set()
+        clear = clearing_step(obstacles, step, self.scene, keep)
+        self.repositions += clear is not None
+        return clear
 
     def _goal_seen(self) -> bool:
         """The plan has run out. The monitor checks that the goal's atoms are seen too (a
@@ -347,41 +369,12 @@ class _Run:
         self.todo = self._replan(scheduled)
         return bool(self.todo)
 
-    # --- check ----------------------------------------------------------------------
-
     def _end(self, final, cause: str, message: str) -> SolveResult:
         """The check on the last perceived scene `final` (module docstring, 5.), else the
-        status for `cause`."""
-        result = self.result
-        true_states = self.agent.robot.ground_truth_states()  # reported beside, never read
-        result.objects = beliefs.goal_report(beliefs.positions(self.goal_scene),
-                                             beliefs.positions(final),
-                                             {n: s.position for n, s in true_states.items()})
-        errors = {n: o["error_cm"] for n, o in result.objects.items()}
-        if self.relations:
-            result.unmet = unmet(self.relations, final.object_states())
-            result.unmet_true = unmet(self.relations, true_states)
-            reached = not result.unmet
-        else:  # error_cm is rounded to 0.01 cm: the check reads what the result reports
-            reached = goal_reached({n: None if e is None else e / 100
-                                    for n, e in errors.items()})
-        if reached and cause != "perception":
-            result.status = "success"
-            return result
-        if self.goal is not None and set(self.goal_scene.names) <= set(final.names):
-            result.symbolic_goal_reached = self.abs.goal_holds(self.abs.read_scene(final),
-                                                               self.goal_atoms)
-        if cause == "execution" and self.relations:
-            message = message or f"not held: {'; '.join(result.unmet)}"
-        elif cause == "execution":
-            far = {n: e for n, e in errors.items()
-                   if e is not None and e > GOAL_TOLERANCE * 100}
-            message = message or f"objects farther than {GOAL_TOLERANCE * 100:g} cm from " \
-                                 f"their goal: {far}"
-        result.status = cause if cause in ("no_plan", "timeout", "infeasible", "error") \
-            else "failure"
-        result.failure_cause, result.message = cause, message
-        return result
+        status for `cause` (agent/verdict.py)."""
+        goal_atoms = self.goal_atoms if self.goal is not None else None
+        return verdict(self.result, self.agent.robot.ground_truth_states(), self.goal_scene,
+                       final, self.relations, self.abs, goal_atoms, cause, message)
 
 
 def solve(start_scene, goal_scene, abstraction: Abstraction,
