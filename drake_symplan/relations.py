@@ -228,13 +228,6 @@ def unmet_one(relation: Relation, objects: Mapping[str, ObjectState]) -> str | N
     return None
 
 
-def holding(relations: Iterable[Relation], objects: Mapping[str, ObjectState]) -> set[str]:
-    """The boxes of the relations' pairs that hold in `objects` (built already)."""
-    return {n for r in relations for pair in r.pairs() if set(pair) <= set(objects)
-            and pair_unmet(PAIR_KIND[r.word], *(objects[n] for n in pair)) is None
-            for n in pair}
-
-
 def unmet(relations: Iterable[Relation], objects: Mapping[str, ObjectState]) -> list[str]:
     """What of `relations` the boxes `objects` (by name) do not hold, one line each; empty:
     the goal holds."""

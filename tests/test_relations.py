@@ -185,12 +185,3 @@ def test_every_user_of_rests_on_agrees_with_the_one_definition(title):
     assert {(u, low) for u, below in order.under.items() for low in below} == {
         (u, low) for u, low in resting if "3 cm off" not in title}
 
-
-def test_holding_names_the_boxes_of_the_pairs_built_already():
-    from drake_symplan.relations import holding
-
-    objects = scene(box("a", "cube", 0.7, 0.0, 0.075), box("b", "cube", 0.7, 0.0, 0.025),
-                    box("c", "cube", 0.5, 0.2, 0.025), box("d", "cube", 0.5, -0.2, 0.025))
-    assert holding(parse(["tower a b", "on c d"]), objects) == {"a", "b"}
-    assert holding(parse(["tower c a b"]), objects) == {"a", "b"}  # c is not on a yet
-    assert holding(parse(["on c d"]), objects) == set()

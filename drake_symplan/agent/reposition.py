@@ -87,8 +87,8 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
 
 def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Reposition | None:
     """A step that sets aside a box the arm would strike running `refused` (`obstacles`,
-    what the arm named): the first with nothing on it that is not in `keep` (the boxes of
-    the goal's pairs that hold already), put down beside another box on a free spot of the
+    what the arm named): the first with nothing on it that is not in `keep` (what the goal
+    holds where it stands), put down beside another box on a free spot of the
     table, as far as there is from the refused action's boxes; or None. The symbols do
     not say what stands in the arm's way; a person would move it."""
     boxes = {o.name: o for o in now.objects}

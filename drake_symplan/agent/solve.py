@@ -52,8 +52,8 @@ from drake_symplan.agent.reposition import (
 )
 from drake_symplan.agent.result import PhaseClock, SolveResult
 from drake_symplan.agent.verdict import verdict
-from drake_symplan.boxes import GOAL_TOLERANCE, neighbour_pairs
-from drake_symplan.relations import holding, riders
+from drake_symplan.boxes import GOAL_TOLERANCE, goal_distances, neighbour_pairs
+from drake_symplan.relations import named, riders
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 from drake_symplan.world.visualization import StartMeshcat
@@ -339,13 +339,16 @@ class _Run:
 
     def _clearing(self, step: PlanStep, obstacles) -> Reposition | None:
         """Completing a plan on symbols, with repositionings left: a step that sets aside
-        a box the arm named in its way (reposition.clearing_step), keeping the goal's
-        pairs that hold already."""
+        a box the arm named in its way (reposition.clearing_step), one the goal leaves
+        free: not named by its relations (where a structure stands is theirs), of a
+        whole-scene goal not at its goal position already."""
         if not (self._completes() and obstacles and self.repositions
                 < REPOSITIONS_PER_OBJECT * len(self.scene.names)):
             return None
-        states = self.scene.object_states()
-        keep = holding(self.relations, states) if self.relations else set()
+        now, goal = beliefs.positions(self.scene), beliefs.positions(self.goal_scene)
+        at_goal = goal_distances(now, {n: p for n, p in goal.items() if n in now})
+        keep = set(named(self.relations)) if self.relations else {
+            n for n, d in at_goal.items() if d <= GOAL_TOLERANCE}
         clear = clearing_step(obstacles, step, self.scene, keep)
         self.repositions += clear is not None
         return clear
