@@ -14,6 +14,7 @@ import numpy as np
 import torch
 
 from drake_symplan.actions import EFFECT_DIM
+from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.features import FEATURE_DIM, FEATURE_NAMES, touching
 from drake_symplan.learning.models import EffectModel
 
@@ -21,6 +22,11 @@ ON_DZ = 0.03  # m: a box in contact with another and this much higher rests on i
 _Z, _LONG = FEATURE_NAMES.index("z"), FEATURE_NAMES.index("is_long")
 HANDMADE = "handmade"  # the model name its checkpoints carry (checkpoint.model_from_checkpoint)
 LARGE = 100.0  # the magnitude of its logits: every bit certain at any read-out margin below
+HANDMADE_RULE = {  # what a bundle of it says its symbols are (provenance.json)
+    "p0": "long(o): the feature is_long",
+    "r0": "on(o, o'): o touches o' (boxes.contact_graph of the boxes the features give, "
+          "each resting on a face) and o's centre is more than on_dz higher",
+    "on_dz": ON_DZ, "contact_tolerance": CONTACT_TOLERANCE}
 
 
 def reference_bits(state: np.ndarray, mask: np.ndarray, contacts: np.ndarray):
