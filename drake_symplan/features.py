@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.boxes import YAW_PERIOD
+from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, contact_graph
 from drake_symplan.datasets import ObjectState
 
 FEATURE_NAMES = ("x", "y", "z", "cos_tilt", "long_axis_up", "cos_k_yaw", "sin_k_yaw",
@@ -52,3 +52,16 @@ def object_features(kind: str, position: np.ndarray, R: np.ndarray) -> np.ndarra
     k = YAW_SYMMETRY[kind]
     return np.array([*position, cos_tilt, long_up, np.cos(k * yaw), np.sin(k * yaw),
                      kind == "cube", kind == "long"], dtype=np.float32)
+
+
+def touching(state: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """[T, M, M] bool: the pairs of each scene's boxes (features [T, M, D]) in contact by
+    their geometry (boxes.contact_graph), as perception finds them."""
+    out = np.zeros(mask.shape + mask.shape[-1:], bool)
+    for t in range(len(state)):
+        slots = np.flatnonzero(mask[t])
+        shapes = {int(i): box_of(state[t, i]) for i in slots}
+        for i, j in contact_graph({i: (c, R, np.asarray(HALF_EXTENTS[k]))
+                                   for i, (k, c, R) in shapes.items()}):
+            out[t, i, j] = out[t, j, i] = True
+    return out

@@ -111,7 +111,7 @@ def test_the_degree_atoms_count_what_touches_while_relations_follow_vicinity():
 
 
 def test_the_pairs_in_contact_of_recorded_scenes_come_from_their_geometry():
-    from drake_symplan.learning.readout import touching
+    from drake_symplan.features import touching
 
     boxes = ROW_AND_TOWER
     state = np.zeros((1, 8, 9), np.float32)

@@ -191,4 +191,68 @@ def test_a_continuous_model_is_added_to_a_bundle_and_loaded_beside_its_symbol_mo
         for key, value in member.state_dict().items():
             assert torch.equal(value, again.continuous[0].state_dict()[key])
     assert cli_main.main(["bundle", "--out", str(path)]) == 2  # neither --run nor --continuous
-    assert "give --run and --data" in capsys.readouterr().err
+    assert "give --run (or --symbols) and --data" in capsys.readouterr().err
+
+
+def stacking_data(path, n: int = 12):
+    """A data set of `n` transitions with whole scenes: cube a, on the table 10 cm from cube
+    b, is put on b; a long block c lies apart, in the scene and in no transition."""
+    from drake_symplan.actions import Action, encode_action
+    from drake_symplan.datasets import TransitionArrays
+    from drake_symplan.features import object_features
+    from drake_symplan.shards import write_manifest, write_shard
+
+    def features(*centres):
+        out = np.zeros((n, 8, 9), np.float32)
+        for slot, (kind, x, y, z) in enumerate(centres):
+            for t in range(n):
+                out[t, slot] = object_features(kind, np.array([x + 0.01 * t, y, z]),
+                                               np.eye(3))
+        return out
+
+    c = ("long", 0.5, 0.3, 0.025)
+    before = features(("cube", 0.5, 0.0, 0.025), ("cube", 0.6, 0.0, 0.025), c)
+    after = features(("cube", 0.6, 0.0, 0.075), ("cube", 0.6, 0.0, 0.025), c)
+    scene_mask = np.zeros((n, 8), bool)
+    scene_mask[:, :3] = True
+    touching = np.zeros((n, 8, 8), bool)
+    touching[:, 0, 1] = touching[:, 1, 0] = True
+    action = np.repeat(encode_action(Action("a", "center", "b", "center"), ["a", "b"])[None],
+                       n, axis=0)
+    arrays = TransitionArrays(before[:, :2], action, np.zeros((n, 2, 6), np.float32),
+                              np.ones((n, 2), bool), np.arange(n), after[:, :2])
+    write_manifest(path, {"config": {"relevance_radius": 0.006}})
+    write_shard(path, 0, arrays, extra={
+        "scene_state": before, "scene_next_state": after, "scene_mask": scene_mask,
+        "scene_contacts": np.zeros((n, 8, 8), bool), "scene_next_contacts": touching,
+        "scene_slots": np.tile(np.array([0, 1], np.int8), (n, 1)),
+        "chain": np.zeros(n, np.int16), "step": np.zeros(n, np.int32)})
+    return path
+
+
+def test_a_bundle_of_the_handmade_symbols_is_made_from_a_data_set_without_a_run(
+        tmp_path, capsys, monkeypatch):
+    from drake_symplan.cli import main as cli_main
+    from drake_symplan.learning.handmade import HandmadeSymbols
+
+    data, out = stacking_data(tmp_path / "data"), tmp_path / "handmade"
+    argv = ["bundle", "--symbols", "handmade", "--data", str(data), "--out", str(out),
+            "--min-count", "10", "--json"]
+    monkeypatch.setattr("sys.argv", ["symplan", *argv])
+    assert cli_main.main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["operators"] == 1
+    bundle = ModelBundle.load(out)
+    assert isinstance(bundle.model, HandmadeSymbols)
+    assert (bundle.n_unary, bundle.n_relations) == (1, 1)
+    [op] = bundle.operators
+    # Two cubes (not long) touching nothing: the source ends on the target, both touch one.
+    assert op.count == 12 and op.reliability == 1.0
+    assert set(op.pre) == {("not_p0", 0), ("not_p0", 1), ("touching0", 0), ("touching0", 1)}
+    assert set(op.add) == {("r0", 0, 1), ("not_r0", 1, 0), ("touching1", 0), ("touching1", 1)}
+    provenance = json.loads((out / "provenance.json").read_text())
+    assert provenance["symbols"] == "handmade" and provenance["rule"]["on_dz"] == 0.03
+    assert provenance["command"] == "symplan " + " ".join(argv)
+    assert "run" not in provenance
+    assert cli_main.main(["bundle", "--symbols", "handmade", "--run", str(tmp_path),
+                          "--data", str(data), "--out", str(out)]) == 2
+    assert "not both" in capsys.readouterr().err

@@ -11,7 +11,7 @@ symbols, the share of situations seen in training at all, and of the training si
 seen twice or more, the share with more than one effect. A selection among candidate
 symbol sets (predicators' invention keeps a set only if it pays on the data) would pick
 the best row; here it shows what each predicate buys. `--reference` adds the same rows
-for hand-made symbols (symbolic/reference.py: long(o), on(o, o')), with and without the
+for hand-made symbols (learning/handmade.py: long(o), on(o, o')), with and without the
 contact degrees (without --run: those alone): what symbols of this kind can reach on the data.
 """
 
@@ -26,10 +26,10 @@ import platform
 
 from drake_symplan.evaluation.operators import determinism
 from drake_symplan.learning.checkpoint import load_run
+from drake_symplan.learning.handmade import reference_bits
 from drake_symplan.learning.readout import readout_scenes, scenes_symbols
 from drake_symplan.shards import fingerprint
 from drake_symplan.symbolic.effect_operators import EFFECT
-from drake_symplan.symbolic.reference import reference_bits
 
 NO_DEGREE = dataclasses.replace(EFFECT, degree=False)
 
@@ -76,7 +76,7 @@ def main() -> None:
     parser.add_argument("--heldout", required=True, help="a held-out data set")
     parser.add_argument("--margins", default="3,1", help="read-out margins (comma-separated)")
     parser.add_argument("--reference", action="store_true",
-                        help="also the hand-made reference symbols (symbolic/reference.py)")
+                        help="also the hand-made reference symbols (learning/handmade.py)")
     parser.add_argument("--out", default="bench_symbol_sets.json")
     args = parser.parse_args()
     if not args.run and not args.reference:

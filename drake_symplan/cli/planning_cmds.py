@@ -64,12 +64,16 @@ def _register_bundle(subparsers) -> None:
     b = subparsers.add_parser(
         "bundle",
         help="make a model bundle: a trained run and its learned operators in one directory",
-        description="Reads the symbols of a data set's whole scenes out of RUN, learns "
+        description="Reads the symbols of a data set's whole scenes out of RUN (or, with "
+        "--symbols handmade, the hand-made reference symbols long and on), learns "
         "operators (effect-first by default; 'paper': the paper's method as implemented) and "
         "writes the bundle (model.pt, operators.json, domain.pddl, domain_strips.pddl, "
         "provenance.json) that `symplan solve` and `symplan eval operators` read.")
     b.add_argument("--run", type=Path, help="trained run directory (required unless "
-                   "--continuous is added to an existing bundle)")
+                   "--symbols or --continuous is added to an existing bundle)")
+    b.add_argument("--symbols", choices=("handmade",), default=None,
+                   help="instead of --run: symbols made by hand (learning/handmade.py: "
+                   "long, on, from the features), the ceiling of symbols of this kind")
     b.add_argument("--data", type=Path,
                    help="data set collected with whole scenes (the run's training set)")
     b.add_argument("--out", type=Path, required=True, help="bundle directory to write")
@@ -230,6 +234,7 @@ def cmd_bundle(args) -> dict:
     from drake_symplan.data.storage import relevance_radius
     from drake_symplan.json_files import read_json
     from drake_symplan.learning.checkpoint import load_run
+    from drake_symplan.learning.handmade import HANDMADE_RULE, HandmadeSymbols
     from drake_symplan.learning.readout import readout_scenes
     from drake_symplan.shards import fingerprint
     from drake_symplan.symbolic.bundle import (
@@ -241,27 +246,32 @@ def cmd_bundle(args) -> dict:
     )
 
     check_output_dir(args.out)
-    if args.run is None and args.continuous is not None:
+    if args.symbols is not None and args.run is not None:
+        raise CommandError("give --run or --symbols, not both")
+    if args.run is None and args.symbols is None and args.continuous is not None:
         ModelBundle.load(args.out)  # an existing bundle, or a one-line error
         for run in args.continuous:
             load_run(run)
         path = copy_model(args.continuous, args.out / CONTINUOUS)
         return {"out": str(args.out), "continuous": str(path)}
-    if args.run is None or args.data is None:
-        raise CommandError("give --run and --data (or --continuous RUN alone, to add it to "
-                           "the bundle in --out)")
-    model, _ = load_run(args.run)
+    if (args.run is None and args.symbols is None) or args.data is None:
+        raise CommandError("give --run (or --symbols) and --data (or --continuous RUN alone, "
+                           "to add it to the bundle in --out)")
+    check_input_dir(args.data, "--data")
+    if args.symbols is not None:
+        model, source = HandmadeSymbols(), {"symbols": args.symbols, "rule": HANDMADE_RULE}
+    else:
+        model, source = load_run(args.run)[0], {"run": str(args.run), "run_config": (
+            read_json(args.run / "config.json") if (args.run / "config.json").is_file()
+            else {})}
     data, _ = readout_scenes(model, args.data, args.margin)
     operators, semantics, info = learn_bundle_operators(
         data, args.learner, args.min_count, args.support, args.contact_degree == "on")
     info["relevance_radius"] = relevance_radius(args.data)
-    run_config = read_json(args.run / "config.json") \
-        if (args.run / "config.json").is_file() else {}
-    provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]),
-                  "run": str(args.run), "run_config": run_config,
+    provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]), **source,
                   "data": str(args.data), "data_fingerprint": fingerprint(args.data)}
-    write_bundle(args.out, args.run, operators, semantics, info, provenance, args.margin,
-                 args.continuous)
+    write_bundle(args.out, model if args.symbols else args.run, operators, semantics, info,
+                 provenance, args.margin, args.continuous)
     return {"out": str(args.out), "operators": len(operators), **info}
 
 

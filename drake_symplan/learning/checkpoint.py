@@ -21,6 +21,7 @@ import torch
 
 import drake_symplan
 from drake_symplan.atomic import write_atomic
+from drake_symplan.learning.handmade import HANDMADE, HandmadeSymbols
 from drake_symplan.learning.models import EffectModel, build_model
 
 BEST = "best.pt"
@@ -61,10 +62,13 @@ def read_checkpoint(path: str | Path, device: torch.device | str = "cpu") -> dic
 
 
 def model_from_checkpoint(ckpt: dict, device: torch.device | str = "cpu") -> EffectModel:
+    """The model a checkpoint names, with its weights: one of models.MODELS, or the
+    hand-made symbols (handmade.py: nothing to train, so no `--model` of training)."""
     config = dict(ckpt["model_config"])
     if ckpt["model"] == "relational":
         config.setdefault("own_message", False)  # checkpoints from before the option
-    model = build_model(ckpt["model"], **config)
+    model = (HandmadeSymbols(**config) if ckpt["model"] == HANDMADE
+             else build_model(ckpt["model"], **config))
     model.load_state_dict(ckpt["model_state"])
     return model.to(device)
 

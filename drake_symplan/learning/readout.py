@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph
+from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.datasets import SceneSymbols, SymbolDataset, TransitionArrays
-from drake_symplan.features import box_of
+from drake_symplan.features import touching
 from drake_symplan.learning.checkpoint import load_run
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN, read_bits
 from drake_symplan.learning.models import EffectModel
@@ -150,7 +150,7 @@ def readout_scenes(
 def scenes_symbols(data_dir: str | Path, bits) -> tuple[SymbolDataset, SceneSymbols]:
     """`readout_scenes` with the symbols of each whole scene from `bits(state [T, M, D],
     mask [T, M], contacts [T, M, M]) -> (unary, unary_uncertain, relational,
-    relational_uncertain)`: a trained model's, or symbolic/reference.py's."""
+    relational_uncertain)`: a trained model's, or learning/handmade.py's reference_bits."""
     arrays = load_transitions(data_dir)
     extra = {k: load_extra(data_dir, k, pad_value=-1 if k == "scene_slots" else None)
              for k in SCENE_KEYS}
@@ -177,19 +177,6 @@ def scenes_symbols(data_dir: str | Path, bits) -> tuple[SymbolDataset, SceneSymb
     slots = extra["scene_slots"].astype(np.int64)
     rel_mask = arrays.mask.astype(bool)
     return _gather(scenes, slots, rel_mask, arrays.action), scenes
-
-
-def touching(state: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """[T, M, M] bool: the pairs of each scene's boxes (features [T, M, D]) in contact by
-    their geometry (boxes.contact_graph), as perception finds them."""
-    out = np.zeros(mask.shape + mask.shape[-1:], bool)
-    for t in range(len(state)):
-        slots = np.flatnonzero(mask[t])
-        shapes = {int(i): box_of(state[t, i]) for i in slots}
-        for i, j in contact_graph({i: (c, R, np.asarray(HALF_EXTENTS[k]))
-                                   for i, (k, c, R) in shapes.items()}):
-            out[t, i, j] = out[t, j, i] = True
-    return out
 
 
 def _gather(scenes: SceneSymbols, slots: np.ndarray, mask: np.ndarray,

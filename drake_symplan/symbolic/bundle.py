@@ -2,7 +2,8 @@
 
 Layout of a bundle directory (`models/learned/` is the shipped default):
 
-- `model.pt`: the effect model's checkpoint (learning/checkpoint.py format);
+- `model.pt`: the effect model's checkpoint (learning/checkpoint.py format), or the
+  hand-made symbols' (learning/handmade.py, `symplan bundle --symbols handmade`);
 - `operators.json`: the lifted operators with their reliabilities, the learner, its
   settings and the atom semantics (`operators_json`, the one layout, versioned);
 - `domain.pddl` (with `:action-costs`, for Fast Downward) and `domain_strips.pddl` (the
@@ -35,6 +36,7 @@ from drake_symplan.learning.checkpoint import (
     save_checkpoint,
 )
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN
+from drake_symplan.learning.handmade import HandmadeSymbols
 from drake_symplan.symbolic.effect_operators import (
     EFFECT,
     PAPER,
@@ -189,15 +191,21 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
     raise ValueError(f"unknown learner {learner!r}; one of {LEARNERS}")
 
 
-def write_bundle(out: str | Path, run_dir: str | Path, operators, semantics: Semantics,
-                 info: dict, provenance: dict, margin: float = DEFAULT_MARGIN,
+def write_bundle(out: str | Path, run_dir: str | Path | HandmadeSymbols, operators,
+                 semantics: Semantics, info: dict, provenance: dict,
+                 margin: float = DEFAULT_MARGIN,
                  continuous_run: str | Path | list | None = None) -> Path:
-    """Writes a bundle directory (every file atomically) from a run's best checkpoint, and
+    """Writes a bundle directory (every file atomically) from a run's best checkpoint (or
+    the hand-made symbols' model, learning/handmade.py, nothing trained), and
     `continuous_run`'s (one run or several) as continuous.pt."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    model, _ = load_run(run_dir)
-    copy_model(run_dir, out / "model.pt")
+    if isinstance(run_dir, HandmadeSymbols):
+        model = run_dir
+        save_checkpoint(out / "model.pt", model.checkpoint())
+    else:
+        model, _ = load_run(run_dir)
+        copy_model(run_dir, out / "model.pt")
     if continuous_run is not None:
         copy_model(continuous_run, out / CONTINUOUS)
     data = operators_json(operators, semantics, {
