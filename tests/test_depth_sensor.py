@@ -167,3 +167,18 @@ def test_the_sensors_normals_are_standard_normal():
     half = 50_001
     assert abs(np.corrcoef(z[:half - 1], z[half:2 * half - 1])[0, 1]) < 0.015
     assert np.isfinite(z).all()
+
+
+def test_labels_are_read_only_where_a_surface_is_dark():
+    # The UR10's black parts lose returns; the hand back-end has nothing dark, so its
+    # station renders no label images (reflectance None) and loses no return for darkness.
+    from drake_symplan.world.cameras import default_cameras
+    from drake_symplan.world.depth_sensor import DARK_BELOW
+    from drake_symplan.world.station import Station, StationConfig
+
+    def table(robot):
+        return Station(StationConfig(cameras=default_cameras()[:1], camera_noise="realsense",
+                                     robot=robot, pool_cubes=1, pool_longs=1)).reflectance
+
+    assert table("hand") is None
+    assert table("ur10").min() < DARK_BELOW

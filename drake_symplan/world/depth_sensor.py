@@ -247,9 +247,11 @@ def _rays(h: int, w: int, focal_px: float, cx: float, cy: float):
     return x, y, np.sqrt(np.square(x) + np.square(y) + 1, dtype=np.float32)
 
 
-def reflectance_by_label(scene_graph) -> np.ndarray:
+def reflectance_by_label(scene_graph) -> np.ndarray | None:
     """Each render label's surface reflectance (its perception diffuse colour's luminance;
-    1 for labels without a colour), indexed by label: what `dark_holes` reads."""
+    1 for labels without a colour), indexed by label: what `dark_holes` reads. None where
+    no surface is dark (below DARK_BELOW; the hand back-end's station): no return is lost
+    for it, and no label image need be rendered."""
     from pydrake.geometry import Role
 
     inspector = scene_graph.model_inspector()
@@ -262,4 +264,4 @@ def reflectance_by_label(scene_graph) -> np.ndarray:
     table = np.ones(max(known, default=0) + 2, np.float32)  # the last: every label beyond
     for label, value in known.items():
         table[label] = value
-    return table
+    return table if table.min() < DARK_BELOW else None
