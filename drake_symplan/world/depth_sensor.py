@@ -172,11 +172,8 @@ def _hole_probability(d, du, dv, focal_px, center, noise, reflectance
     indices), and each one's chance."""
     lost = np.zeros(d.size, np.float32)
     if noise.steep_holes > 0:
-        # Only past STEEP_FROM (cos below its cosine; NaN, an unknown normal, as if facing
-        # the camera) is there a chance: the angle of those alone.
-        cos = _cos_incidence(d, du, dv, focal_px, center).reshape(-1)
-        at = np.flatnonzero(cos < np.float32(np.cos(STEEP_FROM)))
-        ramp = (np.arccos(cos[at]) - np.float32(STEEP_FROM)) / np.float32(np.pi / 2 - STEEP_FROM)
+        at, cos = _steep(d, du, dv, focal_px, center)
+        ramp = (np.arccos(cos) - np.float32(STEEP_FROM)) / np.float32(np.pi / 2 - STEEP_FROM)
         lost[at] = np.float32(noise.steep_holes) * np.clip(ramp, 0, 1)
     if noise.dark_holes > 0 and reflectance is not None:
         refl = np.asarray(reflectance, np.float32).reshape(-1)
@@ -214,37 +211,50 @@ def _edges(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return idx, across
 
 
-def _cos_incidence(d: np.ndarray, du: np.ndarray, dv: np.ndarray, focal_px: float,
-                   center: tuple[float, float]) -> np.ndarray:
-    """|cos| of the angle between each pixel's surface normal (from its neighbours' points)
-    and its view ray; NaN where a neighbour has no return (or on the image's border).
-    `du`, `dv`: the depth's central differences across columns and rows.
+def _steep(d: np.ndarray, du: np.ndarray, dv: np.ndarray, focal_px: float,
+           center: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels seen past STEEP_FROM (flat indices) and the |cos| of the angle between
+    each one's surface normal (from its neighbours' points) and its view ray. Where a
+    neighbour has no return (or on the image's border) the normal is unknown: as if
+    facing the camera. `du`, `dv`: the depth's central differences across columns and rows.
 
     With the ray r = (x, y, 1) and the point p = d r, the tangents are
     p(u+1) - p(u-1) = du r + (su / f, 0, 0) and p(v+1) - p(v-1) = dv r + (0, sv / f, 0),
-    su and sv the sums of the two neighbours' depths; their cross product, the normal, is
+    su and sv the sums of the two neighbours' depths; their cross product, the normal n, is
     (-du b, -dv a, du b x + dv a y + a b) with a = su / f, b = sv / f, and its dot with
-    r is a b."""
+    r is a b (> 0): cos = a b / (|n| |r|), below cos(STEEP_FROM) = c where
+    (a b)^2 < c^2 |n|^2 |r|^2, whose terms are found for every pixel, in place."""
     h, w = d.shape
-    x, y, ray_norm = _rays(h, w, float(focal_px), float(center[0]), float(center[1]))
+    x, y, ray_sq = _rays(h, w, float(focal_px), float(center[0]), float(center[1]))
     a = np.zeros_like(d)
     b = np.zeros_like(d)
-    inv_f = np.float32(1.0 / focal_px)
-    np.multiply(d[:, 2:] + d[:, :-2], inv_f, out=a[:, 1:-1])
-    np.multiply(d[2:, :] + d[:-2, :], inv_f, out=b[1:-1, :])
+    np.add(d[:, 2:], d[:, :-2], out=a[:, 1:-1])
+    np.add(d[2:, :], d[:-2, :], out=b[1:-1, :])
+    a *= np.float32(1.0 / focal_px)
+    b *= np.float32(1.0 / focal_px)
     ab = a * b
-    nz = du * b * x + dv * a * y + ab
-    norm = np.sqrt(np.square(du * b) + np.square(dv * a) + np.square(nz)) * ray_norm
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.abs(ab) / norm
+    n_x = np.multiply(du, b, out=b)  # -(n's x)
+    n_y = np.multiply(dv, a, out=a)
+    n_z = n_x * x
+    n_z += n_y * y
+    n_z += ab
+    norm_sq = np.square(n_x, out=n_x)
+    norm_sq += np.square(n_y, out=n_y)
+    norm_sq += np.square(n_z, out=n_z)
+    norm_sq *= ray_sq  # |n|^2 |r|^2; 0 on the border; NaN: unknown
+    ab = ab.reshape(-1)
+    norm_sq = norm_sq.reshape(-1)
+    at = np.flatnonzero(np.square(ab) < np.float32(np.cos(STEEP_FROM) ** 2) * norm_sq)
+    return at, ab[at] / np.sqrt(norm_sq[at])
 
 
 @functools.lru_cache(maxsize=8)
 def _rays(h: int, w: int, focal_px: float, cx: float, cy: float):
-    """A camera's pixel rays (x [1, W], y [H, 1], with z = 1) and their lengths [H, W]."""
+    """A camera's pixel rays (x [1, W], y [H, 1], with z = 1) and their squared lengths
+    [H, W]."""
     x = ((np.arange(w) - cx) / focal_px).astype(np.float32)[None, :]
     y = ((np.arange(h) - cy) / focal_px).astype(np.float32)[:, None]
-    return x, y, np.sqrt(np.square(x) + np.square(y) + 1, dtype=np.float32)
+    return x, y, (np.square(x) + np.square(y) + 1).astype(np.float32)
 
 
 def reflectance_by_label(scene_graph) -> np.ndarray | None:
