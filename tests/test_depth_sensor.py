@@ -14,6 +14,7 @@ from drake_symplan.world.depth_sensor import (
     calibration_error,
     camera_noise,
     sense,
+    standard_normal,
 )
 from drake_symplan.world.scenes import ObjectSpec, Scene
 
@@ -152,3 +153,32 @@ def test_a_scene_is_seen_with_the_same_noise_whatever_came_before():
     station.depth_frames(1)
     station.reset(a)  # after other frames of another scene: the same noise again
     assert np.array_equal(station.depth_frames(1)[0][0], first, equal_nan=True)
+
+
+def test_the_sensors_normals_are_standard_normal():
+    # Box-Muller in float32 (world/depth_sensor.standard_normal): moments, tails, and the
+    # two halves of a buffer (one pair's cosine and sine) uncorrelated; an odd size too.
+    rng = np.random.default_rng(9)
+    z = np.concatenate([standard_normal(rng, np.empty(100_001, np.float32)) for _ in range(20)])
+    z = z.astype(float)
+    assert abs(z.mean()) < 0.003 and abs(z.std() - 1) < 0.003
+    assert np.mean(np.abs(z) > 2) == pytest.approx(0.0455, abs=0.0015)
+    assert np.mean(np.abs(z) > 3) == pytest.approx(0.0027, abs=0.0004)
+    half = 50_001
+    assert abs(np.corrcoef(z[:half - 1], z[half:2 * half - 1])[0, 1]) < 0.015
+    assert np.isfinite(z).all()
+
+
+def test_labels_are_read_only_where_a_surface_is_dark():
+    # The UR10's black parts lose returns; the hand back-end has nothing dark, so its
+    # station renders no label images (reflectance None) and loses no return for darkness.
+    from drake_symplan.world.cameras import default_cameras
+    from drake_symplan.world.depth_sensor import DARK_BELOW
+    from drake_symplan.world.station import Station, StationConfig
+
+    def table(robot):
+        return Station(StationConfig(cameras=default_cameras()[:1], camera_noise="realsense",
+                                     robot=robot, pool_cubes=1, pool_longs=1)).reflectance
+
+    assert table("hand") is None
+    assert table("ur10").min() < DARK_BELOW

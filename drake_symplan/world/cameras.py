@@ -201,7 +201,7 @@ def read_depth_frames(cameras: list[DepthCamera], root_context, noise: CameraNoi
         refl = None
         if noise.dark_holes > 0 and reflectance is not None:
             label = cam.sensor.label_image_output_port().Eval(ctx).data[:, :, 0]
-            refl = reflectance[np.clip(label, 0, len(reflectance) - 1)]
+            refl = reflectance.take(label, mode="clip")  # past the end: the last
         out.append(sense(depth, cam.info.focal_x(), (cam.info.center_x(), cam.info.center_y()),
                          noise, rng, frames, refl))
     return out

@@ -96,53 +96,92 @@ def sense(depth: np.ndarray, focal_px: float, center: tuple[float, float], noise
     du, dv = np.zeros_like(d), np.zeros_like(d)
     np.subtract(d[:, 2:], d[:, :-2], out=du[:, 1:-1])
     np.subtract(d[2:, :], d[:-2, :], out=dv[1:-1, :])
-    base = d.copy()
     edges, across = _edges(d)
+    holes, lost = _hole_probability(d, du, dv, focal_px, center, noise, reflectance)
+    base = d  # what the surfaces make of the rendered depth, in place: d is read no more
     if len(edges):
         r = rng.random(len(edges))
         flying = (r >= noise.edge_missing) & (r < noise.edge_missing + noise.flying)
         mixed = d.flat[edges] + rng.random(len(edges)) * (across - d.flat[edges])
         base.flat[edges[flying]] = mixed[flying]  # NaN where the other side has no return
         base.flat[edges[r < noise.edge_missing]] = np.nan
-    lost = _hole_probability(d, du, dv, focal_px, center, noise, reflectance)
-    base[rng.random(d.shape, np.float32) < lost] = np.nan
+    base.flat[holes[rng.random(len(holes), np.float32) < lost]] = np.nan
     # Lateral jitter to first order: the depth where the pixel's offset lands on its own
     # surface, gradient . offset (edges have their own errors above); it and the axial
     # noise are independent zero-mean normals, so their sum is one normal whose variance
     # is theirs summed.
-    var = np.square(noise.axial_sigma(base, focal_px), dtype=np.float32)
-    np.nan_to_num(var, copy=False)
+    var = np.square(noise.axial_sigma(base, focal_px), dtype=np.float32)  # NaN: no return
     if noise.lateral_px > 0:
         smooth = (np.abs(du) <= 2 * EDGE_JUMP) & (np.abs(dv) <= 2 * EDGE_JUMP)
         slope = np.where(smooth, np.square(du) + np.square(dv), np.float32(0.0))
         var += np.float32((noise.lateral_px / 2) ** 2) * slope
-    out = np.empty((frames, *d.shape), np.float32)
-    if var.any():
-        rng.standard_normal(dtype=np.float32, out=out)
-        out *= np.sqrt(var)
-        out += base
-    else:
-        out[:] = base
-    if noise.depth_unit > 0:
-        unit = np.float32(noise.depth_unit)
-        np.divide(out, unit, out=out)
-        np.rint(out, out=out)
-        out *= unit
+    return _frames(base, var, noise, rng, frames)
+
+
+def _frames(base: np.ndarray, var: np.ndarray, noise: CameraNoise, rng: np.random.Generator,
+            frames: int) -> np.ndarray:
+    """`frames` images [F, H, W]: base plus normal noise of variance `var`, in steps of
+    `depth_unit`; all in units of the step (one scaling per camera), a frame at a time."""
+    unit = np.float32(noise.depth_unit if noise.depth_unit > 0 else 1.0)
+    shift = base / unit
+    out = np.empty((frames, *base.shape), np.float32)
+    noisy = noise.subpixel > 0 or noise.lateral_px > 0
+    scale = np.sqrt(var) / unit if noisy else None
+    for frame in out:
+        if noisy:
+            standard_normal(rng, frame)
+            frame *= scale
+            frame += shift
+        else:
+            frame[:] = shift
+        if noise.depth_unit > 0:
+            np.rint(frame, out=frame)
+            frame *= unit
     return out
 
 
-def _hole_probability(d, du, dv, focal_px, center, noise, reflectance) -> np.ndarray | float:
-    """Each pixel's chance of no return, from its surface: grazing or dark."""
-    lost = np.float32(0.0)
+def standard_normal(rng: np.random.Generator, out: np.ndarray) -> np.ndarray:
+    """Fills `out` (float32, C-contiguous) with independent standard normals drawn from
+    `rng`'s bits: Box-Muller on 23-bit uniforms, float32 throughout (numpy's float32
+    ziggurat costs twice as much). Each pair of 32-bit words u, t gives
+    sqrt(-2 ln u) (cos 2 pi t, sin 2 pi t), u on (0, 1] and t on [0, 1) in steps of 2^-23;
+    the tail is cut at 5.65 sigma (probability 2e-8)."""
+    flat = out.reshape(-1)
+    n = flat.size
+    m = (n + 1) // 2
+    bits = rng.bit_generator.random_raw(m).view(np.uint32)  # 2m words
+    bits >>= 9
+    bits |= np.uint32(0x3F800000)  # the float32 of 1 + the word's top 23 bits / 2^23
+    f = bits.view(np.float32)
+    r, turn = f[:m], f[m:]
+    np.subtract(np.float32(2.0), r, out=r)  # u on (0, 1]
+    np.log(r, out=r)
+    r *= np.float32(-2.0)
+    np.sqrt(r, out=r)
+    turn *= np.float32(2 * np.pi)  # 2 pi (1 + t): the same cosine and sine as 2 pi t
+    np.cos(turn, out=flat[:m])
+    flat[:m] *= r
+    np.sin(turn[:n - m], out=flat[m:])
+    flat[m:] *= r[:n - m]
+    return out
+
+
+def _hole_probability(d, du, dv, focal_px, center, noise, reflectance
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels that may have no return, for their surface: grazing or dark (flat
+    indices), and each one's chance."""
+    lost = np.zeros(d.size, np.float32)
     if noise.steep_holes > 0:
-        # fmin: where the normal is unknown (NaN), as if facing the camera
-        incidence = np.arccos(np.fmin(_cos_incidence(d, du, dv, focal_px, center), 1))
-        ramp = (incidence - np.float32(STEEP_FROM)) / np.float32(np.pi / 2 - STEEP_FROM)
-        lost = np.maximum(lost, np.float32(noise.steep_holes) * np.clip(ramp, 0, 1))
+        at, cos = _steep(d, du, dv, focal_px, center)
+        ramp = (np.arccos(cos) - np.float32(STEEP_FROM)) / np.float32(np.pi / 2 - STEEP_FROM)
+        lost[at] = np.float32(noise.steep_holes) * np.clip(ramp, 0, 1)
     if noise.dark_holes > 0 and reflectance is not None:
-        ramp = (DARK_BELOW - np.asarray(reflectance, np.float32)) / np.float32(DARK_BELOW)
-        lost = np.maximum(lost, np.float32(noise.dark_holes) * np.clip(ramp, 0, 1))
-    return lost
+        refl = np.asarray(reflectance, np.float32).reshape(-1)
+        at = np.flatnonzero(refl < np.float32(DARK_BELOW))
+        ramp = (DARK_BELOW - refl[at]) / np.float32(DARK_BELOW)
+        lost[at] = np.maximum(lost[at], np.float32(noise.dark_holes) * np.clip(ramp, 0, 1))
+    at = np.flatnonzero(lost)
+    return at, lost[at]
 
 
 def _edges(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -172,42 +211,57 @@ def _edges(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return idx, across
 
 
-def _cos_incidence(d: np.ndarray, du: np.ndarray, dv: np.ndarray, focal_px: float,
-                   center: tuple[float, float]) -> np.ndarray:
-    """|cos| of the angle between each pixel's surface normal (from its neighbours' points)
-    and its view ray; NaN where a neighbour has no return (or on the image's border).
-    `du`, `dv`: the depth's central differences across columns and rows.
+def _steep(d: np.ndarray, du: np.ndarray, dv: np.ndarray, focal_px: float,
+           center: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels seen past STEEP_FROM (flat indices) and the |cos| of the angle between
+    each one's surface normal (from its neighbours' points) and its view ray. Where a
+    neighbour has no return (or on the image's border) the normal is unknown: as if
+    facing the camera. `du`, `dv`: the depth's central differences across columns and rows.
 
     With the ray r = (x, y, 1) and the point p = d r, the tangents are
     p(u+1) - p(u-1) = du r + (su / f, 0, 0) and p(v+1) - p(v-1) = dv r + (0, sv / f, 0),
-    su and sv the sums of the two neighbours' depths; their cross product, the normal, is
+    su and sv the sums of the two neighbours' depths; their cross product, the normal n, is
     (-du b, -dv a, du b x + dv a y + a b) with a = su / f, b = sv / f, and its dot with
-    r is a b."""
+    r is a b (> 0): cos = a b / (|n| |r|), below cos(STEEP_FROM) = c where
+    (a b)^2 < c^2 |n|^2 |r|^2, whose terms are found for every pixel, in place."""
     h, w = d.shape
-    x, y, ray_norm = _rays(h, w, float(focal_px), float(center[0]), float(center[1]))
+    x, y, ray_sq = _rays(h, w, float(focal_px), float(center[0]), float(center[1]))
     a = np.zeros_like(d)
     b = np.zeros_like(d)
-    inv_f = np.float32(1.0 / focal_px)
-    np.multiply(d[:, 2:] + d[:, :-2], inv_f, out=a[:, 1:-1])
-    np.multiply(d[2:, :] + d[:-2, :], inv_f, out=b[1:-1, :])
+    np.add(d[:, 2:], d[:, :-2], out=a[:, 1:-1])
+    np.add(d[2:, :], d[:-2, :], out=b[1:-1, :])
+    a *= np.float32(1.0 / focal_px)
+    b *= np.float32(1.0 / focal_px)
     ab = a * b
-    nz = du * b * x + dv * a * y + ab
-    norm = np.sqrt(np.square(du * b) + np.square(dv * a) + np.square(nz)) * ray_norm
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.abs(ab) / norm
+    n_x = np.multiply(du, b, out=b)  # -(n's x)
+    n_y = np.multiply(dv, a, out=a)
+    n_z = n_x * x
+    n_z += n_y * y
+    n_z += ab
+    norm_sq = np.square(n_x, out=n_x)
+    norm_sq += np.square(n_y, out=n_y)
+    norm_sq += np.square(n_z, out=n_z)
+    norm_sq *= ray_sq  # |n|^2 |r|^2; 0 on the border; NaN: unknown
+    ab = ab.reshape(-1)
+    norm_sq = norm_sq.reshape(-1)
+    at = np.flatnonzero(np.square(ab) < np.float32(np.cos(STEEP_FROM) ** 2) * norm_sq)
+    return at, ab[at] / np.sqrt(norm_sq[at])
 
 
 @functools.lru_cache(maxsize=8)
 def _rays(h: int, w: int, focal_px: float, cx: float, cy: float):
-    """A camera's pixel rays (x [1, W], y [H, 1], with z = 1) and their lengths [H, W]."""
+    """A camera's pixel rays (x [1, W], y [H, 1], with z = 1) and their squared lengths
+    [H, W]."""
     x = ((np.arange(w) - cx) / focal_px).astype(np.float32)[None, :]
     y = ((np.arange(h) - cy) / focal_px).astype(np.float32)[:, None]
-    return x, y, np.sqrt(np.square(x) + np.square(y) + 1, dtype=np.float32)
+    return x, y, (np.square(x) + np.square(y) + 1).astype(np.float32)
 
 
-def reflectance_by_label(scene_graph) -> np.ndarray:
+def reflectance_by_label(scene_graph) -> np.ndarray | None:
     """Each render label's surface reflectance (its perception diffuse colour's luminance;
-    1 for labels without a colour), indexed by label: what `dark_holes` reads."""
+    1 for labels without a colour), indexed by label: what `dark_holes` reads. None where
+    no surface is dark (below DARK_BELOW; the hand back-end's station): no return is lost
+    for it, and no label image need be rendered."""
     from pydrake.geometry import Role
 
     inspector = scene_graph.model_inspector()
@@ -217,7 +271,7 @@ def reflectance_by_label(scene_graph) -> np.ndarray:
         if props.HasProperty("label", "id") and props.HasProperty("phong", "diffuse"):
             rgb = props.GetProperty("phong", "diffuse").rgba[:3]
             known[int(props.GetProperty("label", "id"))] = float(rgb @ [0.2126, 0.7152, 0.0722])
-    table = np.ones(max(known, default=0) + 2)  # the last: every label beyond (empty, ...)
+    table = np.ones(max(known, default=0) + 2, np.float32)  # the last: every label beyond
     for label, value in known.items():
         table[label] = value
-    return table
+    return table if table.min() < DARK_BELOW else None
