@@ -66,23 +66,34 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
                       and max(error(m) for m in {n} | loads[n] - movers) > tolerance),
                      key=lambda n: -max(error(m) for m in {n} | loads[n]))
     for src in sources:
-        size, load = footprint(boxes[src]), loads[src]
-        best = None
-        for move in moves(list(boxes), {src}, lambda _, length=size[1]: length):
-            if grasp_refused(move.action, objects):  # traced: asked sixteen times
-                continue
-            land = release_centre(boxes[move.action.target].position[:2], move.action)
+        load, best = loads[src], None
+        for move, land in _landings(src, boxes, objects):
             shift = land - boxes[src].position[:2]
             miss = max(float(np.linalg.norm(boxes[n].position[:2] + shift - wanted[n][:2]))
                        for n in {src} | load - movers)
             if miss > LAND_TOLERANCE or (best is not None and miss >= best[0]):
                 continue
-            if all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
-                   for n, o in boxes.items() if n != src and n not in load):
+            if _free(land, src, boxes, load):
                 best = (miss, move)
         if best is not None:
             return best[1]
     return None
+
+
+def _landings(src: str, boxes: dict, objects: dict):
+    """(move, where it sets `src` down, xy) of each move of `src` beside or onto another
+    box by a grasp the arm does not refuse (skills/geometry.grasp_refused)."""
+    length = footprint(boxes[src])[1]
+    for move in moves(list(boxes), {src}, lambda _: length):
+        if not grasp_refused(move.action, objects):  # traced: asked sixteen times
+            yield move, release_centre(boxes[move.action.target].position[:2], move.action)
+
+
+def _free(land: np.ndarray, src: str, boxes: dict, load=frozenset()) -> bool:
+    """Is `src` set down at `land` (xy) CLEARANCE clear of every box but its `load`?"""
+    size = footprint(boxes[src])
+    return all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
+               for n, o in boxes.items() if n != src and n not in load)
 
 
 def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Reposition | None:
@@ -98,15 +109,12 @@ def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Repositi
     for name in obstacles:
         if name not in boxes or name in keep or carried(now, name):
             continue
-        size, best = footprint(boxes[name]), None
-        for move in moves(list(boxes), {name}, lambda _, length=size[1]: length):
-            if move.action.target in ends or grasp_refused(move.action, objects):
+        best = None
+        for move, land in _landings(name, boxes, objects):
+            if move.action.target in ends or not _free(land, name, boxes):
                 continue
-            land = release_centre(boxes[move.action.target].position[:2], move.action)
-            free = all(np.any(np.abs(land - o.position[:2]) >= size + footprint(o) + CLEARANCE)
-                       for n, o in boxes.items() if n != name)
             far = min(float(np.linalg.norm(land - p)) for p in away) if away else 0.0
-            if free and (best is None or far > best[0]):
+            if best is None or far > best[0]:
                 best = (far, move)
         if best is not None:
             return best[1]
