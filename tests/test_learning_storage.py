@@ -111,3 +111,21 @@ def test_a_head_view_is_the_first_shards_of_a_set_and_nothing_else(tmp_path):
     assert fingerprint(view) == fingerprint(data)
     with pytest.raises(ValueError, match="do not hold exactly 4 transitions"):
         link_head(data, tmp_path / "other", 4)  # inside a shard
+
+
+def test_data_head_makes_a_view_of_the_first_shards_and_refuses_a_count_inside_one(
+        tmp_path, capsys):
+    from tests.conftest import assert_bad_input, run
+
+    data = tmp_path / "data"
+    write_manifest(data, {"config": {"transitions": 5}, "status": "complete"})
+    for c, (t, episode0) in enumerate([(2, 0), (3, 10)]):
+        write_shard(data, c, _arrays(t, 3, seed=c, episode0=episode0))
+    code, out, _ = run(["data", "head", data, "--transitions", 2, "--out", tmp_path / "v"],
+                       capsys)
+    assert code == 0 and "the first 2 transitions" in out
+    np.testing.assert_array_equal(load_transitions(tmp_path / "v").episode, [0, 1])
+    code, out, err = run(["data", "head", data, "--transitions", 3, "--out",
+                          tmp_path / "w"], capsys)
+    assert_bad_input(code, out, err, "do not hold exactly 3 transitions")
+    assert not (tmp_path / "w").exists()

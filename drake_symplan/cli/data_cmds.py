@@ -1,4 +1,4 @@
-"""`symplan collect` and `symplan data stats`: exploration data sets."""
+"""`symplan collect`, `symplan data stats` and `symplan data head`: exploration data sets."""
 
 from __future__ import annotations
 
@@ -50,6 +50,15 @@ def register(subparsers) -> None:
                        "damaged one (exit 1 if any)")
     add_json_argument(stats)
     stats.set_defaults(func=cmd_data_stats)
+    head = data_sub.add_parser(
+        "head", help="a view of a data set's first N transitions (links, no copy)")
+    head.add_argument("dir", help="data set directory (shards + manifest.json)")
+    head.add_argument("--transitions", type=positive_int, required=True,
+                      help="how many: a whole number of shards (chunks are seeded by their "
+                      "index, so the view is what `collect --transitions N` would make)")
+    head.add_argument("--out", required=True, help="the view's directory")
+    add_json_argument(head)
+    head.set_defaults(func=cmd_data_head)
 
 
 def add_data_arguments(collect) -> None:
@@ -192,6 +201,29 @@ def cmd_data_stats(args: argparse.Namespace) -> dict:
     if not args.json:
         print(format_stats(stats))
     return stats
+
+
+def cmd_data_head(args: argparse.Namespace) -> dict:
+    from pathlib import Path
+
+    from drake_symplan.cli.main import CommandError
+    from drake_symplan.data.storage import link_head, read_manifest
+
+    source = Path(args.dir)
+    if not (source / "manifest.json").is_file():
+        raise CommandError(f"no data set at {source} (no manifest.json)")
+    if Path(args.out).resolve() == source.resolve():
+        raise CommandError("--out must differ from the data set it views")
+    if read_manifest(source).get("status") != "complete":
+        raise CommandError(f"{source} is not a complete collection")
+    try:
+        view = link_head(source, args.out, args.transitions)
+    except ValueError as e:
+        raise CommandError(str(e)) from e
+    out = {"dir": str(source), "out": str(view), "transitions": args.transitions}
+    if not args.json:
+        print(f"{view}: the first {args.transitions} transitions of {source}")
+    return out
 
 
 def _verify(args: argparse.Namespace) -> dict:
