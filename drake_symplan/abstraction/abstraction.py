@@ -20,7 +20,6 @@ from functools import partial
 import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.abstraction.steady import steady_atoms
 from drake_symplan.boxes import CONTACT_TOLERANCE, neighbour_pairs
 from drake_symplan.learning.readout import read_symbols
 from drake_symplan.planning.budget import Budget
@@ -55,9 +54,6 @@ class Reading:
     # The pairs in contact, which the degree atoms count, where the relevance graph is
     # wider (vicinity); None: `contacts`.
     touching: set | None = None
-    # A goal of relations' steady atoms (abstraction/steady.py), the most its goal asks;
-    # None: every atom of the named pairs.
-    steady: frozenset | None = None
 
     @property
     def objects(self) -> tuple[str, ...]:
@@ -276,18 +272,7 @@ class Abstraction:
             named = {n for pair in goal.pairs for n in pair}
             return frozenset(a for a in atoms if set(a[1:]) <= named)
         both = self.bundle.relevance_radius > CONTACT_TOLERANCE
-        atoms = frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both))
-        return atoms if goal.steady is None else atoms & goal.steady
-
-    def relation_goal(self, goal: Observation, relations, steady: bool = True) -> Observation:
-        """`relation_goal` of the perceived example `goal`; with `steady` (and relations
-        in the model), its goal atoms only those its structure reads wherever it stands
-        (abstraction/steady.py)."""
-        out = relation_goal(goal, relations)
-        if not steady or out.reading is None or not self.bundle.n_relations:
-            return out
-        atoms, _ = steady_atoms(self, goal.boxes, out.relations, out.reading)
-        return replace(out, reading=replace(out.reading, steady=atoms))
+        return frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both))
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""

@@ -9,7 +9,6 @@ from drake_symplan.agent.planning_modes import PLANNING_MODES
 from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PLANNERS
 
 GOAL_CHECKS = ("relations", "scene")
-GOAL_ATOMS = ("steady", "example")
 
 
 @dc.dataclass(frozen=True)
@@ -25,10 +24,7 @@ class SolveConfig:
     planning's skeletons beyond the first two when none refines (abstraction/bilevel.py:
     skeletons); goal_check: how a problem made from a written goal (a spec) is judged,
     "relations" (the relations it names, wherever they stand) or "scene" (every box within
-    5 cm of the built example, the paper's check); a goal scene alone is always "scene";
-    goal_atoms: what a goal of relations asks of the symbols, "steady" (the atoms its
-    structure reads wherever it stands, abstraction/steady.py) or "example" (every atom the
-    example reads of the named pairs)."""
+    5 cm of the built example, the paper's check); a goal scene alone is always "scene"."""
 
     planner: str = "fd"
     cpu_seconds: float = DEFAULT_TIMEOUT
@@ -39,13 +35,10 @@ class SolveConfig:
     planning: str = "bilevel"
     alternatives: int = 0
     goal_check: str = "relations"
-    goal_atoms: str = "steady"
 
     def __post_init__(self):
         if self.goal_check not in GOAL_CHECKS:
             raise ValueError(f"unknown goal check {self.goal_check!r}; one of {GOAL_CHECKS}")
-        if self.goal_atoms not in GOAL_ATOMS:
-            raise ValueError(f"unknown goal atoms {self.goal_atoms!r}; one of {GOAL_ATOMS}")
         if self.planner not in PLANNERS:
             raise ValueError(f"unknown planner {self.planner!r}; one of {sorted(PLANNERS)}")
         if not self.cpu_seconds > 0:
@@ -76,8 +69,7 @@ class SolveConfig:
                  "--max-replans", str(self.max_replans), "--planning", self.planning]
         return (flags + ([] if self.refine else ["--no-refine"])
                 + (["--alternatives", str(self.alternatives)] if self.alternatives else [])
-                + (["--goal-check", self.goal_check] if self.goal_check != "relations" else [])
-                + (["--goal-atoms", self.goal_atoms] if self.goal_atoms != "steady" else []))
+                + (["--goal-check", self.goal_check] if self.goal_check != "relations" else []))
 
 
 DEFAULT_SOLVE = SolveConfig()

@@ -29,6 +29,7 @@ from pathlib import Path
 from drake_symplan.abstraction.abstraction import (
     Abstraction,
     Observation,
+    relation_goal,
     reliability,
 )
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
@@ -280,8 +281,7 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
     if goal is not None:
         wanted = Observation(goal.scene, abstraction.read_scene(goal.scene), Boxes.of(goal.scene))
         if relations:
-            wanted = abstraction.relation_goal(wanted, relations,
-                                               config.goal_atoms == "steady")
+            wanted = relation_goal(wanted, relations)
         result["goal"] = symbol_view(goal.scene, wanted.reading)
         result["goal"]["atoms"] = sorted(a.text() for a in abstraction.goal_atoms(wanted.reading))
         found = make_planner(abstraction, config).plan(

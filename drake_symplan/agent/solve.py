@@ -38,7 +38,7 @@ from __future__ import annotations
 import dataclasses as dc
 import time
 
-from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
+from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan, relation_goal
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.offsets import GeometricScorer, choose
 from drake_symplan.abstraction.refiner import set_down_tips
@@ -171,8 +171,7 @@ class _Run:
             with self.clock("symbols"):
                 self.goal = self.abs.observe(self.goal_scene)
                 if self.relations:
-                    self.goal = self.abs.relation_goal(self.goal, self.relations,
-                                                       self.config.goal_atoms == "steady")
+                    self.goal = relation_goal(self.goal, self.relations)
                 self.goal_atoms = self.abs.goal_atoms(self.goal.reading)
                 self._perceived(start.scene)
             first = self._search()

@@ -11,7 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from drake_symplan.agent.config import DEFAULT_SOLVE, GOAL_ATOMS, GOAL_CHECKS, SolveConfig
+from drake_symplan.agent.config import DEFAULT_SOLVE, GOAL_CHECKS, SolveConfig
 from drake_symplan.agent.planning_modes import PLANNING_MODES, mode_names
 from drake_symplan.cli.main import CommandError, bounded, nonnegative_int, positive_float
 from drake_symplan.cli.main import positive_int as positive_int  # the options' types, all here
@@ -161,11 +161,6 @@ def add_solve_arguments(p: argparse.ArgumentParser, monitor_flag: bool = True,
                    help="a goal written as relations (a spec) is judged by them wherever they "
                    "stand (relations), or by every box within 5 cm of the example built "
                    f"(scene, the paper's check) (default {DEFAULT_SOLVE.goal_check})")
-    p.add_argument("--goal-atoms", choices=GOAL_ATOMS, default=DEFAULT_SOLVE.goal_atoms,
-                   help="what a goal written as relations asks of the learned symbols: the "
-                   "atoms its structure reads wherever it stands (steady), or every atom the "
-                   f"example built reads of the named pairs (example) (default "
-                   f"{DEFAULT_SOLVE.goal_atoms})")
 
 
 def solve_config(args: argparse.Namespace) -> SolveConfig:
@@ -176,8 +171,7 @@ def solve_config(args: argparse.Namespace) -> SolveConfig:
                            not getattr(args, "no_refine", False),
                            getattr(args, "planning", DEFAULT_SOLVE.planning),
                            getattr(args, "alternatives", DEFAULT_SOLVE.alternatives),
-                           getattr(args, "goal_check", DEFAULT_SOLVE.goal_check),
-                           getattr(args, "goal_atoms", DEFAULT_SOLVE.goal_atoms))
+                           getattr(args, "goal_check", DEFAULT_SOLVE.goal_check))
     except ValueError as e:
         raise CommandError(str(e).replace("max_replans", "--max-replans")
                            .replace("alternatives must", "--alternatives must")
