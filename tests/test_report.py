@@ -12,6 +12,7 @@ from conftest import assert_bad_input, run
 from drake_symplan.evaluation.report import (
     BLOCK,
     keep,
+    keep_learning,
     load_records,
     render,
     replace_blocks,
@@ -49,13 +50,48 @@ def test_a_record_counts_each_set_and_a_table_renders_it():
         "`results/w-symbolic.json`.\n")
 
 
+EFFECTS = {"runs": [{"run": "runs/x/relational_s0", "error_cm": 0.8378}]}
+OPERATORS = {"operators": 80, "coverage": 0.5123, "precision": 0.6804, "data": "held",
+             "by_k": {"1": {"solved": 0.7}, "2": {"solved": 0.5667}}}
+
+
+def test_a_learning_record_renders_a_row_per_measure():
+    record = keep_learning(EFFECTS, OPERATORS, "n-clean", "n", "clean", "symplan ...")
+    assert record["measures"] == {
+        "effect error, cm (test split)": 0.84, "operators": 80,
+        "coverage, % (held out)": 51.2, "precision, % (held out)": 68.0,
+        "1-step goals solved, %": 70.0, "2-step goals solved, %": 56.7}
+    record.update(measured="2026-12-05", commit="abc1234", host={"cpus": 2})
+    assert render([record], "n").splitlines()[:4] == [
+        "| measure | clean |", "|---|---|", "| effect error, cm (test split) | 0.84 |",
+        "| operators | 80 |"]
+    assert render([record], "n").endswith(
+        "Measured 2026-12-05 at commit abc1234 on 2 CPU cores. Records: "
+        "`results/n-clean.json`.\n")
+    with pytest.raises(ValueError, match="holds measures"):
+        success_by_objects([record], "n")
+
+
+def test_keep_learning_refuses_what_is_not_its_input(tmp_path, capsys):
+    import json
+
+    effects, planning = tmp_path / "e.json", tmp_path / "p.json"
+    effects.write_text(json.dumps(EFFECTS))
+    planning.write_text(json.dumps({"settings": {}}))
+    code, out, err = run(["report", "keep-learning", "--effects", effects, "--operators",
+                          planning, "--name", "n", "--table", "n", "--column", "c",
+                          "--command", "c", "--out", tmp_path / "r.json"], capsys)
+    assert_bad_input(code, out, err, "is not an eval operators output")
+    assert not (tmp_path / "r.json").exists()
+
+
 def test_the_readme_tables_are_the_records_and_a_changed_digit_shows():
     readme = (REPO / "README.md").read_text()
     records = load_records(REPO / "results")
     assert BLOCK.search(readme), "the README has no report block"
     assert replace_blocks(readme, records) == readme
     changed = copy.deepcopy(records)
-    first = next(iter(changed[0]["sets"].values()))
+    first = next(iter(next(r for r in changed if "sets" in r)["sets"].values()))
     first["success"] = first["success"] - 1 if first["success"] else 1
     assert replace_blocks(readme, changed) != readme
     results = (REPO / "docs" / "results.md").read_text()  # its report blocks too

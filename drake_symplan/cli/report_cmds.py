@@ -2,11 +2,14 @@
 
     symplan report keep --records R.jsonl --eval E.json --name NAME --table TABLE \\
         --column COLUMN [--rows set|kind] --command "..." [--out results/NAME.json]
+    symplan report keep-learning --effects E.json --operators O.json --name NAME \\
+        --table TABLE --column COLUMN --command "..." [--out results/NAME.json]
     symplan report render [--results results] [TABLE ...] [--write FILE ...] [--check FILE ...]
     symplan report plot TABLE --out FILE.png [--results results]
 
 `keep` makes one record of an `eval planning` run (its --records file and its --json
-output); `render` prints tables, `--write` puts them between a page's
+output), `keep-learning` one of a trained run (`eval effects --json` of the run,
+`eval operators --json` of its bundle); `render` prints tables, `--write` puts them between a page's
 `<!-- report:TABLE -->` markers, `--check` exits 1 where a page's tables differ from the
 records (evaluation/report.py); `plot` draws a table's success rate against the number of
 objects, a line per column.
@@ -43,6 +46,21 @@ def register(subparsers) -> None:
     keep.add_argument("--out", type=Path, default=None,
                       help="where to write it (default results/NAME.json)")
     keep.set_defaults(func=cmd_keep)
+    learned = sub.add_parser("keep-learning", help="one record of a trained run's learning")
+    learned.add_argument("--effects", required=True, type=Path,
+                         help="`eval effects RUN --json` of the run alone")
+    learned.add_argument("--operators", required=True, type=Path,
+                         help="`eval operators --model BUNDLE --json` of its bundle")
+    for flag, text in (("--name", "the record's name (the question)"),
+                       ("--table", "the table it is a column of"),
+                       ("--column", "its column's heading"),
+                       ("--command", "the commands that made it")):
+        learned.add_argument(flag, required=True, help=text)
+    learned.add_argument("--commit", default=None,
+                         help="the code's commit the run was made at (default: HEAD now)")
+    learned.add_argument("--out", type=Path, default=None,
+                         help="where to write it (default results/NAME.json)")
+    learned.set_defaults(func=cmd_keep_learning)
     render = sub.add_parser("render", help="tables from the records")
     render.add_argument("tables", nargs="*", help="tables to print (default: all)")
     render.add_argument("--results", type=Path, default=Path("results"),
@@ -75,11 +93,33 @@ def cmd_keep(args: argparse.Namespace) -> dict:
                            "no records")
     record = keep(records, settings, args.name, args.table, args.column, args.command,
                   args.rows)
-    if args.commit:
-        record["commit"] = args.commit
+    _write(record, out, args.commit)
+    return {"out": str(out), "sets": len(record["sets"])}
+
+
+def cmd_keep_learning(args: argparse.Namespace) -> dict:
+    from drake_symplan.evaluation.report import keep_learning
+    from drake_symplan.json_files import read_json
+
+    out = args.out or Path("results") / f"{args.name}.json"
+    check_output_file(out, "--out")
+    effects, operators = read_json(args.effects), read_json(args.operators)
+    if not (isinstance(effects, dict) and len(effects.get("runs") or ()) == 1):
+        raise CommandError(f"{args.effects} is not the eval effects output of one run")
+    if not (isinstance(operators, dict) and {"operators", "coverage", "precision", "by_k"}
+            <= set(operators)):
+        raise CommandError(f"{args.operators} is not an eval operators output")
+    record = keep_learning(effects, operators, args.name, args.table, args.column,
+                           args.command)
+    _write(record, out, args.commit)
+    return {"out": str(out), "measures": len(record["measures"])}
+
+
+def _write(record: dict, out: Path, commit: str | None) -> None:
+    if commit:
+        record["commit"] = commit
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(record, indent=1) + "\n")
-    return {"out": str(out), "sets": len(record["sets"])}
 
 
 def cmd_render(args: argparse.Namespace) -> dict:

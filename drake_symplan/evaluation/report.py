@@ -9,7 +9,9 @@ problem set, with when and on what it was measured; `replace_blocks` puts the ta
 between `<!-- report:NAME -->` and `<!-- /report -->` in a page, so that the README's
 numbers are the records' (tests/test_report.py fails on a changed digit). `plot` draws a
 table's success rate against the number of objects, a line per column
-(`success_by_objects` computes its points).
+(`success_by_objects` computes its points). `keep_learning` makes a record of what a
+trained run learned instead (its effect error, its operators on held-out data): its
+table has a row per measure.
 """
 
 from __future__ import annotations
@@ -70,6 +72,34 @@ def keep(records: list[dict], settings: dict, name: str, table: str, column: str
     }
 
 
+def keep_learning(effects: dict, operators: dict, name: str, table: str, column: str,
+                  command: str, repo: Path | None = None) -> dict:
+    """The record of a trained run's learning (`effects`: `eval effects --json` of the run
+    alone; `operators`: `eval operators --json` of its bundle on held-out data)."""
+    run = effects["runs"][0]
+    measures = {"effect error, cm (test split)": round(run["error_cm"], 2),
+                "operators": operators["operators"],
+                "coverage, % (held out)": round(100 * operators["coverage"], 1),
+                "precision, % (held out)": round(100 * operators["precision"], 1)}
+    for k, cell in operators["by_k"].items():
+        measures[f"{k}-step goals solved, %"] = round(100 * cell["solved"], 1)
+    return {"name": name, "table": table, "column": column,
+            "measured": date.today().isoformat(), "host": {"cpus": os.cpu_count()},
+            "commit": _commit(repo or Path.cwd()), "command": command,
+            "settings": {"run": run["run"], "heldout": operators.get("data")},
+            "measures": measures}
+
+
+def _render_measures(chosen: list[dict]) -> list[str]:
+    names = list(dict.fromkeys(m for r in chosen for m in r["measures"]))
+    lines = ["| measure | " + " | ".join(r["column"] for r in chosen) + " |",
+             "|---|" + "---|" * len(chosen)]
+    for m in names:
+        lines.append(f"| {m} | " + " | ".join(
+            str(r["measures"].get(m, "-")) for r in chosen) + " |")
+    return lines
+
+
 def load_records(folder: Path) -> list[dict]:
     return [read_json(p) for p in sorted(Path(folder).glob("*.json"))]
 
@@ -86,6 +116,8 @@ def render(records: list[dict], table: str) -> str:
     (successes on the perceived verdict, the simulator's in brackets, the median plan
     seconds), and a line saying when, where and by what it was measured."""
     chosen = _chosen(records, table)
+    if all("measures" in r for r in chosen):
+        return _finish(_render_measures(chosen), chosen, "")
     keys = sorted({k for r in chosen for k in r["sets"]}, key=_natural)
     lines = ["| set | boxes | actions | " + " | ".join(r["column"] for r in chosen) + " |",
              "|---|---|---|" + "---|" * len(chosen)]
@@ -96,13 +128,18 @@ def render(records: list[dict], table: str) -> str:
         acts = str(acts[0]) if acts[0] == acts[1] else f"{acts[0]}-{acts[1]}"
         lines.append(f"| {key} | {boxes} | {acts} | "
                      + " | ".join(_cell(r["sets"].get(key)) for r in chosen) + " |")
+    return _finish(lines, chosen, "; each cell: solved on the perceived verdict (on the "
+                   "simulator's), median plan seconds")
+
+
+def _finish(lines: list[str], chosen: list[dict], cells: str) -> str:
+    """The table's lines and a line saying when, where and by what it was measured."""
     when = sorted({r["measured"] for r in chosen})
     commits = sorted({str(r["commit"]) for r in chosen})
     cpus = sorted({str(r["host"]["cpus"]) for r in chosen})
     lines.append("")
     lines.append(f"Measured {', '.join(when)} at commit {', '.join(commits)} on "
-                 f"{', '.join(cpus)} CPU cores; each cell: solved on the perceived verdict "
-                 "(on the simulator's), median plan seconds. Records: "
+                 f"{', '.join(cpus)} CPU cores{cells}. Records: "
                  + ", ".join(f"`results/{r['name']}.json`" for r in chosen) + ".")
     return "\n".join(lines) + "\n"
 
@@ -121,6 +158,8 @@ def success_by_objects(records: list[dict], table: str) -> dict[str, list[tuple[
     problems), objects ascending, columns in the order of their records' names."""
     pooled: dict[str, dict[int, list[int]]] = {}
     for record in _chosen(records, table):
+        if "sets" not in record:
+            raise ValueError(f"the table {table!r} holds measures, not problem sets")
         by_objects = pooled.setdefault(record["column"], {})
         for s in record["sets"].values():
             counts = by_objects.setdefault(min(s["objects"]), [0, 0])
