@@ -58,3 +58,21 @@ def test_rectangles_are_left_whole():
     block, cube = top_face((0.70, 0.0), 0.0), top_face((0.75, 0.0), 0.0, long=False)
     parts = split_surface(surface(block, cube))
     assert len(parts) == 2 and abs(min(len(p.points) for p in parts) - len(cube)) < 60
+
+
+def _face(x0: float, x1: float) -> np.ndarray:
+    """Points of a box's side face along x (y = 0) from x0 to x1, 5 cm tall, every 4 mm."""
+    x, z = np.meshgrid(np.arange(x0, x1 + 1e-9, 0.004), np.arange(0.0, 0.05, 0.004))
+    return np.stack([x.ravel(), np.zeros(x.size), z.ravel()], axis=1)
+
+
+def test_a_side_cluster_of_two_cubes_a_gap_apart_is_cut_in_two_and_a_block_is_not():
+    from drake_symplan.perception.box_fitting import _split_at_gaps
+
+    strays = np.array([[0.062, 0.0, 0.02], [0.064, 0.0, 0.03]])  # flying pixels in the gap
+    two = np.concatenate([_face(0.0, 0.05), strays, _face(0.075, 0.125)])
+    left, right = sorted(_split_at_gaps(two), key=lambda p: p[:, 0].min())
+    assert left[:, 0].max() < 0.07 and right[:, 0].min() > 0.05  # a cube's face each
+    assert len(left) + len(right) == len(two)
+    block = _face(0.0, 0.25)
+    assert len(_split_at_gaps(block)) == 1

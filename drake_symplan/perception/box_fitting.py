@@ -40,6 +40,9 @@ LONG_CLUSTER = 0.08  # m: a cluster longer than this is a long block
 CLUSTER_CORE = 98  # percentile: a cluster's length for its type, between the 2nd and 98th
 BOTH_FACES = 0.8  # fraction of a box's size seen along an axis: both faces are seen
 ONE_FACE_UNSURE = 0.3  # ... less than this: the box's centre there is uncertain
+GAP = 0.01  # m: a nearly empty stretch this long splits a side cluster (`_split_at_gaps`)
+GAP_BIN = 0.005  # m: ... measured in bins this long
+STRAY_SHARE = 0.05  # a bin with this share of a typical bin's points is nearly empty
 
 # Upright blocks (`upright_blocks`).
 UPRIGHT_TILT = np.radians(10.0)  # cubes tilted less than this may be stacked in a column
@@ -122,52 +125,87 @@ def _fit_side_clusters(cand: np.ndarray, top: float | None,
     labels, n = ndimage.label(ndimage.binary_dilation(grid, iterations=CLUSTER_DILATION))
     out = []
     for lab in range(1, n + 1):
-        pts = cand[labels[idx[:, 0], idx[:, 1]] == lab]
-        if len(pts) < MIN_SIDE_POINTS:
-            continue
-        if top is not None and _under(pts, above) < MIN_UNDER_POINTS:
-            continue  # the face of a box beside the support (the next tower under a bridge)
-        # The visible side faces (one face, or an L of two) give the box's own yaw; the
-        # box above may have been turned relative to it.
-        angle, *_ = min_area_rectangle(pts[:, :2] - pts[:, :2].mean(axis=0))
-        yaw = angle if np.ptp(pts[:, :2], axis=0).max() > OWN_YAW_EXTENT else above.yaw
-        axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
-        uv = pts[:, :2] @ axes.T
-        ext = np.ptp(uv, axis=0)
-        layer = uv if top is None else uv[pts[:, 2] > top - SIDE + SUPPORT_LAYER]
-        if len(layer) < MIN_SIDE_POINTS:
-            layer = uv
-        # The type from the extent without its tails: a noisy sensor's stray points (a
-        # leaning block's own underside, flying pixels) stretched a cube's 5 cm past 8.
-        core = np.subtract(*np.percentile(layer, [CLUSTER_CORE, 100 - CLUSTER_CORE], axis=0))
-        kind = "long" if core.max() > LONG_CLUSTER else "cube"
-        dims = np.array([SIDE, LONG if kind == "long" else SIDE])
-        if kind == "long" and ext[0] > ext[1]:
-            axes_k = axes[::-1]
-            uv = uv[:, ::-1]
-            ext = ext[::-1]
-        else:
-            axes_k = axes
-        centre_uv = np.empty(2)
-        uncertain = False
-        for d in range(2):
-            a, b = uv[:, d].min(), uv[:, d].max()
-            if ext[d] >= BOTH_FACES * dims[d]:
-                centre_uv[d] = (a + b) / 2
-            else:  # one face seen: anchor on the side with more points near its extreme
-                near_a = np.sum(uv[:, d] < a + EDGE_BAND)
-                near_b = np.sum(uv[:, d] > b - EDGE_BAND)
-                centre_uv[d] = b - dims[d] / 2 if near_b >= near_a else a + dims[d] / 2
-                uncertain |= ext[d] < ONE_FACE_UNSURE * dims[d]
-        xy = centre_uv @ axes_k
-        y_dir = np.array([*axes_k[1], 0.0])
-        n = np.array([0.0, 0.0, 1.0])
-        z_top = top if top is not None else max(SIDE, SIDE * round(pts[:, 2].max() / SIDE))
-        box = box_from_top(np.array([xy[0], xy[1], z_top]), n, y_dir, kind, uncertain,
-                            len(pts))
-        box.from_side = True
-        out.append(box)
+        for pts in _split_at_gaps(cand[labels[idx[:, 0], idx[:, 1]] == lab]):
+            box = _side_box(pts, top, above)
+            if box is not None:
+                out.append(box)
     return out
+
+
+def _split_at_gaps(pts: np.ndarray) -> list[np.ndarray]:
+    """A side cluster cut where its points leave a stretch of GAP or more nearly empty
+    along its longer axis, where that is longer than a cube: two cubes side by side under a
+    span, joined by the clustering's dilation and a noisy sensor's stray points, are two
+    supports."""
+    if len(pts) < 2 * MIN_SIDE_POINTS:
+        return [pts]
+    angle, *_ = min_area_rectangle(pts[:, :2] - pts[:, :2].mean(axis=0))
+    u = pts[:, :2] @ np.array([np.cos(angle), np.sin(angle)])
+    v = pts[:, :2] @ np.array([-np.sin(angle), np.cos(angle)])
+    u = u if np.ptp(u) >= np.ptp(v) else v
+    if np.ptp(u) <= LONG_CLUSTER:  # a cube's own faces, seen from two sides, are one box
+        return [pts]
+    counts, edges = np.histogram(u, np.arange(u.min(), u.max() + GAP_BIN, GAP_BIN))
+    sparse = counts <= STRAY_SHARE * np.median(counts[counts > 0])
+    best, run, cut = 0, 0, None
+    for i, empty in enumerate(sparse):
+        run = run + 1 if empty else 0
+        if run > best and 0 < i - run + 1 and i + 1 < len(sparse):
+            best, cut = run, edges[i + 1 - run // 2]
+    if cut is None or best * GAP_BIN < GAP:
+        return [pts]
+    parts = [pts[u < cut], pts[u >= cut]]
+    if min(len(q) for q in parts) < MIN_SIDE_POINTS:
+        return [pts]
+    return [q for part in parts for q in _split_at_gaps(part)]
+
+
+def _side_box(pts: np.ndarray, top: float | None, above: FittedBox) -> FittedBox | None:
+    """The upright box a side cluster shows (`_fit_side_clusters`), or None."""
+    if len(pts) < MIN_SIDE_POINTS:
+        return None
+    if top is not None and _under(pts, above) < MIN_UNDER_POINTS:
+        return None  # the face of a box beside the support (the next tower under a bridge)
+    # The visible side faces (one face, or an L of two) give the box's own yaw; the
+    # box above may have been turned relative to it.
+    angle, *_ = min_area_rectangle(pts[:, :2] - pts[:, :2].mean(axis=0))
+    yaw = angle if np.ptp(pts[:, :2], axis=0).max() > OWN_YAW_EXTENT else above.yaw
+    axes = np.array([[np.cos(yaw), np.sin(yaw)], [-np.sin(yaw), np.cos(yaw)]])
+    uv = pts[:, :2] @ axes.T
+    ext = np.ptp(uv, axis=0)
+    layer = uv if top is None else uv[pts[:, 2] > top - SIDE + SUPPORT_LAYER]
+    if len(layer) < MIN_SIDE_POINTS:
+        layer = uv
+    # The type from the extent without its tails: a noisy sensor's stray points (a
+    # leaning block's own underside, flying pixels) stretched a cube's 5 cm past 8.
+    core = np.subtract(*np.percentile(layer, [CLUSTER_CORE, 100 - CLUSTER_CORE], axis=0))
+    kind = "long" if core.max() > LONG_CLUSTER else "cube"
+    dims = np.array([SIDE, LONG if kind == "long" else SIDE])
+    if kind == "long" and ext[0] > ext[1]:
+        axes_k = axes[::-1]
+        uv = uv[:, ::-1]
+        ext = ext[::-1]
+    else:
+        axes_k = axes
+    centre_uv = np.empty(2)
+    uncertain = False
+    for d in range(2):
+        a, b = uv[:, d].min(), uv[:, d].max()
+        if ext[d] >= BOTH_FACES * dims[d]:
+            centre_uv[d] = (a + b) / 2
+        else:  # one face seen: anchor on the side with more points near its extreme
+            near_a = np.sum(uv[:, d] < a + EDGE_BAND)
+            near_b = np.sum(uv[:, d] > b - EDGE_BAND)
+            centre_uv[d] = b - dims[d] / 2 if near_b >= near_a else a + dims[d] / 2
+            uncertain |= ext[d] < ONE_FACE_UNSURE * dims[d]
+    xy = centre_uv @ axes_k
+    y_dir = np.array([*axes_k[1], 0.0])
+    n = np.array([0.0, 0.0, 1.0])
+    z_top = top if top is not None else max(SIDE, SIDE * round(pts[:, 2].max() / SIDE))
+    box = box_from_top(np.array([xy[0], xy[1], z_top]), n, y_dir, kind, uncertain,
+                        len(pts))
+    box.from_side = True
+    return box
 
 
 def _under(pts: np.ndarray, box: FittedBox) -> int:
