@@ -81,7 +81,7 @@ def test_keep_learning_refuses_what_is_not_its_input(tmp_path, capsys):
     code, out, err = run(["report", "keep-learning", "--effects", effects, "--operators",
                           planning, "--name", "n", "--table", "n", "--column", "c",
                           "--command", "c", "--out", tmp_path / "r.json"], capsys)
-    assert_bad_input(code, out, err, "is not an eval operators output")
+    assert_bad_input(code, out, err, "symplan report keep-learning:", "is not an eval operators output")
     assert not (tmp_path / "r.json").exists()
 
 

@@ -40,7 +40,8 @@ def register(subparsers) -> None:
     keep.add_argument("--rows", choices=("set", "kind"), default="set",
                       help="a row per problem set, or per kind (its first folder) "
                       "(default set)")
-    keep.add_argument("--command", required=True, help="the command that made it")
+    keep.add_argument("--command", required=True, dest="made_by",
+                      help="the command that made it")
     keep.add_argument("--commit", default=None,
                       help="the code's commit the run was made at (default: HEAD now)")
     keep.add_argument("--out", type=Path, default=None,
@@ -55,7 +56,8 @@ def register(subparsers) -> None:
                        ("--table", "the table it is a column of"),
                        ("--column", "its column's heading"),
                        ("--command", "the commands that made it")):
-        learned.add_argument(flag, required=True, help=text)
+        learned.add_argument(flag, required=True, help=text,
+                             dest="made_by" if flag == "--command" else None)
     learned.add_argument("--commit", default=None,
                          help="the code's commit the run was made at (default: HEAD now)")
     learned.add_argument("--out", type=Path, default=None,
@@ -91,7 +93,7 @@ def cmd_keep(args: argparse.Namespace) -> dict:
     if not isinstance(settings, dict) or not records:
         raise CommandError(f"{args.eval} holds no eval planning settings or {args.records} "
                            "no records")
-    record = keep(records, settings, args.name, args.table, args.column, args.command,
+    record = keep(records, settings, args.name, args.table, args.column, args.made_by,
                   args.rows)
     _write(record, out, args.commit)
     return {"out": str(out), "sets": len(record["sets"])}
@@ -110,7 +112,7 @@ def cmd_keep_learning(args: argparse.Namespace) -> dict:
             <= set(operators)):
         raise CommandError(f"{args.operators} is not an eval operators output")
     record = keep_learning(effects, operators, args.name, args.table, args.column,
-                           args.command)
+                           args.made_by)
     _write(record, out, args.commit)
     return {"out": str(out), "measures": len(record["measures"])}
 
