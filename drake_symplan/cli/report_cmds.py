@@ -34,34 +34,17 @@ def register(subparsers) -> None:
     keep = sub.add_parser("keep", help="one record of an eval planning run")
     keep.add_argument("--records", required=True, type=Path, help="its --records JSONL")
     keep.add_argument("--eval", required=True, type=Path, help="its --json output")
-    keep.add_argument("--name", required=True, help="the record's name (the question)")
-    keep.add_argument("--table", required=True, help="the table it is a column of")
-    keep.add_argument("--column", required=True, help="its column's heading")
     keep.add_argument("--rows", choices=("set", "kind"), default="set",
                       help="a row per problem set, or per kind (its first folder) "
                       "(default set)")
-    keep.add_argument("--command", required=True, dest="made_by",
-                      help="the command that made it")
-    keep.add_argument("--commit", default=None,
-                      help="the code's commit the run was made at (default: HEAD now)")
-    keep.add_argument("--out", type=Path, default=None,
-                      help="where to write it (default results/NAME.json)")
+    _add_record_arguments(keep)
     keep.set_defaults(func=cmd_keep)
     learned = sub.add_parser("keep-learning", help="one record of a trained run's learning")
     learned.add_argument("--effects", required=True, type=Path,
                          help="`eval effects RUN --json` of the run alone")
     learned.add_argument("--operators", required=True, type=Path,
                          help="`eval operators --model BUNDLE --json` of its bundle")
-    for flag, text in (("--name", "the record's name (the question)"),
-                       ("--table", "the table it is a column of"),
-                       ("--column", "its column's heading"),
-                       ("--command", "the commands that made it")):
-        learned.add_argument(flag, required=True, help=text,
-                             dest="made_by" if flag == "--command" else None)
-    learned.add_argument("--commit", default=None,
-                         help="the code's commit the run was made at (default: HEAD now)")
-    learned.add_argument("--out", type=Path, default=None,
-                         help="where to write it (default results/NAME.json)")
+    _add_record_arguments(learned)
     learned.set_defaults(func=cmd_keep_learning)
     render = sub.add_parser("render", help="tables from the records")
     render.add_argument("tables", nargs="*", help="tables to print (default: all)")
@@ -81,13 +64,32 @@ def register(subparsers) -> None:
     plot.set_defaults(func=cmd_plot)
 
 
+def _add_record_arguments(p: argparse.ArgumentParser) -> None:
+    """What `keep` and `keep-learning` ask of every record (report._envelope)."""
+    p.add_argument("--name", required=True, help="the record's name (the question)")
+    p.add_argument("--table", required=True, help="the table it is a column of")
+    p.add_argument("--column", required=True, help="its column's heading")
+    # dest: `command` is the subcommand's name, which error lines print
+    p.add_argument("--command", required=True, dest="made_by",
+                   help="the command(s) that made it")
+    p.add_argument("--commit", default=None,
+                   help="the code's commit the run was made at (default: HEAD now)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="where to write it (default results/NAME.json)")
+
+
+def _record_path(args: argparse.Namespace) -> Path:
+    out = args.out or Path("results") / f"{args.name}.json"
+    check_output_file(out, "--out")
+    return out
+
+
 def cmd_keep(args: argparse.Namespace) -> dict:
     from drake_symplan.evaluation.planning import read_records
     from drake_symplan.evaluation.report import keep
     from drake_symplan.json_files import read_json
 
-    out = args.out or Path("results") / f"{args.name}.json"
-    check_output_file(out, "--out")
+    out = _record_path(args)
     settings = read_json(args.eval).get("settings")
     records = read_records(args.records)
     if not isinstance(settings, dict) or not records:
@@ -103,8 +105,7 @@ def cmd_keep_learning(args: argparse.Namespace) -> dict:
     from drake_symplan.evaluation.report import keep_learning
     from drake_symplan.json_files import read_json
 
-    out = args.out or Path("results") / f"{args.name}.json"
-    check_output_file(out, "--out")
+    out = _record_path(args)
     effects, operators = read_json(args.effects), read_json(args.operators)
     if not (isinstance(effects, dict) and len(effects.get("runs") or ()) == 1):
         raise CommandError(f"{args.effects} is not the eval effects output of one run")

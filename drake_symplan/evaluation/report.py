@@ -58,9 +58,7 @@ def keep(records: list[dict], settings: dict, name: str, table: str, column: str
         key = set_of(r["problem"], root)
         sets[key.split(os.sep)[0] if rows == "kind" else key].append(r)
     return {
-        "name": name, "table": table, "column": column, "measured": date.today().isoformat(),
-        "host": {"cpus": os.cpu_count()}, "commit": _commit(repo or Path.cwd()),
-        "command": command, "settings": settings,
+        **_envelope(name, table, column, command, repo), "settings": settings,
         "sets": {key: {"problems": len(rs),
                        "success": sum(r["status"] == "success" for r in rs),
                        "success_true": sum(bool(r["success_true"]) for r in rs),
@@ -83,11 +81,17 @@ def keep_learning(effects: dict, operators: dict, name: str, table: str, column:
                 "precision, % (held out)": round(100 * operators["precision"], 1)}
     for k, cell in operators["by_k"].items():
         measures[f"{k}-step goals solved, %"] = round(100 * cell["solved"], 1)
-    return {"name": name, "table": table, "column": column,
-            "measured": date.today().isoformat(), "host": {"cpus": os.cpu_count()},
-            "commit": _commit(repo or Path.cwd()), "command": command,
+    return {**_envelope(name, table, column, command, repo),
             "settings": {"run": run["run"], "heldout": operators.get("data")},
             "measures": measures}
+
+
+def _envelope(name: str, table: str, column: str, command: str, repo: Path | None) -> dict:
+    """What every record says of itself: its question, its place in a table, when, on
+    what and by which code and command it was measured."""
+    return {"name": name, "table": table, "column": column,
+            "measured": date.today().isoformat(), "host": {"cpus": os.cpu_count()},
+            "commit": _commit(repo or Path.cwd()), "command": command}
 
 
 def _render_measures(chosen: list[dict]) -> list[str]:
