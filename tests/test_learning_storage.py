@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import assert_bad_input, run
 
 from drake_symplan.datasets import TransitionArrays
 from drake_symplan.shards import (
@@ -115,8 +116,6 @@ def test_a_head_view_is_the_first_shards_of_a_set_and_nothing_else(tmp_path):
 
 def test_data_head_makes_a_view_of_the_first_shards_and_refuses_a_count_inside_one(
         tmp_path, capsys):
-    from tests.conftest import assert_bad_input, run
-
     data = tmp_path / "data"
     write_manifest(data, {"config": {"transitions": 5}, "status": "complete"})
     for c, (t, episode0) in enumerate([(2, 0), (3, 10)]):
