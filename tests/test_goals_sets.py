@@ -18,7 +18,7 @@ WRITTEN = ("tower4", "towers3", "bridge2", "row4", "bridge_towers")
 
 def test_the_shipped_sets_load_with_their_records_values():
     sets = read_problem_sets(backends=("arm", "hand"))
-    assert sorted(sets) == ["scale", "scale16", "towers", "written"]
+    assert sorted(sets) == ["relations30", "scale", "scale16", "towers", "written"]
     written = sets["written"]
     assert isinstance(written, ProblemSet) and written.comment
     assert len(written.subsets) == 10
@@ -38,6 +38,8 @@ def test_the_shipped_sets_load_with_their_records_values():
     assert [(s.folder, s.k, s.seed, s.count, s.max_attempts)
             for s in sets["towers"].subsets] == [("o8", (4, 5, 6), 9008, 5, 15),
                                                  ("o12", (6, 8, 10), 9012, 5, 15)]
+    assert [(s.objects, s.count, s.backend) for s in sets["relations30"].subsets] == [
+        (4, 30, "arm"), (6, 30, "arm"), (8, 30, "arm"), (12, 30, "arm"), (16, 30, "hand")]
 
 
 def test_a_subset_is_the_plain_commands_arguments(tmp_path):
@@ -106,7 +108,7 @@ def test_an_unknown_set_is_one_line_naming_the_sets(tmp_path, capsys):
     out = tmp_path / "p"
     assert_bad_input(*run(["problems", "make", "--out", out, "--set", "nope"], capsys),
                      "symplan problems make: error: unknown problem set 'nope'; "
-                     "configs/problem_sets.yaml has ['scale', 'scale16', 'towers', 'written']")
+                     "configs/problem_sets.yaml has ['relations30', 'scale', 'scale16', 'towers', 'written']")
     assert not out.exists()
 
 
