@@ -137,7 +137,9 @@ def _split_at_gaps(pts: np.ndarray) -> list[np.ndarray]:
     along its longer axis, where that is longer than a cube: two cubes side by side under a
     span, joined by the clustering's dilation and a noisy sensor's stray points, are two
     supports."""
-    if len(pts) < 2 * MIN_SIDE_POINTS:
+    # No two points farther apart than the footprint's diagonal: a cube's cluster (most of
+    # them) is left whole before the rectangle `_side_box` fits anyway.
+    if len(pts) < 2 * MIN_SIDE_POINTS or np.hypot(*np.ptp(pts[:, :2], axis=0)) <= LONG_CLUSTER:
         return [pts]
     angle, *_ = min_area_rectangle(pts[:, :2] - pts[:, :2].mean(axis=0))
     u = pts[:, :2] @ np.array([np.cos(angle), np.sin(angle)])
