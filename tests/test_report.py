@@ -50,6 +50,22 @@ def test_a_record_counts_each_set_and_a_table_renders_it():
         "`results/w-symbolic.json`.\n")
 
 
+def test_structure_rows_split_each_set_by_whether_its_goal_names_a_bridge(tmp_path):
+    import json
+
+    old = tmp_path / "w" / "o8" / "p001"  # a record made before records kept the spec
+    old.mkdir(parents=True)
+    (old / "problem.json").write_text(json.dumps({"spec": ["tower o1 o0", "row o2 o3"]}))
+    records = [{**solve(str(tmp_path / "w/o8/p000"), "failure", n=8),
+                "spec": ["tower o1 o0", "bridge o4 o1 o2"]},
+               solve(str(old), "success", n=8),
+               {**solve(str(tmp_path / "w/o6/p000"), "success"), "spec": ["row o0 o1"]}]
+    record = keep(records, {"problems_dir": str(tmp_path / "w")}, "s", "s", "c", "...",
+                  rows="structure")
+    assert {key: (s["problems"], s["success"]) for key, s in record["sets"].items()} == {
+        "o6, no bridge": (1, 1), "o8, bridge": (1, 0), "o8, no bridge": (1, 1)}
+
+
 EFFECTS = {"runs": [{"run": "runs/x/relational_s0", "error_cm": 0.8378}]}
 OPERATORS = {"operators": 80, "coverage": 0.5123, "precision": 0.6804, "data": "held",
              "by_k": {"1": {"solved": 0.7}, "2": {"solved": 0.5667}}}

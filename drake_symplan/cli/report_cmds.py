@@ -1,7 +1,7 @@
 """`symplan report`: results kept as records in the repo, and the tables rendered from them.
 
     symplan report keep --records R.jsonl --eval E.json --name NAME --table TABLE \\
-        --column COLUMN [--rows set|kind] --command "..." [--out results/NAME.json]
+        --column COLUMN [--rows set|kind|structure] --command "..." [--out results/NAME.json]
     symplan report keep-learning --effects E.json --operators O.json --name NAME \\
         --table TABLE --column COLUMN --command "..." [--out results/NAME.json]
     symplan report render [--results results] [TABLE ...] [--write FILE ...] [--check FILE ...]
@@ -34,9 +34,9 @@ def register(subparsers) -> None:
     keep = sub.add_parser("keep", help="one record of an eval planning run")
     keep.add_argument("--records", required=True, type=Path, help="its --records JSONL")
     keep.add_argument("--eval", required=True, type=Path, help="its --json output")
-    keep.add_argument("--rows", choices=("set", "kind"), default="set",
-                      help="a row per problem set, or per kind (its first folder) "
-                      "(default set)")
+    keep.add_argument("--rows", choices=("set", "kind", "structure"), default="set",
+                      help="a row per problem set, per kind (its first folder), or per set "
+                      "and structure (whether the goal names a bridge) (default set)")
     _add_record_arguments(keep)
     keep.set_defaults(func=cmd_keep)
     learned = sub.add_parser("keep-learning", help="one record of a trained run's learning")

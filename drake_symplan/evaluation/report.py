@@ -47,16 +47,33 @@ def set_of(problem: str, root: str) -> str:
     return parent if parent else "."
 
 
+def structure_of(record: dict) -> str:
+    """"bridge" where the problem's goal names a bridge, else "no bridge": the record's
+    spec, or (records made before they kept it) its problem.json's."""
+    spec = record.get("spec")
+    if spec is None:
+        spec = read_json(Path(record["problem"]) / "problem.json").get("spec") or []
+    return "bridge" if any(s.split()[0] == "bridge" for s in spec) else "no bridge"
+
+
+def row_of(record: dict, root: str, rows: str) -> str:
+    """The row a per-solve record counts in (`keep`'s `rows`)."""
+    key = set_of(record["problem"], root)
+    if rows == "kind":
+        return key.split(os.sep)[0]
+    return f"{key}, {structure_of(record)}" if rows == "structure" else key
+
+
 def keep(records: list[dict], settings: dict, name: str, table: str, column: str,
          command: str, rows: str = "set", repo: Path | None = None) -> dict:
     """The record of one evaluation (`records`: its per-solve records, `settings`: its
-    JSON's settings). `rows`: "set" (one row per problem set) or "kind" (sets merged by
-    their first folder: row4/o6 and row4/o8 are one row)."""
+    JSON's settings). `rows`: "set" (one row per problem set), "kind" (sets merged by
+    their first folder: row4/o6 and row4/o8 are one row) or "structure" (each set split
+    by whether the goal names a bridge, `structure_of`)."""
     root = settings["problems_dir"]
     sets = defaultdict(list)
     for r in records:
-        key = set_of(r["problem"], root)
-        sets[key.split(os.sep)[0] if rows == "kind" else key].append(r)
+        sets[row_of(r, root, rows)].append(r)
     return {
         **_envelope(name, table, column, command, repo), "settings": settings,
         "sets": {key: {"problems": len(rs),
