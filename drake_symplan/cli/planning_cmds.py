@@ -94,6 +94,10 @@ def _register_bundle(subparsers) -> None:
                    "precision, no operator can require that (default on)")
     b.add_argument("--margin", type=nonnegative_float, default=3.0,
                    help="a bit is uncertain when |logit| < margin (default 3)")
+    b.add_argument("--generalize", type=probability, default=None, metavar="TOLERANCE",
+                   help="effect learner: drop each precondition atom not naming the source "
+                   "whose absence costs the operator at most TOLERANCE of its reliability on "
+                   "the data (symbolic/generalize.py; default: keep them all)")
     add_json_argument(b)
     b.set_defaults(func=cmd_bundle)
 
@@ -266,7 +270,8 @@ def cmd_bundle(args) -> dict:
             else {})}
     data, _ = readout_scenes(model, args.data, args.margin)
     operators, semantics, info = learn_bundle_operators(
-        data, args.learner, args.min_count, args.support, args.contact_degree == "on")
+        data, args.learner, args.min_count, args.support, args.contact_degree == "on",
+        args.generalize)
     info["relevance_radius"] = relevance_radius(args.data)
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]), **source,
                   "data": str(args.data), "data_fingerprint": fingerprint(args.data)}

@@ -46,6 +46,7 @@ from drake_symplan.symbolic.effect_operators import (
     lift_transitions,
     measure_reliability,
 )
+from drake_symplan.symbolic.generalize import generalize as generalize_operators
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
 from drake_symplan.symbolic.pddl import domain_pddl
 from drake_symplan.symbolic.structs import LiftedOperator, PlanningOperators
@@ -174,16 +175,23 @@ def copy_model(run_dirs: str | Path | list, path: Path) -> Path:
 
 
 def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
-                           support: float = 0.95, contact_degree: bool = True):
+                           support: float = 0.95, contact_degree: bool = True,
+                           generalize: float | None = None):
     """(operators, semantics, info) learned from a SymbolDataset by `learner`:
-    "effect" (effect_operators.py; `contact_degree`: with contact-degree atoms) or "paper"
-    (operators.py, the paper's method as implemented, measured under its own semantics:
-    every bit, every pair)."""
+    "effect" (effect_operators.py; `contact_degree`: with contact-degree atoms;
+    `generalize`: preconditions cut to what the data shows matters, within that much
+    reliability, symbolic/generalize.py) or "paper" (operators.py, the paper's method as
+    implemented, measured under its own semantics: every bit, every pair)."""
     if learner == "effect":
         semantics = EFFECT if contact_degree else dataclasses.replace(EFFECT, degree=False)
+        lifted = lift_transitions(data, semantics)
         result = learn_effect_operators(data, EffectLearnConfig(min_count, support),
-                                        semantics=semantics)
-        return result.operators, semantics, {**result.summary(), "contact_degree": contact_degree}
+                                        lifted=lifted, semantics=semantics)
+        info = {**result.summary(), "contact_degree": contact_degree}
+        if generalize is None:
+            return result.operators, semantics, info
+        operators = generalize_operators(result.operators, lifted, generalize)
+        return operators, semantics, {**info, "generalize": generalize}
     if learner == "paper":
         result = learn_operators(data, LearnConfig(min_count=min_count))
         measure_reliability(result.operators, lift_transitions(data, PAPER))

@@ -1,0 +1,52 @@
+"""Operators' preconditions cut to what the data shows matters (symbolic/generalize.py)."""
+
+from __future__ import annotations
+
+from drake_symplan.symbolic.effect_operators import Lifted
+from drake_symplan.symbolic.generalize import droppable, generalize, generalize_one
+from drake_symplan.symbolic.lifted import LiftedOperator
+
+# A centred place (grasp 1, release 1) of object 0 on object 1: after it, r0(0, 1).
+PLACED = frozenset({("r0", 0, 1)})
+
+
+def placed(before: set, followed: bool = True, n: int = 2) -> Lifted:
+    """One transition of the action on objects 0 (source) and 1 (target), and with `n` 3 a
+    third object 2; its effect followed or not."""
+    bindings = {(): {0: 0, 1: 1}}
+    if n == 3:
+        bindings[(2,)] = {0: 0, 1: 1, 2: 2}
+    before = frozenset(before)
+    return Lifted(1, 1, n, before, before | PLACED if followed else before, frozenset(),
+                  frozenset(), bindings, before)
+
+
+def operator(pre) -> LiftedOperator:
+    n = 1 + max(s for a in pre for s in a[1:])
+    return LiftedOperator(0, "center", "center", max(n, 2), tuple(pre), tuple(PLACED), (),
+                          count=10)
+
+
+def test_an_atom_the_data_never_saw_false_is_dropped_and_one_that_matters_stays():
+    op = operator([("p0", 0), ("p0", 1), ("not_p1", 1)])
+    # p0(1) held in every transition of the action (no evidence); not_p1(1) false in two,
+    # where the place did nothing.
+    seen = [placed({("p0", 0), ("p0", 1), ("not_p1", 1)}) for _ in range(8)]
+    seen += [placed({("p0", 0), ("p0", 1), ("p1", 1)}, followed=False) for _ in range(2)]
+    general = generalize_one(op, seen)
+    assert set(general.pre) == {("p0", 0), ("not_p1", 1)}
+    assert (general.applicable, general.succeeded) == (8, 8)
+
+
+def test_only_unary_atoms_of_the_target_and_the_others_are_tried_the_others_first():
+    op = operator([("p0", 0), ("p0", 1), ("r1", 1, 2), ("touching1", 2), ("p0", 2)])
+    assert droppable(op) == [("p0", 2), ("touching1", 2), ("p0", 1)]
+
+
+def test_a_drop_within_the_tolerance_is_taken_and_one_beyond_it_is_not():
+    op = operator([("p0", 0), ("p0", 1)])
+    seen = [placed({("p0", 0), ("p0", 1)}) for _ in range(10)]
+    seen += [placed({("p0", 0), ("not_p0", 1)}, followed=i < 9) for i in range(10)]
+    assert set(generalize([op], seen, tolerance=0.1)[0].pre) == {("p0", 0)}  # 19/20
+    assert set(generalize([op], seen, tolerance=0.01)[0].pre) == {("p0", 0), ("p0", 1)}
+    assert op.pre == operator([("p0", 0), ("p0", 1)]).pre  # the input is left as it was
