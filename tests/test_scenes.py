@@ -71,6 +71,13 @@ def test_sampler_is_seeded_and_valid():
         validate_scene(a)
 
 
+def test_a_sampled_scene_holds_no_more_boxes_of_a_type_than_the_station_has():
+    # sixteen boxes, nearly all long: the station has eight long blocks, the rest are cubes
+    scene = sample_scene(np.random.default_rng(3), 16, long_fraction=0.95)
+    types = [o.type for o in scene.objects]
+    assert (types.count("long"), types.count("cube")) == (8, 8)
+
+
 def test_a_scene_is_checked_as_its_file_reads_back(tmp_path):
     scene = Scene([ObjectSpec("a", "cube", [0.612345678, -0.1, 0.025], 0.123456789)])
     saved = as_saved(scene)  # numbers rounded as written, then validated

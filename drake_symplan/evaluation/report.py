@@ -156,7 +156,8 @@ def render(records: list[dict], table: str) -> str:
 def _finish(lines: list[str], chosen: list[dict], cells: str) -> str:
     """The table's lines and a line saying when, where and by what it was measured."""
     when = sorted({r["measured"] for r in chosen})
-    commits = sorted({str(r["commit"]) for r in chosen})
+    # a record made of several runs names their commits, comma-separated
+    commits = sorted({c for r in chosen for c in str(r["commit"]).split(", ")})
     cpus = sorted({str(r["host"]["cpus"]) for r in chosen})
     lines.append("")
     lines.append(f"Measured {', '.join(when)} at commit {', '.join(commits)} on "

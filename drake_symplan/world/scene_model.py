@@ -29,6 +29,7 @@ from drake_symplan.datasets import ObjectState
 WORKSPACE_X = (0.45, 1.0)
 WORKSPACE_Y = (-0.4, 0.4)
 MAX_OBJECTS = 16
+POOL = {"cube": 16, "long": 8}  # boxes of each type the station holds (StationConfig's pool)
 
 # Resting tolerance: a box is supported if its bottom is within this of the table or
 # of another box's top, with overlapping footprints.

@@ -16,6 +16,7 @@ import numpy as np
 from drake_symplan.atomic import write_atomic
 from drake_symplan.boxes import HALF_EXTENTS, LONG, SIDE
 from drake_symplan.world.scene_model import MAX_OBJECTS as MAX_OBJECTS
+from drake_symplan.world.scene_model import POOL
 from drake_symplan.world.scene_model import TILT_TOL as TILT_TOL
 from drake_symplan.world.scene_model import WORKSPACE_X as WORKSPACE_X
 from drake_symplan.world.scene_model import WORKSPACE_Y as WORKSPACE_Y
@@ -169,7 +170,9 @@ def sample_scene(
     min_gap: float = 0.02,
     max_tries: int = 1000,
 ) -> Scene:
-    """A random valid scene: `num_objects` upright boxes on the table, long blocks along y.
+    """A random valid scene: `num_objects` upright boxes on the table, long blocks along y,
+    each a long block with probability `long_fraction` while the station's pool (POOL)
+    has one left, else a cube.
 
     `yaw_jitter` (radians) perturbs each yaw uniformly; `min_gap` keeps footprints apart so
     that sampled objects start out not touching.
@@ -179,6 +182,8 @@ def sample_scene(
     objects: list[ObjectSpec] = []
     for i in range(num_objects):
         kind = "long" if rng.random() < long_fraction else "cube"
+        if sum(o.type == kind for o in objects) >= POOL[kind]:
+            kind = "cube" if kind == "long" else "long"
         hx, hy, hz = HALF_EXTENTS[kind]
         for _ in range(max_tries):
             yaw = float(rng.uniform(-yaw_jitter, yaw_jitter)) if yaw_jitter > 0 else 0.0

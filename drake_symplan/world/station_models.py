@@ -15,6 +15,7 @@ from pydrake.multibody.tree import PdControllerGains
 from drake_symplan.boxes import OBJECT_TYPES
 from drake_symplan.world.cameras import CameraConfig
 from drake_symplan.world.hand import AddHand
+from drake_symplan.world.scene_model import POOL
 
 MODEL_FILES = {
     "cube": "package://drake_symplan_models/objects/cube.sdf",
@@ -53,8 +54,8 @@ class StationConfig:
     contact_model: str = "hydroelastic_with_fallback"
     discrete_contact_approximation: str = "similar"
     box_modulus: float = BOX_MODULUS  # Pa, replaces the box models' own value
-    pool_cubes: int = 16
-    pool_longs: int = 8
+    pool_cubes: int = POOL["cube"]
+    pool_longs: int = POOL["long"]
     arm_kp: list[float] = dc.field(default_factory=lambda: [4000, 4000, 2000, 500, 500, 300])
     arm_kd: list[float] = dc.field(default_factory=lambda: [400, 400, 200, 30, 30, 15])
     finger_kp: float = 1000.0
