@@ -95,9 +95,9 @@ def _register_bundle(subparsers) -> None:
     b.add_argument("--margin", type=nonnegative_float, default=3.0,
                    help="a bit is uncertain when |logit| < margin (default 3)")
     b.add_argument("--generalize", type=probability, default=None, metavar="TOLERANCE",
-                   help="effect learner: drop each precondition atom not naming the source "
-                   "whose absence costs the operator at most TOLERANCE of its reliability on "
-                   "the data (symbolic/generalize.py; default: keep them all)")
+                   help="effect learner: drop each unary precondition of the target and the "
+                   "other objects whose absence costs the operator at most TOLERANCE of its "
+                   "reliability on the data (symbolic/generalize.py; default: keep them all)")
     add_json_argument(b)
     b.set_defaults(func=cmd_bundle)
 

@@ -333,19 +333,35 @@ def learn_effect_operators(data: SymbolDataset, config: EffectLearnConfig | None
                  "reliability": round(t3 - t2, 3)})
 
 
+def by_action(lifted: list[Lifted]) -> dict[tuple, list[Lifted]]:
+    """The transitions by their action, (grasp, release) as OFFSETS indices."""
+    out: dict[tuple, list[Lifted]] = defaultdict(list)
+    for tr in lifted:
+        out[(tr.grasp, tr.release)].append(tr)
+    return out
+
+
+def action_of(op: LiftedOperator) -> tuple[int, int]:
+    """The operator's action as `by_action` keys it."""
+    return OFFSETS.index(op.grasp), OFFSETS.index(op.release)
+
+
+def counted(op: LiftedOperator, transitions: list[Lifted]) -> tuple[int, int]:
+    """(transitions where `op` applies, those where its effect followed)."""
+    applicable = succeeded = 0
+    for tr in transitions:
+        verdict = follows(op, tr)
+        if verdict is not None:
+            applicable += 1
+            succeeded += verdict
+    return applicable, succeeded
+
+
 def measure_reliability(operators: list[LiftedOperator], lifted: list[Lifted]) -> None:
     """Sets each operator's `applicable` and `succeeded` counts on the transitions."""
-    by_action: dict[tuple, list[Lifted]] = defaultdict(list)
-    for tr in lifted:
-        by_action[(tr.grasp, tr.release)].append(tr)
+    actions = by_action(lifted)
     for op in operators:
-        key = (OFFSETS.index(op.grasp), OFFSETS.index(op.release))
-        op.applicable = op.succeeded = 0
-        for tr in by_action.get(key, ()):
-            verdict = follows(op, tr)
-            if verdict is not None:
-                op.applicable += 1
-                op.succeeded += verdict
+        op.applicable, op.succeeded = counted(op, actions.get(action_of(op), []))
 
 
 def _grounded(op: LiftedOperator, tr: Lifted):

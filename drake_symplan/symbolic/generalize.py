@@ -16,10 +16,9 @@ other objects), stay as learned. The planner's cost (-log reliability) is remeas
 
 from __future__ import annotations
 
-from collections import defaultdict
+import dataclasses
 
-from drake_symplan.actions import OFFSETS
-from drake_symplan.symbolic.effect_operators import Lifted, follows
+from drake_symplan.symbolic.effect_operators import Lifted, action_of, by_action, counted
 from drake_symplan.symbolic.lifted import LiftedOperator
 
 DEFAULT_TOLERANCE = 0.02  # reliability an operator may lose with an atom dropped
@@ -34,21 +33,10 @@ def droppable(op: LiftedOperator) -> list:
     return sorted(atoms, key=lambda a: (-a[1], a[0]))
 
 
-def measured(op: LiftedOperator, transitions: list[Lifted]) -> tuple[int, int]:
-    """(transitions where `op` applies, those where its effect followed)."""
-    applicable = succeeded = 0
-    for tr in transitions:
-        verdict = follows(op, tr)
-        if verdict is not None:
-            applicable += 1
-            succeeded += verdict
-    return applicable, succeeded
-
-
-def _with_pre(op: LiftedOperator, pre: tuple, counts: tuple[int, int]) -> LiftedOperator:
-    out = LiftedOperator(op.index, op.grasp, op.release, op.n_params, pre, op.add, op.delete,
-                         op.count, counts[0], counts[1], op.cost_scale, op.outcomes,
-                         op.effect_count, op.example, op.example_slots)
+def _measured(op: LiftedOperator, pre: tuple, transitions: list[Lifted]) -> LiftedOperator:
+    """`op` with preconditions `pre`, its counts measured on `transitions`."""
+    out = dataclasses.replace(op, pre=pre)
+    out.applicable, out.succeeded = counted(out, transitions)
     return out
 
 
@@ -56,11 +44,10 @@ def generalize_one(op: LiftedOperator, transitions: list[Lifted],
                    tolerance: float = DEFAULT_TOLERANCE) -> LiftedOperator:
     """`op` with the atoms the data gives no evidence for dropped (module docstring);
     `transitions`: those of its action."""
-    best = _with_pre(op, op.pre, measured(op, transitions))
+    best = _measured(op, op.pre, transitions)
     floor = best.reliability - tolerance
     for atom in droppable(op):
-        pre = tuple(a for a in best.pre if a != atom)
-        trial = _with_pre(best, pre, measured(_with_pre(best, pre, (0, 0)), transitions))
+        trial = _measured(best, tuple(a for a in best.pre if a != atom), transitions)
         if trial.applicable and trial.reliability >= floor:
             best = trial
     return best
@@ -69,8 +56,5 @@ def generalize_one(op: LiftedOperator, transitions: list[Lifted],
 def generalize(operators: list[LiftedOperator], lifted: list[Lifted],
                tolerance: float = DEFAULT_TOLERANCE) -> list[LiftedOperator]:
     """Every operator generalized on the transitions `lifted` (`generalize_one`)."""
-    by_action: dict[tuple, list[Lifted]] = defaultdict(list)
-    for tr in lifted:
-        by_action[(tr.grasp, tr.release)].append(tr)
-    return [generalize_one(op, by_action[(OFFSETS.index(op.grasp), OFFSETS.index(op.release))],
-                           tolerance) for op in operators]
+    actions = by_action(lifted)
+    return [generalize_one(op, actions.get(action_of(op), []), tolerance) for op in operators]
