@@ -46,6 +46,18 @@ def test_a_skeleton_that_builds_the_relation_elsewhere_is_accepted_for_a_relatio
     assert [str(s) for s in found.steps] == [str(A_ON_C.steps[0])]
 
 
+def test_a_relation_goal_is_reached_by_its_relations_not_by_boxes_near_the_example():
+    refiner = Refiner(list(STACK.values()), Stacking())
+    refiner.relations = tuple(parse(["row a b"]))
+    example = boxes(a=(0.6, 0.0, 0.025), b=(0.6, 0.06, 0.025))
+    # b 3 cm across from a: each box within 3 cm of the example's place, and no row
+    askew = boxes(a=(0.6, 0.0, 0.025), b=(0.63, 0.06, 0.025))
+    assert not refiner.reached(askew, example.where())
+    # the same row 20 cm from the example holds
+    elsewhere = boxes(a=(0.5, -0.2, 0.025), b=(0.5, -0.14, 0.025))
+    assert refiner.reached(elsewhere, example.where())
+
+
 def test_a_relation_goal_names_its_pairs_upper_first_with_the_lower_boxs_layer():
     tower = boxes(a=(0.6, 0.1, 0.125), b=(0.6, 0.1, 0.075), c=(0.6, 0.1, 0.025),
                   d=(0.8, 0.0, 0.025))

@@ -29,10 +29,9 @@ from drake_symplan.abstraction.stability import (
     COVER_INSET,
     FOOTPRINTS,
     LEVEL,
-    covers,
-    covers_any,
     footprint_points,
     over_top,
+    over_tops,
     under_of,
 )
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
@@ -68,10 +67,19 @@ class Boxes:
     def contacts(self) -> frozenset:
         """The sorted name pairs in contact."""
         if self.known_contacts is None:
-            geometry = {name: (centre, R, np.asarray(HALF_EXTENTS[kind]))
-                        for name, (kind, centre, R) in zip(self.names, self.shapes, strict=True)}
-            object.__setattr__(self, "known_contacts", frozenset(contact_graph(geometry)))
+            object.__setattr__(self, "known_contacts", frozenset(contact_graph(self._geometry)))
         return self.known_contacts
+
+    @cached_property
+    def _geometry(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """name -> (centre, R, half extents), as boxes.contact_graph reads them."""
+        return {name: (centre, R, np.asarray(HALF_EXTENTS[kind]))
+                for name, (kind, centre, R) in zip(self.names, self.shapes, strict=True)}
+
+    @cached_property
+    def _neighbourhoods(self) -> dict[float, frozenset]:
+        # radius -> relevance graph: the search predicts hundreds of moves from one scene
+        return {}
 
     @property
     def positions(self) -> np.ndarray:
@@ -135,9 +143,10 @@ class Boxes:
         a radius above the contact rule's every pair whose surfaces are within it."""
         if radius <= CONTACT_TOLERANCE:
             return self.contacts
-        geometry = {name: (centre, R, np.asarray(HALF_EXTENTS[kind]))
-                    for name, (kind, centre, R) in zip(self.names, self.shapes, strict=True)}
-        return self.contacts | frozenset(contact_graph(geometry, radius))
+        if radius not in self._neighbourhoods:
+            self._neighbourhoods[radius] = self.contacts | frozenset(
+                contact_graph(self._geometry, radius))
+        return self._neighbourhoods[radius]
 
     def involved(self, action: Action, radius: float = CONTACT_TOLERANCE) -> list[int]:
         """The indices, in scene order, of the objects the action involves
@@ -258,16 +267,20 @@ def rest(positions: np.ndarray, features: np.ndarray, moved: list[int],
     eight-box steps); one over another only in part keeps the predicted height (it may lean or lie
     across two)."""
     out = positions.copy()
+    shapes = [box_of(row) for row in features]
+    turns = np.array([R[:2, :2] for _, _, R in shapes])
+    tops = np.array([HALF_EXTENTS[kind][:2] for kind, _, _ in shapes])
     settled = [i for i in range(len(out)) if i not in moved]
     for i in sorted(moved, key=lambda k: (k in carried, out[k][2])):
-        kind, _, R = box_of(features[i])
-        under = [j for j in settled if covers(features[j], out[j], out[i])]
-        if under:
-            top = max(out[j][2] + HALF_EXTENTS[box_of(features[j])[0]][2] for j in under)
+        kind, _, R = shapes[i]
+        at = np.array(settled, int)
+        under = at[over_tops(out[i][None, :2], out[at, :2], turns[at], tops[at])]
+        if len(under):
+            top = max(out[j][2] + HALF_EXTENTS[shapes[j][0]][2] for j in under)
             out[i][2] = top + HALF_EXTENTS[kind][2]
-        elif features[i][3] >= LEVEL and not any(
-                covers_any(features[j], out[j], out[i][:2] + FOOTPRINTS[kind] @ R[:2, :2].T)
-                for j in settled):
+        elif features[i][3] >= LEVEL and not over_tops(
+                out[i][:2] + FOOTPRINTS[kind] @ R[:2, :2].T, out[at, :2], turns[at],
+                tops[at]).any():
             out[i][2] = HALF_EXTENTS[kind][2]
         settled.append(i)
     return out

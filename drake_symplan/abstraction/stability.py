@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from drake_symplan.boxes import HALF_EXTENTS, MASS
-from drake_symplan.features import box_of
 from drake_symplan.relations import meets, on_table
 
 if TYPE_CHECKING:
@@ -159,15 +158,9 @@ def footprint_points(boxes: Boxes, i: int) -> np.ndarray:
     return centre[:2] + FOOTPRINTS[kind] @ R[:2, :2].T
 
 
-def covers(row: np.ndarray, centre: np.ndarray, point: np.ndarray) -> bool:
-    """Is `point`'s xy over the top face of the box of features `row` standing at
-    `centre`?"""
-    return covers_any(row, centre, np.asarray(point)[None, :2])
-
-
-def covers_any(row: np.ndarray, centre: np.ndarray, points: np.ndarray) -> bool:
-    """Is any of the xy `points` [m, 2] over the top face of the box of features `row`
-    standing at `centre`?"""
-    kind, _, R = box_of(row)
-    local = (points - centre[:2]) @ R[:2, :2]
-    return bool(np.any(np.all(np.abs(local) <= np.asarray(HALF_EXTENTS[kind][:2]), axis=1)))
+def over_tops(points: np.ndarray, centres: np.ndarray, turns: np.ndarray,
+              tops: np.ndarray) -> np.ndarray:
+    """[s]: is any of the xy `points` [m, 2] over each of s top faces (centres [s, 2],
+    yaws' 2x2 rotations [s, 2, 2], half extents [s, 2])?"""
+    local = (points[None] - centres[:, None]) @ turns
+    return np.all(np.abs(local) <= tops[:, None], axis=2).any(axis=1)
