@@ -178,7 +178,8 @@ def _after_search(refined: Refined | None, nearest: Refined, unverified: Plan | 
 
     if refined is not None:
         return found(refined.steps, "", SEARCH, refined.predicted)
-    missed = "no plan reaches the goal positions in prediction"
+    missed = "no plan reaches the goal " + ("relations" if refiner.relations else "positions") \
+        + " in prediction"
     if unverified is not None and unverified.steps \
             and allows(unverified.steps[0].action, refiner.refusals.barred(start)):
         # Predictions are not the world (`symplan eval rollout`): the symbolic plan still
