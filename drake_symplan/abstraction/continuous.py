@@ -122,9 +122,27 @@ class Boxes:
         """Half the length of box `name` along its long axis (local y), by its type."""
         return HALF_EXTENTS[self.shapes[self.names.index(name)][0]][1]
 
+    @cached_property
+    def levels(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each box's bottom and top heights, upright (relations.bottom, relations.meets)."""
+        z = np.array([centre[2] for _, centre, _ in self.shapes])
+        half = np.array([HALF_EXTENTS[kind][2] for kind, _, _ in self.shapes])
+        return z - half, z + half
+
+    @cached_property
+    def reach(self) -> np.ndarray:
+        """Each box's footprint's half diagonal: nothing of it is farther from its centre."""
+        return np.array([np.linalg.norm(HALF_EXTENTS[kind][:2]) for kind, _, _ in self.shapes])
+
     def riding(self, name: str) -> set[str]:
         """The boxes on box `name`, and on those, and so on (relations.riders)."""
-        return set(riders(name, self.object_states()))
+        if name not in self._riders:
+            self._riders[name] = frozenset(riders(name, self.object_states()))
+        return set(self._riders[name])
+
+    @cached_property
+    def _riders(self) -> dict[str, frozenset]:
+        return {}
 
     def covered(self) -> set[str]:
         """The boxes with another resting on their top, wholly or in part (a block's end

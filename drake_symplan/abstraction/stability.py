@@ -2,7 +2,8 @@
 over the tops under it, a box that tips off its supports, a load off its one support.
 Geometry on the boxes' features only (continuous.Boxes); no simulator. Which box's bottom
 meets which top, what stands on the table and what rides on a box are relations.py's
-(meets, on_table, riders: one set of tolerances with the skills and the goal checks)."""
+(meets, on_table, riders: one set of tolerances with the skills and the goal checks; here
+on heights read once, Boxes.levels)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from drake_symplan.boxes import HALF_EXTENTS, MASS
-from drake_symplan.relations import meets, on_table
+from drake_symplan.relations import REST_TOL, TABLE_TOL
 
 if TYPE_CHECKING:
     from drake_symplan.abstraction.continuous import Boxes
@@ -21,6 +22,7 @@ EDGE_TOL = 0.001  # m: a footprint this near a top's edge rests on it (a block 1
 COVER_INSET = 0.005  # m: a box over another's top this far inside its edges rests on it
 LEVEL = np.cos(np.radians(10))  # cos tilt: a box tilted more leans (on the table too)
 LOAD_INSET = 0.0105  # m: a load's centre of mass this far inside its one support's edges stands
+NEAR_MARGIN = 0.01  # m: beyond the footprints' reach by this, no footprint grown by EDGE_TOL overlaps
 
 
 def footprint(kind: str, spacing: float = 0.00625) -> np.ndarray:
@@ -112,7 +114,9 @@ def unstable(boxes: Boxes, names) -> bool:
     """Does one of `names` topple (tips), rest on a block's free end (on_overhang), or it
     or a box it rests on, down to the table, hold its load off its one support
     (overloaded)? Only a raised block loads a box."""
-    raised = any(o.type == "long" and not on_table(o) for o in boxes.object_states().values())
+    bottoms, _ = boxes.levels
+    raised = any(kind == "long" and bottom > TABLE_TOL
+                 for (kind, _, _), bottom in zip(boxes.shapes, bottoms, strict=True))
     for name in names:
         if tips(boxes, name) or raised and on_overhang(boxes, name):
             return True
@@ -130,13 +134,21 @@ def unstable(boxes: Boxes, names) -> bool:
 
 def under_of(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
     """The boxes whose top box i's bottom meets (relations.meets), i off the table
-    (relations.on_table): (index, centre xy, yaw's 2x2 rotation, top's half extents) each."""
-    states = list(boxes.object_states().values())  # in boxes.names' order
-    if on_table(states[i]):
+    (relations.on_table), and near enough across that a footprint could overlap a top:
+    (index, centre xy, yaw's 2x2 rotation, top's half extents) each. On the heights
+    Boxes.levels reads once: the search asks this of every box it moves."""
+    bottoms, tops = boxes.levels
+    if bottoms[i] <= TABLE_TOL:
         return []
-    return [(j, lower.position[:2], boxes.shapes[j][2][:2, :2],
-             np.asarray(HALF_EXTENTS[lower.type][:2]))
-            for j, lower in enumerate(states) if j != i and meets(states[i], lower)]
+    reach = boxes.reach
+    apart = np.linalg.norm(boxes.positions[:, :2] - boxes.positions[i, :2], axis=1)
+    near = (np.abs(bottoms[i] - tops) <= REST_TOL) & (apart <= reach + reach[i] + NEAR_MARGIN)
+    out = []
+    for j in np.flatnonzero(near):
+        if j != i:
+            kind, centre, R = boxes.shapes[j]
+            out.append((int(j), centre[:2], R[:2, :2], np.asarray(HALF_EXTENTS[kind][:2])))
+    return out
 
 
 def supports_of(boxes: Boxes, i: int) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
