@@ -30,6 +30,18 @@ def test_a_recipe_loads_into_the_collection_config():
     assert recipe_config("current", transitions=200) == CollectConfig(transitions=200)
 
 
+def test_the_bridges_recipe_starts_from_towers_side_by_side_and_needs_five_boxes():
+    config = recipe_config("bridges", transitions=10)
+    episode = config.episode_config()
+    assert (episode.start, episode.min_objects, episode.max_objects, episode.length) == \
+        ("towers", 5, 6, 3)
+    assert episode.relevance_radius == 0.035  # vicinity: the other tower top is relevant
+    with pytest.raises(ValueError, match="min_objects >= 5"):
+        recipe_config("bridges", transitions=10, min_objects=4)
+    with pytest.raises(ValueError, match="unknown start 'stacks'"):
+        CollectConfig(start="stacks")
+
+
 def test_a_recipe_is_checked_against_the_config_fields(tmp_path):
     path = tmp_path / "recipes.yaml"
     path.write_text("fast:\n  backend: hand\n  box_modulus: stiff\n")
@@ -46,7 +58,7 @@ def test_an_unknown_recipe_is_one_line_and_exit_2(tmp_path, capsys):
     code, out, err = run(["collect", "--recipe", "nope", "--transitions", "10", "--out",
                           out_dir], capsys)
     assert_bad_input(code, out, err, "symplan collect: error: unknown data recipe 'nope'; "
-                     "configs/recipes.yaml has ['current', 'paper', 'shipped', 'vicinity']")
+                     "configs/recipes.yaml has ['bridges', 'current', 'paper', 'shipped', 'vicinity']")
     assert not out_dir.exists()
 
 
@@ -77,4 +89,5 @@ def test_collect_with_the_paper_recipe_writes_its_settings(tmp_path, capsys):
     assert code == 0 and json.loads(out)["transitions"] == 200
     manifest = json.loads((out_dir / "manifest.json").read_text())
     assert manifest["status"] == "complete"
-    assert manifest["config"] == {**PAPER, "transitions": 200, "seed": 0, "active": {}}
+    assert manifest["config"] == {**PAPER, "transitions": 200, "seed": 0, "active": {},
+                                  "start": "random"}

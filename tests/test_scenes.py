@@ -10,6 +10,7 @@ from drake_symplan.world.scenes import (
     as_saved,
     load_scene,
     sample_scene,
+    sample_towers_scene,
     save_scene,
     validate_scene,
 )
@@ -76,6 +77,23 @@ def test_a_sampled_scene_holds_no_more_boxes_of_a_type_than_the_station_has():
     scene = sample_scene(np.random.default_rng(3), 16, long_fraction=0.95)
     types = [o.type for o in scene.objects]
     assert (types.count("long"), types.count("cube")) == (8, 8)
+
+
+def test_a_towers_start_has_two_towers_side_by_side_a_bridge_apart_and_a_long_block():
+    from drake_symplan.boxes import VICINITY
+
+    scene = sample_towers_scene(np.random.default_rng(4), 6)
+    validate_scene(scene)
+    a, a_top, b, b_top = scene.objects[:4]
+    assert [a.position[2], a_top.position[2]] == [0.025, 0.075]
+    assert a.position[:2] == a_top.position[:2] and b.position[:2] == b_top.position[:2]
+    assert b.position[0] == a.position[0]
+    gap = b.position[1] - a.position[1] - 0.05  # between the towers' faces along y
+    assert gap == pytest.approx(0.025) and gap < VICINITY
+    assert len(scene.objects) == 6 and scene.objects[4].type == "long"
+    assert all(o.position[2] == 0.025 for o in scene.objects[4:])  # the rest on the table
+    with pytest.raises(SceneError, match="5 or more"):
+        sample_towers_scene(np.random.default_rng(4), 4)
 
 
 def test_a_scene_is_checked_as_its_file_reads_back(tmp_path):

@@ -48,6 +48,7 @@ from drake_symplan.data.stats import dataset_stats
 from drake_symplan.robot.backends import BACKENDS, make_backend
 from drake_symplan.world.cameras import DepthNoise
 from drake_symplan.world.depth_sensor import camera_noise
+from drake_symplan.world.scenes import STARTS
 from drake_symplan.world.station import BOX_MODULUS, TIME_STEP
 
 EPISODE_STRIDE = 100_000  # episode ids of chunk c are c * EPISODE_STRIDE + k
@@ -83,6 +84,9 @@ class CollectConfig:
     active: dict = dc.field(default_factory=dict)
     # Relevance (m): the contact rule (boxes.CONTACT_TOLERANCE) or vicinity (boxes.VICINITY)
     relevance_radius: float = CONTACT_TOLERANCE
+    # An episode's first scene: "random" (scattered boxes) or "towers" (two towers of two
+    # side by side among them, 5 or more objects; world/scenes.STARTS)
+    start: str = "random"
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -109,6 +113,11 @@ class CollectConfig:
         if not 2 <= self.min_objects <= self.max_objects <= 8:
             raise ValueError(f"objects must satisfy 2 <= min <= max <= 8, got "
                              f"{self.min_objects}-{self.max_objects}")
+        if self.start not in STARTS:
+            raise ValueError(f"unknown start {self.start!r}; expected one of {tuple(STARTS)}")
+        if self.start == "towers" and self.min_objects < 5:
+            raise ValueError(f"a start with towers side by side needs min_objects >= 5, got "
+                             f"{self.min_objects}")
 
     @property
     def num_chunks(self) -> int:
@@ -119,7 +128,8 @@ class CollectConfig:
 
     def episode_config(self) -> EpisodeConfig:
         return EpisodeConfig(self.min_objects, self.max_objects, self.episode_length,
-                             self.long_fraction, relevance_radius=self.relevance_radius)
+                             self.long_fraction, relevance_radius=self.relevance_radius,
+                             start=self.start)
 
 
 def collection_backend(name: str, time_step: float, sensor: str = "none",
@@ -307,7 +317,8 @@ def _prepare(out_dir: Path, config: CollectConfig) -> tuple[dict, list[int], int
         if isinstance(stored, dict):  # settings added since: what such a set was made with
             stored = {"time_step": LEGACY_TIME_STEP, "explorer": "random", "active": {},
                       "camera_noise": "none", "hand_twin": False, "box_modulus":
-                      LEGACY_BOX_MODULUS, "relevance_radius": CONTACT_TOLERANCE, **stored}
+                      LEGACY_BOX_MODULUS, "relevance_radius": CONTACT_TOLERANCE,
+                      "start": "random", **stored}
         if stored != identity:
             if not _extends(stored, identity):
                 raise ValueError(

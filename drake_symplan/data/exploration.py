@@ -1,6 +1,7 @@
 """Random exploration: episodes of random actions, recorded as perceived transitions.
 
-An episode puts a random scene on the table and executes up to `length` actions chosen by
+An episode puts a random scene on the table (scattered boxes, or with `start` "towers"
+two towers side by side among them: world/scenes.STARTS) and executes up to `length` actions chosen by
 an explorer over the objects the robot perceives: by default random ones (source !=
 target, grasp and release offsets uniform); `explorers/` has the active one. Each action is perceived before, at the end of the lift and after; the
 'after' scene of one action is the 'before' of the next. A transition records the
@@ -60,7 +61,7 @@ from drake_symplan.perception.perceive import associate
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.robot.backends import PerceptionFailure
 from drake_symplan.skills.geometry import action_geometry
-from drake_symplan.world.scenes import sample_scene
+from drake_symplan.world.scenes import STARTS
 
 NO_EFFECT_TOL = 0.01  # m: nothing moved more than this
 TIP_TOL = np.radians(15.0)  # tilt gained by an object that tipped over
@@ -80,6 +81,7 @@ class EpisodeConfig:
     # Relevance: contact (boxes.CONTACT_TOLERANCE) or vicinity (a wider radius, m); the
     # recorded scenes' "contacts" are this relevance graph (boxes.neighbour_pairs).
     relevance_radius: float = CONTACT_TOLERANCE
+    start: str = "random"  # how an episode's scene is set (world/scenes.STARTS)
 
 
 MAX_SCENE_OBJECTS = 8  # scene slots stored per transition (scenes hold 2-8 objects)
@@ -235,7 +237,7 @@ def _act(backend, rng, config: EpisodeConfig, episode: int, budget: int, on_tran
          log: EpisodeLog, choose: Callable) -> None:
     """run_episode's actions: records into `log` and sets how the episode ended."""
     n = int(rng.integers(config.min_objects, config.max_objects + 1))
-    backend.reset(sample_scene(rng, n, long_fraction=config.long_fraction))
+    backend.reset(STARTS[config.start](rng, n, long_fraction=config.long_fraction))
     before = backend.perceive()
     if len(before.objects) != n:
         log.end = "perception_initial_count"

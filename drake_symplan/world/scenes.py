@@ -179,9 +179,22 @@ def sample_scene(
     """
     if not 1 <= num_objects <= MAX_OBJECTS:
         raise SceneError(f"num_objects must be in [1, {MAX_OBJECTS}], got {num_objects}")
-    objects: list[ObjectSpec] = []
-    for i in range(num_objects):
-        kind = "long" if rng.random() < long_fraction else "cube"
+    def kind(i: int) -> str:
+        return "long" if rng.random() < long_fraction else "cube"
+
+    return validate_scene(Scene(_scatter(rng, [], num_objects, kind, yaw_jitter, min_gap,
+                                         max_tries)))
+
+
+def _scatter(rng: np.random.Generator, objects: list[ObjectSpec], count: int,
+             kind_of, yaw_jitter: float = 0.0, min_gap: float = 0.02, max_tries: int = 1000
+             ) -> list[ObjectSpec]:
+    """`objects` and `count` more boxes, the i-th of type `kind_of(i)` (the other type
+    where the pool has none of it left), set down at random, upright, `min_gap` clear of
+    every box before it."""
+    objects = list(objects)
+    for i in range(count):
+        kind = kind_of(i)
         if sum(o.type == kind for o in objects) >= POOL[kind]:
             kind = "cube" if kind == "long" else "long"
         hx, hy, hz = HALF_EXTENTS[kind]
@@ -189,13 +202,13 @@ def sample_scene(
             yaw = float(rng.uniform(-yaw_jitter, yaw_jitter)) if yaw_jitter > 0 else 0.0
             x = float(rng.uniform(WORKSPACE_X[0] + hx, WORKSPACE_X[1] - hx))
             y = float(rng.uniform(WORKSPACE_Y[0] + hy, WORKSPACE_Y[1] - hy))
-            cand = ObjectSpec(f"o{i}", kind, [x, y, hz], yaw)
+            cand = ObjectSpec(f"o{len(objects)}", kind, [x, y, hz], yaw)
             if not any(footprints_overlap(cand, o, -min_gap) for o in objects):
                 objects.append(cand)
                 break
         else:
-            raise SceneError(f"could not place {num_objects} objects without overlap")
-    return validate_scene(Scene(objects))
+            raise SceneError(f"could not place {len(objects) + 1} objects without overlap")
+    return objects
 
 
 def _level(k: int) -> float:
@@ -205,6 +218,7 @@ def _level(k: int) -> float:
 
 
 _END = LONG / 2 - SIDE / 2  # a cube centred over a long block's end, from the block's centre
+_SIDE_BY_SIDE = 0.075  # m: actions.OFFSET_METRES's release offset, a cube's centre to the next
 
 # Arrangements for perception tests and benchmarks: (type, dx, dy, z) relative to a unit's
 # origin. "tipped" puts a long block over a cube's edge so that physics tips it.
@@ -218,6 +232,10 @@ UNITS: dict[str, list[tuple[str, float, float, float]]] = {
                       ("cube", 0, _END, _level(1))],
     "bridge": [("cube", 0, -_END, _level(0)), ("cube", 0, _END, _level(0)),
                ("long", 0, 0, _level(1))],
+    # Two towers of two side by side along y, 7.5 cm apart (a release offset): a bridge's
+    # supports as goals/compiler.py sets them, a gap of 2.5 cm (within boxes.VICINITY).
+    "towers_side": [("cube", 0, 0, _level(0)), ("cube", 0, 0, _level(1)),
+                    ("cube", 0, _SIDE_BY_SIDE, _level(0)), ("cube", 0, _SIDE_BY_SIDE, _level(1))],
     "touching_x": [("cube", 0, 0, _level(0)), ("cube", SIDE, 0, _level(0))],
     "touching_y": [("cube", 0, 0, _level(0)), ("cube", 0, SIDE, _level(0))],
     # A cube against the block's side, 5 cm along it from the block's centre.
@@ -267,3 +285,23 @@ def sample_structured_scene(
         for t, dx, dy, z in parts:
             objects.append(ObjectSpec(f"o{len(objects)}", t, [ox + dx, oy + dy, z], yaw))
     return validate_scene(Scene(objects))
+
+
+def sample_towers_scene(rng: np.random.Generator, num_objects: int,
+                        long_fraction: float = 0.5) -> Scene:
+    """A start with two towers of two cubes side by side (UNITS["towers_side"]), a long
+    block, and the rest scattered as sample_scene scatters them: a scene in which one
+    random action (the block onto a top) can build a bridge on towers, which scenes of
+    scattered boxes almost never give."""
+    if num_objects < 5:
+        raise SceneError(f"a start with towers side by side needs 5 or more objects, got "
+                         f"{num_objects}")
+    def kind(i: int) -> str:
+        return "long" if i == 0 or rng.random() < long_fraction else "cube"
+
+    towers = sample_structured_scene(rng, 4, units=("towers_side",)).objects
+    return validate_scene(Scene(_scatter(rng, towers, num_objects - 4, kind, min_gap=0.03)))
+
+
+# The starts an exploration episode can be given (data/exploration.EpisodeConfig.start).
+STARTS = {"random": sample_scene, "towers": sample_towers_scene}
