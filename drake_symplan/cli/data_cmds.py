@@ -66,7 +66,9 @@ def add_data_arguments(collect) -> None:
     collect.add_argument("--recipe", default=None, metavar="NAME",
                          help="a data recipe of configs/recipes.yaml: paper, the shipped "
                          "model's kind of data (what `reproduce` and `curve` collect); "
-                         "shipped, its very set (to extend it); current, the present world. "
+                         "shipped, its very set (to extend it); current, the present world; "
+                         "vicinity, relevance by vicinity; bridges, vicinity with starts "
+                         "that hold two towers side by side and a long block (5-6 boxes). "
                          "Options given here override the recipe; without one, each option "
                          "has the default shown")
     # The data's options default to None, so that an option given overrides the recipe.
