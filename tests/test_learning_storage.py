@@ -128,3 +128,25 @@ def test_data_head_makes_a_view_of_the_first_shards_and_refuses_a_count_inside_o
                           tmp_path / "w"], capsys)
     assert_bad_input(code, out, err, "do not hold exactly 3 transitions")
     assert not (tmp_path / "w").exists()
+
+
+def test_data_join_makes_a_view_of_sets_one_after_the_other_and_refuses_mixed_relevance(
+        tmp_path, capsys):
+    for name, episodes, radius in (("a", [(2, 0), (1, 5)], 0.035), ("b", [(3, 0)], 0.035),
+                                   ("c", [(2, 0)], 0.006)):
+        data = tmp_path / name
+        write_manifest(data, {"config": {"transitions": sum(t for t, _ in episodes),
+                                         "relevance_radius": radius}, "status": "complete"})
+        for c, (t, episode0) in enumerate(episodes):
+            write_shard(data, c, _arrays(t, 3, seed=c, episode0=episode0 + 100 * len(name)))
+    code, out, _ = run(["data", "join", tmp_path / "a", tmp_path / "b", "--out",
+                        tmp_path / "ab"], capsys)
+    assert code == 0 and "the 6 transitions of" in out
+    joined = load_transitions(tmp_path / "ab")
+    np.testing.assert_array_equal(joined.episode, [100, 101, 105, 100, 101, 102])
+    assert [p.name for p in sorted((tmp_path / "ab").glob("shard-*.npz"))] == [
+        "shard-000000.npz", "shard-000001.npz", "shard-000002.npz"]
+    code, out, err = run(["data", "join", tmp_path / "a", tmp_path / "c", "--out",
+                          tmp_path / "ac"], capsys)
+    assert_bad_input(code, out, err, "different relevance ([0.006, 0.035] m)")
+    assert not list((tmp_path / "ac").glob("shard-*"))

@@ -1,4 +1,4 @@
-"""`symplan collect`, `symplan data stats` and `symplan data head`: exploration data sets."""
+"""`symplan collect`, `symplan data stats`, `head` and `join`: exploration data sets."""
 
 from __future__ import annotations
 
@@ -59,6 +59,13 @@ def register(subparsers) -> None:
     head.add_argument("--out", required=True, help="the view's directory")
     add_json_argument(head)
     head.set_defaults(func=cmd_data_head)
+    join = data_sub.add_parser(
+        "join", help="a view of several data sets' transitions, one after the other "
+        "(links, no copy), to train on them together")
+    join.add_argument("dirs", nargs="+", metavar="dir", help="complete data sets, in order")
+    join.add_argument("--out", required=True, help="the view's directory")
+    add_json_argument(join)
+    join.set_defaults(func=cmd_data_join)
 
 
 def add_data_arguments(collect) -> None:
@@ -205,19 +212,30 @@ def cmd_data_stats(args: argparse.Namespace) -> dict:
     return stats
 
 
-def cmd_data_head(args: argparse.Namespace) -> dict:
+def _complete_sources(dirs, out) -> list:
+    """The data sets a view is made of, each a complete collection other than `out`; a
+    CommandError naming the first that is not."""
     from pathlib import Path
 
     from drake_symplan.cli.main import CommandError
-    from drake_symplan.data.storage import link_head, read_manifest
+    from drake_symplan.data.storage import read_manifest
 
-    source = Path(args.dir)
-    if not (source / "manifest.json").is_file():
-        raise CommandError(f"no data set at {source} (no manifest.json)")
-    if Path(args.out).resolve() == source.resolve():
-        raise CommandError("--out must differ from the data set it views")
-    if read_manifest(source).get("status") != "complete":
-        raise CommandError(f"{source} is not a complete collection")
+    sources = [Path(d) for d in dirs]
+    for source in sources:
+        if not (source / "manifest.json").is_file():
+            raise CommandError(f"no data set at {source} (no manifest.json)")
+        if Path(out).resolve() == source.resolve():
+            raise CommandError("--out must differ from the data set it views")
+        if read_manifest(source).get("status") != "complete":
+            raise CommandError(f"{source} is not a complete collection")
+    return sources
+
+
+def cmd_data_head(args: argparse.Namespace) -> dict:
+    from drake_symplan.cli.main import CommandError
+    from drake_symplan.data.storage import link_head
+
+    [source] = _complete_sources([args.dir], args.out)
     try:
         view = link_head(source, args.out, args.transitions)
     except ValueError as e:
@@ -251,3 +269,20 @@ def _verify(args: argparse.Namespace) -> dict:
               "the same collect command redoes them", file=sys.stderr)
         return NegativeAnswer(out)
     return out
+
+
+def cmd_data_join(args: argparse.Namespace) -> dict:
+    from drake_symplan.cli.main import CommandError
+    from drake_symplan.data.storage import link_join, read_manifest
+
+    sources = _complete_sources(args.dirs, args.out)
+    try:
+        view = link_join(sources, args.out)
+    except ValueError as e:
+        raise CommandError(str(e)) from e
+    out = {"dirs": [str(s) for s in sources], "out": str(view),
+           "transitions": int(read_manifest(view)["transitions"])}
+    if not args.json:
+        print(f"{view}: the {out['transitions']} transitions of {', '.join(out['dirs'])}")
+    return out
+

@@ -80,3 +80,30 @@ def link_head(data_dir: str | Path, view: str | Path, transitions: int) -> Path:
     write_manifest(view, {"head_of": str(data_dir), "transitions": transitions,
                           "config": read_manifest(data_dir).get("config")})
     return view
+
+
+def link_join(sources: list[str | Path], view: str | Path) -> Path:
+    """A data set `view` of every transition of `sources`, one after the other: links to
+    their shards, numbered on, and a manifest naming them (its config the first's, each
+    source's under "configs"). Sets collected under different relevance are refused: their
+    symbols relate different pairs. Episode numbers stay each source's own, so a split by
+    episode keeps an episode of one set with the same-numbered one of another. An earlier
+    view there is replaced."""
+    sources, view = [Path(s) for s in sources], Path(view)
+    radii = sorted({relevance_radius(s) for s in sources})
+    if len(radii) > 1:
+        raise ValueError(f"the sets were collected under different relevance ({radii} m); "
+                         f"a joined set must relate the same pairs")
+    view.mkdir(parents=True, exist_ok=True)
+    for old in view.glob(SHARD_GLOB):
+        old.unlink()
+    index, total = 0, 0
+    for source in sources:
+        for _, path in sorted(existing_shards(source).items()):
+            link = shard_path(view, index)
+            link.symlink_to(os.path.relpath(path.resolve(), view.resolve()))
+            index, total = index + 1, total + shard_length(path)
+    configs = [read_manifest(s).get("config") for s in sources]
+    write_manifest(view, {"joined": [str(s) for s in sources], "transitions": total,
+                          "config": configs[0], "configs": configs})
+    return view
