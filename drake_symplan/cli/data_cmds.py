@@ -285,4 +285,3 @@ def cmd_data_join(args: argparse.Namespace) -> dict:
     if not args.json:
         print(f"{view}: the {out['transitions']} transitions of {', '.join(out['dirs'])}")
     return out
-

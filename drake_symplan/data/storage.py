@@ -72,11 +72,7 @@ def link_head(data_dir: str | Path, view: str | Path, transitions: int) -> Path:
     if total != transitions:
         raise ValueError(f"the first shards of {data_dir} do not hold exactly {transitions} "
                          f"transitions (they hold {total} up to that count)")
-    view.mkdir(parents=True, exist_ok=True)
-    for old in view.glob(SHARD_GLOB):
-        old.unlink()
-    for path in shards:
-        (view / path.name).symlink_to(os.path.relpath(path.resolve(), view.resolve()))
+    _link_shards(shards, view)
     write_manifest(view, {"head_of": str(data_dir), "transitions": transitions,
                           "config": read_manifest(data_dir).get("config")})
     return view
@@ -94,16 +90,19 @@ def link_join(sources: list[str | Path], view: str | Path) -> Path:
     if len(radii) > 1:
         raise ValueError(f"the sets were collected under different relevance ({radii} m); "
                          f"a joined set must relate the same pairs")
-    view.mkdir(parents=True, exist_ok=True)
-    for old in view.glob(SHARD_GLOB):
-        old.unlink()
-    index, total = 0, 0
-    for source in sources:
-        for _, path in sorted(existing_shards(source).items()):
-            link = shard_path(view, index)
-            link.symlink_to(os.path.relpath(path.resolve(), view.resolve()))
-            index, total = index + 1, total + shard_length(path)
+    shards = [path for source in sources for _, path in sorted(existing_shards(source).items())]
+    _link_shards(shards, view)
     configs = [read_manifest(s).get("config") for s in sources]
+    total = sum(shard_length(path) for path in shards)
     write_manifest(view, {"joined": [str(s) for s in sources], "transitions": total,
                           "config": configs[0], "configs": configs})
     return view
+
+
+def _link_shards(shards: list[Path], view: Path) -> None:
+    """`view`'s shards replaced by links to `shards`, numbered from 0 in their order."""
+    view.mkdir(parents=True, exist_ok=True)
+    for old in view.glob(SHARD_GLOB):
+        old.unlink()
+    for index, path in enumerate(shards):
+        shard_path(view, index).symlink_to(os.path.relpath(path.resolve(), view.resolve()))

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_symplan.actions import OFFSET_METRES
 from drake_symplan.atomic import write_atomic
 from drake_symplan.boxes import HALF_EXTENTS, LONG, SIDE
 from drake_symplan.world.scene_model import MAX_OBJECTS as MAX_OBJECTS
@@ -218,7 +219,7 @@ def _level(k: int) -> float:
 
 
 _END = LONG / 2 - SIDE / 2  # a cube centred over a long block's end, from the block's centre
-_SIDE_BY_SIDE = 0.075  # m: actions.OFFSET_METRES's release offset, a cube's centre to the next
+_SIDE_BY_SIDE = OFFSET_METRES["right"]  # a release beside: a cube's centre to the next
 
 # Arrangements for perception tests and benchmarks: (type, dx, dy, z) relative to a unit's
 # origin. "tipped" puts a long block over a cube's edge so that physics tips it.
