@@ -232,16 +232,27 @@ def test_solve_and_inspect_take_a_goal_spec_checked_like_goals(tmp_path, capsys,
                      "not allowed with argument")
 
 
+def test_inspect_stages_need_a_goal_spec(tmp_path, capsys):
+    save_scene(START, tmp_path / "start.yaml")
+    assert_bad_input(*run(["inspect", "--scene", tmp_path / "start.yaml", "--goal",
+                           tmp_path / "start.yaml", "--stages"], capsys),
+                     "--stages needs --goal-spec")
+
+
 @pytest.mark.slow
 def test_inspect_builds_the_written_goal_and_plans_to_it(tmp_path, capsys):
     import json
 
     save_scene(START, tmp_path / "start.yaml")
     code, out, err = run(["inspect", "--scene", tmp_path / "start.yaml", "--goal-spec",
-                          "on o3 o2", "--json"], capsys)
+                          "on o3 o2", "--stages", "--json"], capsys)
     result = json.loads(out)
     assert code == 0 and result["goal_spec"] == ["on o3 o2"], err
     assert result["plan_status"] == "solved" and len(result["plan"]) >= 1
+    # one relation, one stage, planned on the symbols alone (o3 starts off o2)
+    (stage,) = result["stages"]
+    assert stage["relations"] == ["on o3 o2"] and stage["status"] == "solved"
+    assert stage["steps"] and stage["nearest"] == []
 
 
 @pytest.mark.slow

@@ -312,7 +312,7 @@ class Abstraction:
         if goal.pairs is not None:
             found = self._plan_stages(task, start, goal, planner, budget, focus, penalties)
         if found is None or not found.solved:
-            found = self._plan_task(task, start, goal, planner, budget, focus, penalties)
+            found = self.plan_focused(task, start, goal, planner, budget, focus, penalties)
         found.seconds = time.perf_counter() - t0
         return found
 
@@ -337,7 +337,7 @@ class Abstraction:
             return None
         state, steps = task.init, []
         for atoms in stages:
-            found = self._plan_task(replace(task, init=state, goal=atoms), start, goal,
+            found = self.plan_focused(replace(task, init=state, goal=atoms), start, goal,
                                     planner, budget, focus, penalties)
             if not found.solved:
                 return None
@@ -348,9 +348,12 @@ class Abstraction:
             return None
         return Plan("solved", steps, 0.0, "", planner)
 
-    def _plan_task(self, task: Task, start: Reading, goal: Reading, planner: str,
-                   budget: Budget, focus: bool, penalties) -> Plan:
-        """`task` planned on its focus objects, then on all (`plan`)."""
+    def plan_focused(self, task: Task, start: Reading, goal: Reading, planner: str = "fd",
+                     budget: Budget | None = None, focus: bool = True,
+                     penalties=None) -> Plan:
+        """`task` planned on its focus objects, then on all (`plan`), within `budget`
+        (default DEFAULT_TIMEOUT CPU seconds from now): one stage of a goal of relations."""
+        budget = budget or Budget.of_cpu(DEFAULT_TIMEOUT)
         objects = self.focus(task, start, goal)
         if objects and not focus:
             objects = task.objects

@@ -33,6 +33,7 @@ from drake_symplan.abstraction.abstraction import (
     reliability,
 )
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
+from drake_symplan.abstraction.diagnosis import diagnose
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.inspection_draw import PREFIX as PREFIX
 from drake_symplan.agent.inspection_draw import (
@@ -207,12 +208,28 @@ def inspection_sections(result: dict) -> list[tuple[str, str]]:
                          f"<ol style='padding-left:18px;margin:2px 0'>{steps}</ol>"))
         for text in subgoal_texts(result):
             sections.append(("Subgoal (then a new plan from what is seen)", _html.escape(text)))
+        if result.get("stages"):
+            sections.append(("The goal's stages on the symbols alone", "".join(
+                f"<div>{_html.escape(line)}</div>" for line in stage_lines(result["stages"]))))
         rejected = [c for c in result.get("candidates", []) if not c["accepted"]]
         if rejected:
             sections.append(("Rejected candidate plans", "".join(
                 f"<div>{_html.escape(c['source'])}: {_html.escape(' '.join(c['steps']))}"
                 f"<br><i>{_html.escape(c['why'])}</i></div>" for c in rejected)))
     return sections
+
+
+def stage_lines(stages: list[dict]) -> list[str]:
+    """The symbols' stages of a goal of relations (abstraction/diagnosis.py) as text, with
+    the nearest steps of a stage that found no plan."""
+    lines = []
+    for i, s in enumerate(stages, 1):
+        lines.append(f"stage {i} ({', '.join(s['relations'])}): {s['status']} in "
+                     f"{s['seconds']:.1f} s: {' '.join(s['steps']) or 'no steps'}")
+        lines.append(f"  atoms: {', '.join(s['atoms'])}")
+        lines += [f"  nearest {n['step']}: lacks pre {', '.join(n['missing_pre']) or '-'}; "
+                  f"leaves {', '.join(n['missing_goal']) or '-'}" for n in s["nearest"]]
+    return lines
 
 
 def subgoal_texts(result: dict) -> list[str]:
@@ -259,12 +276,13 @@ def write_recording(meshcat, path: str | Path, panel: str) -> Path:
 def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None, record=None,
             config: SolveConfig = DEFAULT_SOLVE, robot: str = "arm",
             title: str = "symplan inspect", camera_noise: str = "none",
-            clouds: bool = False, relations=()) -> dict:
+            clouds: bool = False, relations=(), stages: bool = False) -> dict:
     """Perceives `start_scene` (and `goal_scene`) with cameras of the sensor model
     `camera_noise`, reads and draws their symbols, plans from start to goal (config's
     planner and timeout; with `relations`, to the goal of relations `goal_scene` is an
     example of); with `clouds`, also the start scene's raw point clouds (their sizes in
-    the result); returns the JSON result and writes the recording to `record`."""
+    the result); with `stages` and `relations`, the symbols' stages (diagnosis.py);
+    returns the JSON result and writes the recording to `record`."""
     agent = Agent(robot, meshcat=meshcat, camera_noise=camera_noise)
     goal = agent.look(goal_scene) if goal_scene is not None else None
     start = agent.look(start_scene)  # the table stays in the start scene
@@ -290,6 +308,9 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
         result["plan"] = plan_view(found.steps, abstraction.believed(start_reading),
                                    abstraction.bundle.operators)
         result["candidates"] = [c.to_json() for c in found.candidates]
+        if stages and relations:
+            result["stages"] = [r.to_json() for r in diagnose(
+                abstraction, start_reading, wanted, config.planner, config.cpu_seconds)]
     if meshcat is not None:
         draw_view(meshcat, start.scene, result["start"])
         draw_clouds(meshcat, raw)

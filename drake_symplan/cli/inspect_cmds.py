@@ -1,7 +1,7 @@
 """`symplan inspect` and `symplan explain`: seeing what the learned symbols are.
 
     symplan inspect --scene scene.yaml [--model DIR] [--goal goal.yaml | --goal-spec SPEC ...]
-                    [--record out.html]
+                    [--stages] [--record out.html]
                     [--meshcat] [--planner fd|pyperplan] [--timeout 10] --json
     symplan explain [--model DIR] --data DIR [--margin 3] [--plot out.png] --json
 
@@ -57,6 +57,10 @@ def register(subparsers) -> None:
     p.add_argument("--clouds", action="store_true",
                    help="also draw what each camera's sensor gave (with --camera-noise: its "
                    "noise, holes and flying pixels), and count its points in the JSON")
+    p.add_argument("--stages", action="store_true",
+                   help="with --goal-spec: plan its relations stage by stage on the symbols "
+                   "alone and, for the first stage with no plan, name the steps nearest to "
+                   "it and the atoms each lacks")
     add_json_argument(p)
     p.set_defaults(func=cmd_inspect)
 
@@ -98,6 +102,8 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
     # Inputs first, so that bad ones are told before Drake is loaded.
     config = solve_config(args)
     check_output_file(args.record, "--record")
+    if args.stages and not args.goal_spec:
+        raise CommandError("--stages needs --goal-spec (the stages of a goal of relations)")
     start = load_scene_file(args.scene)
     goal = load_scene_file(args.goal) if args.goal is not None else None
     if goal is not None:
@@ -128,7 +134,7 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
         result = inspect(start, Abstraction(bundle), goal, meshcat, args.record, config,
                          title=f"symplan inspect {args.scene.name}",
                          camera_noise=args.camera_noise, clouds=args.clouds,
-                         relations=structures if args.goal_spec else ())
+                         relations=structures if args.goal_spec else (), stages=args.stages)
     except (RuntimeError, PerceptionFailure) as e:  # the scene file cannot be perceived
         raise CommandError(f"{args.scene}: {e}") from e
     result["scene"] = str(args.scene)
@@ -148,7 +154,12 @@ def cmd_inspect(args: argparse.Namespace) -> dict:
 
 def summary_lines(result: dict, sections=None) -> list[str]:
     """The inspection as text: legend, objects, relations, goal atoms, plan steps."""
-    from drake_symplan.agent.inspection import OUTCOMES_SHOWN, outcome_text, subgoal_texts
+    from drake_symplan.agent.inspection import (
+        OUTCOMES_SHOWN,
+        outcome_text,
+        stage_lines,
+        subgoal_texts,
+    )
 
     start = result["start"]
     lines = ["legend (unary bit pattern p0.. -> box colour): " + ", ".join(
@@ -176,6 +187,7 @@ def summary_lines(result: dict, sections=None) -> list[str]:
         lines += [f"subgoal: {text}" for text in subgoal_texts(result)]
         lines += [f"rejected {c['source']}: {' '.join(c['steps']) or 'no steps'}: {c['why']}"
                   for c in result.get("candidates", []) if not c["accepted"]]
+    lines += stage_lines(result.get("stages", []))
     if "recording" in result:
         lines.append(f"recording written to {result['recording']}")
     return lines
