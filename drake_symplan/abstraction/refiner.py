@@ -332,14 +332,18 @@ class Refiner:
                 boxes.where(), errors, self.limit)
 
         tie = itertools.count()
+        # a node: (f, tie, g, h, boxes, plan, deferred moves, the scene before its last
+        # step where that step is still to be checked for safety, else None)
         frontier = [(self.weight * h(start), next(tie), 0.0, h(start), start, Refined([], []),
-                     None)]
+                     None, None)]
         nearest = (h(start), Refined([], []))
         clearing = None  # the node nearest the goal among those that clear a refused grasp
         blocking = self.refusals.in_the_way(start)
         seen = set()
         while frontier and not budget.spent():
-            f, _, g, distance, boxes, done, deferred = heapq.heappop(frontier)
+            f, _, g, distance, boxes, done, deferred, before = heapq.heappop(frontier)
+            if before is not None and self.unsafe(before, boxes, done.steps[-1].action):
+                continue
             if deferred is None:
                 if self.reached(boxes, goal):
                     return done, done
@@ -355,14 +359,16 @@ class Refiner:
                 options, later = self._split(boxes, order, goal, in_the_way)
                 if later:
                     heapq.heappush(frontier, (f + self.defer, next(tie), g, distance, boxes,
-                                              done, later))
+                                              done, later, None))
             else:
                 options = self._allowed(boxes, deferred)
+            # a step's safety (`unsafe`) is checked when its node comes off the frontier:
+            # most nodes never do, and the check costs more than the prediction
             for after, option in zip(self._predict(boxes, options), options, strict=True):
-                if not self.unsafe(boxes, after, option.action):
-                    cost, distance = g + 1 + MISSED * self.missed[option.action], h(after)
-                    heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,
-                                              distance, after, done.then(option, after), None))
+                cost, distance = g + 1 + MISSED * self.missed[option.action], h(after)
+                heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,
+                                          distance, after, done.then(option, after), None,
+                                          boxes))
         if clearing is not None and not nearer(nearest[1], start, goal):
             return None, clearing[1]
         return None, nearest[1]
