@@ -72,14 +72,14 @@ def diagnose(abstraction, start, goal, planner: str = "fd",
     state, before, out = task.init, frozenset(), []
     for key, atoms in zip(keys, stages, strict=False):
         t0 = time.perf_counter()
-        found = abstraction.plan_focused(replace(task, init=state, goal=atoms), start,
-                                         goal.reading, planner, Budget.of_cpu(cpu_seconds))
+        stage = replace(task, init=state, goal=atoms)
+        found = abstraction.plan_focused(stage, start, goal.reading, planner,
+                                         Budget.of_cpu(cpu_seconds))
         report = StageReport(_relations(goal, key), sorted(a.text() for a in atoms - before),
                              found.status, time.perf_counter() - t0,
                              [str(s) for s in found.steps])
         out.append(report)
         if not found.solved:
-            stage = replace(task, init=state, goal=atoms)
             objects = abstraction.focus(stage, start, goal.reading) or task.objects
             report.nearest = nearest_steps(abstraction.bundle.planned, state, atoms, objects)
             break
