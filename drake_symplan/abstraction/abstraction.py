@@ -115,6 +115,12 @@ def pair_of(pairs: dict, atom, both: bool = True) -> tuple | None:
     return None
 
 
+def stage_keys(goal: Reading) -> list[tuple]:
+    """The stages of a goal of relations (Abstraction.stages), in order: the (layer,
+    relation index) values of its Reading.pairs."""
+    return sorted(set(goal.pairs.values()))
+
+
 @dataclass(frozen=True)
 class Level:
     """What the level that found a plan implies for running it: `predicts_positions`, the
@@ -324,9 +330,8 @@ class Abstraction:
         with no move that carries a built part."""
         if any(len(a) != 3 for a in atoms):  # a model without relations: one stage
             return [atoms]
-        stages = sorted(set(goal.pairs.values()))
         return [frozenset(a for a in atoms if goal.pairs[pair_of(goal.pairs, a)] <= stage)
-                for stage in stages]
+                for stage in stage_keys(goal)]
 
     def _plan_stages(self, task: Task, start: Reading, goal: Reading, planner: str,
                      budget: Budget, focus: bool, penalties) -> Plan | None:

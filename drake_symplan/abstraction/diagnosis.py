@@ -15,6 +15,7 @@ import itertools
 import time
 from dataclasses import dataclass, field, replace
 
+from drake_symplan.abstraction.abstraction import stage_keys
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import Step
 
@@ -67,10 +68,9 @@ def diagnose(abstraction, start, goal, planner: str = "fd",
     if goal.reading is None or goal.reading.pairs is None:
         raise ValueError("a stage diagnosis needs a goal of relations (relation_goal)")
     task = abstraction.task(start, goal.reading)
-    keys = sorted(set(goal.reading.pairs.values()))
     stages = abstraction.stages(goal.reading, task.goal)
     state, before, out = task.init, frozenset(), []
-    for key, atoms in zip(keys, stages, strict=False):
+    for key, atoms in zip(stage_keys(goal.reading), stages, strict=False):
         t0 = time.perf_counter()
         stage = replace(task, init=state, goal=atoms)
         found = abstraction.plan_focused(stage, start, goal.reading, planner,
