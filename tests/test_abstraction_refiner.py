@@ -116,6 +116,26 @@ def test_no_plan_grasps_a_cube_under_the_end_of_a_block_as_the_palm_would_strike
     assert sources[0] == "l" and sources.count("c") == 1  # the block off c, and back
 
 
+def test_the_boxes_crowding_a_box_the_order_asks_to_move_are_asked_off_first():
+    # as o16/p018 of relations30: a cube to move (c, onto d) under a block's end (l) that
+    # the goal leaves free; the arm's rules bar every grasp of c while l stands there, so
+    # the order asks for l's moves first (Refusals.crowding) rather than every box's at once
+    features = np.stack([object_features("cube", np.array([0.816, y, 0.025]), np.eye(3))
+                         for y in (0.036, 0.111, 0.182)]
+                        + [object_features("long", np.array([0.814, 0.111, 0.075]), np.eye(3))]
+                        + [object_features("cube", np.array(p), np.eye(3))
+                           for p in ((0.6, -0.2, 0.025), (0.5, 0.25, 0.025))])
+    bridge = Boxes(("c", "a", "e", "l", "d", "f"), features, frozenset()).moved(features[:, :3])
+    refiner = Refiner(list(STACK.values()), Stacking())
+    assert refiner.refusals.crowding(bridge, {"c"}) == {"l"}
+    goal = {n: p for n, p in bridge.where().items() if n in "aed"}
+    goal["c"] = np.array([0.6, -0.2, 0.075])
+    found, _ = refiner.search(bridge, goal, Budget.of_cpu(10))
+    assert [str(s.action) for s in found.steps] == ["pick(l:center) place(f:center)",
+                                                    "pick(c:center) place(d:center)"]
+    assert refiner.predictions == 93  # 111 with every move predicted at the start
+
+
 def test_no_step_sets_a_block_down_into_a_taller_tower_beside_its_target():
     # traced (eight boxes): a block (25 cm along y) centred on a cube 7 cm from a tower of
     # three was lowered into the tower, which fell; the arm refuses it and the planner

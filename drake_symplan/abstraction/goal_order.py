@@ -10,6 +10,8 @@ bound: a pick carries what rides on the source, so one move may put a whole stac
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from drake_symplan.boxes import HALF_EXTENTS
@@ -38,6 +40,13 @@ class GoalOrder:
         self.beneath = {n: self._beneath(n) for n in self.goal}
         # a box whose bottom is higher than REST_TOL stands on another box
         self.goal_floor = {n: HALF_EXTENTS[kinds[n]][2] + REST_TOL for n in self.goal}
+
+    def at(self, goal: dict[str, np.ndarray]) -> GoalOrder:
+        """The same order (who stands on whom) with its boxes' goal positions at `goal`
+        (a goal of relations guided where its structures stand: anchoring.py)."""
+        out = copy.copy(self)
+        out.goal = goal
+        return out
 
     def _beneath(self, name: str) -> set[str]:
         found, frontier = set(), list(self.under[name])

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drake_symplan.abstraction.anchoring import AnchoredGoal
 from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, rollout
 from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, central, ranked
@@ -304,7 +305,15 @@ class Refiner:
             return self._allowed(boxes, options), None
         first, later = _asked_first(options, boxes, order, goal, self.limit, self.missed,
                                     in_the_way)
-        first = self._allowed(boxes, first)
+        allowed = self._allowed(boxes, first)
+        # a box the order asks to move that the arm cannot grasp where it stands (a
+        # block's span over it, a tower beside it): the boxes crowding it are in the way
+        stuck = {m.action.source for m in first} - {m.action.source for m in allowed}
+        if stuck:
+            first, later = _asked_first(options, boxes, order, goal, self.limit, self.missed,
+                                        set(in_the_way) | self.refusals.crowding(boxes, stuck))
+            allowed = self._allowed(boxes, first)
+        first = allowed
         if later and first:
             return first, later
         return first or self._allowed(boxes, later), None
@@ -325,10 +334,19 @@ class Refiner:
         depth = self.max_depth if max_depth is None else max_depth
 
         order = GoalOrder(goal, start.kinds())
+        anchored = AnchoredGoal(self.relations, goal) if self.relations else None
+
+        def guided(boxes) -> tuple[dict[str, np.ndarray], GoalOrder]:
+            """The goal positions and order a scene is ranked by (anchoring.py)."""
+            if anchored is None:
+                return goal, order
+            here = anchored.at(boxes.where())
+            return here, order.at(here)
 
         def h(boxes):
-            errors = goal_errors(boxes, goal)
-            return sum(errors.values()) / STEP_SCALE + MOVE_LEFT * order.moves_left(
+            here, by = guided(boxes)
+            errors = goal_errors(boxes, here)
+            return sum(errors.values()) / STEP_SCALE + MOVE_LEFT * by.moves_left(
                 boxes.where(), errors, self.limit)
 
         tie = itertools.count()
@@ -356,7 +374,8 @@ class Refiner:
                 if key in seen or len(done.steps) >= depth:
                     continue
                 seen.add(key)
-                options, later = self._split(boxes, order, goal, in_the_way)
+                here, by = guided(boxes)
+                options, later = self._split(boxes, by, here, in_the_way)
                 if later:
                     heapq.heappush(frontier, (f + self.defer, next(tie), g, distance, boxes,
                                               done, later, None))

@@ -97,6 +97,16 @@ class Refusals:
                     out.add(("grasp", source, g))
         return out
 
+    @staticmethod
+    def crowding(boxes: Boxes, sources) -> set[str]:
+        """The boxes near `sources` that the palm could strike coming down to grasp them
+        (skills/geometry.palm_reach): where the arm's rules bar every grasp of a source,
+        what the search moves out of its way first."""
+        from drake_symplan.skills.geometry import palm_reach
+
+        objects = boxes.object_states()
+        return {n for s in sources for n in palm_reach(s, objects)} - set(sources)
+
     def sets_down_into(self, boxes: Boxes, action: Action) -> bool:
         """Would `action`'s source be driven into a box at its release in `boxes`, which
         the arm refuses (skills/geometry.set_down_struck: a block set on a cube beside a
