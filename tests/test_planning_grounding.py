@@ -14,7 +14,7 @@ from drake_symplan.planning.planners import plan_pddl, search_binary
 from drake_symplan.symbolic import synthetic
 from drake_symplan.symbolic.operators import LearnConfig, learn_operators
 from drake_symplan.symbolic.pddl import domain_pddl
-from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task, parse_step
+from drake_symplan.symbolic.structs import Atom, Goal, LiftedOperator, Task, parse_step
 
 needs_search = pytest.mark.skipif(search_binary() is None,
                                   reason="up-fast-downward has no search binary here")
@@ -147,3 +147,26 @@ def test_without_a_search_binary_the_task_goes_to_the_planner_as_pddl(learned, m
     task = Task(start.objects, frozenset(start.facts()), frozenset(goal.goal_facts(contacts)))
     result = plan_task(learned, lambda: asked.append(1) or domain, task, "fd")
     assert asked == [1] and result.status in ("solved", "unsolvable")
+
+
+@needs_search
+def test_a_goal_with_choices_is_reached_by_any_of_its_sets():
+    # b on c may read r0 (put) or p1 under it (mark after put on c): either set will do,
+    # and no action follows the set it ends at (the atoms hold at the plan's end)
+    task = Task(("a", "b", "c"), frozenset({Atom("p0", "a"), Atom("p0", "b")}),
+                Goal({Atom("p0", "a")}, [(("b", "c"), [{Atom("p1", "b")},
+                                                       {Atom("r0", "b", "c")}])]))
+    found = fast_downward_task([PUT, MARK, THREE], task)
+    assert found.plan == [f"({PUT.name} b c)"]  # one step: the second set; no choice step
+    assert not ground([PUT, MARK], task).solved()
+    # the first set alone takes two steps (a onto b, then mark b)
+    only = Task(task.objects, task.init, Goal((), [(("b", "c"), [{Atom("p1", "b")}])]))
+    assert len(fast_downward_task([PUT, MARK], only).plan) == 2
+    # a choice no set of which can hold: unsolvable without search
+    never = Task(task.objects, task.init, Goal((), [(("b", "c"), [{Atom("r0", "c", "b"),
+                                                                   Atom("p1", "c")}])]))
+    assert fast_downward_task([PUT], never).status == "unsolvable"
+    # held already: solved without a step
+    held = Task(task.objects, task.init | {Atom("r0", "b", "c")}, task.goal)
+    found = fast_downward_task([PUT, MARK, THREE], held)
+    assert found.solved and found.plan == []

@@ -110,13 +110,34 @@ def test_under_vicinity_a_named_pairs_relation_is_its_bits_both_ways_and_no_othe
                       np.zeros((3, 1), bool), np.zeros((3, 3, 3), bool),
                       pairs={("a", "b"): (0, 0)})
     vicinity = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
-                                           relevance_radius=VICINITY))
+                                           relevance_radius=VICINITY, patterns={}))
     atoms = vicinity.goal_atoms(reading)
     assert atoms == {("r1", "a", "b"), ("r2", "a", "b"), ("r0", "b", "a")}
     assert vicinity.stages(reading, atoms) == [atoms]
     contact = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
-                                          relevance_radius=CONTACT_TOLERANCE))
+                                          relevance_radius=CONTACT_TOLERANCE, patterns={}))
     assert contact.goal_atoms(reading) == {("r1", "a", "b"), ("r2", "a", "b")}
+
+
+def test_a_pair_whose_kind_the_symbols_read_in_patterns_is_a_choice_of_them():
+    # the example reads a b's bits as RowBits does; the bundle reads "on" in two patterns
+    # (relation_patterns.py): a on b is a choice of the example's bits or either pattern,
+    # held wherever one of them holds, and in the stage of its pair
+    names = ("a", "b", "c")
+    reading = Reading(SymbolicState(names, np.zeros((3, 1)), np.zeros((3, 3, 3))),
+                      np.zeros((3, 1), bool), np.zeros((3, 3, 3), bool),
+                      pairs={("a", "b"): (0, 0)}, kinds={("a", "b"): "on"})
+    on = [frozenset({("r0", 0, 1), ("not_r0", 1, 0)}), frozenset({("r1", 0, 1)})]
+    vicinity = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
+                                           relevance_radius=VICINITY, patterns={"on": on}))
+    goal = vicinity.goal_atoms(reading)
+    example = {("r1", "a", "b"), ("r2", "a", "b"), ("r0", "b", "a")}
+    assert goal == set() and goal.choices == ((("a", "b"), (
+        example, {("r0", "a", "b"), ("not_r0", "b", "a")}, {("r1", "a", "b")})),)
+    assert goal <= {("r1", "a", "b"), ("r0", "c", "a")}  # the second pattern holds
+    assert not goal <= {("r0", "a", "b"), ("r0", "b", "a")}  # the first but for not_r0
+    assert vicinity.stages(reading, goal) == [goal] and vicinity.stages(
+        reading, goal)[0].choices == goal.choices
 
 
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),

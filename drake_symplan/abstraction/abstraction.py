@@ -27,8 +27,18 @@ from drake_symplan.planning.grounding import fast_downward_task
 from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PlanResult, plan_pddl, search_binary
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.pddl import problem_from_atoms
+from drake_symplan.symbolic.relation_patterns import ground as ground_pattern
 from drake_symplan.symbolic.states import SymbolicState, check_name
-from drake_symplan.symbolic.structs import Atom, PlanStep, Step, Task, parse_step
+from drake_symplan.symbolic.structs import (
+    Atom,
+    Goal,
+    PlanStep,
+    Step,
+    Task,
+    flat,
+    goal_of,
+    parse_step,
+)
 
 # A move's plan cost per box it carries, where a goal of relations leaves the order of
 # the moves free: the arm keeps a rider on 26 of 45 carries (the carry suite,
@@ -54,6 +64,8 @@ class Reading:
     # The pairs in contact, which the degree atoms count, where the relevance graph is
     # wider (vicinity); None: `contacts`.
     touching: set | None = None
+    # A goal of relations: the kind of each of its pairs (relations.PAIR_KINDS)
+    kinds: dict | None = None
 
     @property
     def objects(self) -> tuple[str, ...]:
@@ -88,19 +100,21 @@ def relation_goal(goal: Observation, relations) -> Observation:
     the relations name (Reading.pairs), each pair with the layer of its lower box and
     its relation's index."""
     from drake_symplan.boxes import SIDE
-    from drake_symplan.relations import bottom, named
+    from drake_symplan.relations import PAIR_KIND, bottom, named
 
     names = [n for n in named(relations) if n in goal.boxes.names]
     rows = [goal.boxes.names.index(n) for n in names]
     boxes = Boxes(tuple(names), goal.boxes.features[rows],
                   frozenset(p for p in goal.boxes.contacts if set(p) <= set(names)))
     states = goal.boxes.object_states()
-    pairs = {}
+    pairs, kinds = {}, {}
     for index, r in enumerate(relations):
         for upper, lower in r.pairs():
             layer = max(0, int(round(bottom(states[lower]) / SIDE))) if lower in states else 0
             pairs[(upper, lower)] = (layer, index)
-    reading = None if goal.reading is None else replace(goal.reading, pairs=pairs)
+            kinds[(upper, lower)] = PAIR_KIND[r.word]
+    reading = None if goal.reading is None else replace(goal.reading, pairs=pairs,
+                                                         kinds=kinds)
     return Observation(goal.scene, reading, boxes, tuple(relations))
 
 
@@ -190,8 +204,8 @@ class Plan:
 
 def problem_text(task: Task, costs: bool) -> str:
     """The PDDL problem of `task` (minimising total cost with `costs`)."""
-    return problem_from_atoms(task.objects, sorted(task.init), sorted(task.goal), task.name,
-                              costs=costs)
+    return problem_from_atoms(task.objects, sorted(task.init), sorted(flat(task.goal)),
+                              task.name, costs=costs)
 
 
 def plan_task(operators, domain: Callable[[], str], task: Task, planner: str = "fd",
@@ -278,11 +292,30 @@ class Abstraction:
             named = {n for pair in goal.pairs for n in pair}
             return frozenset(a for a in atoms if set(a[1:]) <= named)
         both = self.bundle.relevance_radius > CONTACT_TOLERANCE
-        return frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both))
+        named = frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both))
+        return self._choices(goal, named, both)
+
+    def _choices(self, goal: Reading, atoms: frozenset, both: bool) -> Goal:
+        """A goal of relations' atoms as a Goal: each named pair whose kind the bundle
+        reads in patterns (symbolic/relation_patterns.py) a choice of the example's atoms
+        of it or any of its kind's patterns; the other pairs' atoms wanted as they are."""
+        patterns = self.bundle.patterns
+        if not both or not patterns or goal.kinds is None:
+            return Goal(atoms)
+        wanted, choices = set(atoms), []
+        for pair, kind in goal.kinds.items():
+            if not patterns.get(kind):
+                continue
+            own = frozenset(a for a in atoms if pair_of({pair: None}, a))
+            wanted -= own
+            alternatives = dict.fromkeys([own, *(ground_pattern(p, *pair)
+                                                 for p in patterns[kind])])
+            choices.append((pair, list(alternatives)))
+        return Goal(wanted, choices)
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""
-        return goal <= self.atoms(reading)[0]
+        return goal_of(goal) <= self.atoms(reading)[0]
 
     # --- tasks and plans --------------------------------------------------------------
 
@@ -298,6 +331,7 @@ class Abstraction:
         planner tries these first (as PLOI, Silver et al. 2021, with a rule for the
         score): grounding grows with the cube of the object count."""
         changed = {n for atom in task.goal - task.init for n in atom[1:]}
+        changed |= {n for key, _ in goal_of(task.goal).open_choices(task.init) for n in key}
         pairs = {tuple(p) for p in start.contacts} | {tuple(p) for p in goal.contacts}
         near = {b for a, b in pairs if a in changed} | {a for a, b in pairs if b in changed}
         return tuple(n for n in task.objects if n in changed | near)
@@ -330,7 +364,9 @@ class Abstraction:
         with no move that carries a built part."""
         if any(len(a) != 3 for a in atoms):  # a model without relations: one stage
             return [atoms]
-        return [frozenset(a for a in atoms if goal.pairs[pair_of(goal.pairs, a)] <= stage)
+        choices = goal_of(atoms).choices
+        return [Goal((a for a in atoms if goal.pairs[pair_of(goal.pairs, a)] <= stage),
+                     [(key, alts) for key, alts in choices if goal.pairs[key] <= stage])
                 for stage in stage_keys(goal)]
 
     def _plan_stages(self, task: Task, start: Reading, goal: Reading, planner: str,
@@ -349,7 +385,7 @@ class Abstraction:
             for step in found.steps:
                 state = step.apply(state)
             steps += found.steps
-        if not task.goal <= state:
+        if not goal_of(task.goal) <= state:
             return None
         return Plan("solved", steps, 0.0, "", planner)
 

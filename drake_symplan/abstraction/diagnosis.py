@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 from drake_symplan.abstraction.abstraction import stage_keys
 from drake_symplan.planning.budget import Budget
-from drake_symplan.symbolic.structs import Step
+from drake_symplan.symbolic.structs import Goal, Step, flat, goal_of
 
 NEAREST = 3  # steps named for a stage with no plan
 MOST_GROUNDINGS = 50_000  # ground steps looked at for them, at most
@@ -75,13 +75,16 @@ def diagnose(abstraction, start, goal, planner: str = "fd",
         stage = replace(task, init=state, goal=atoms)
         found = abstraction.plan_focused(stage, start, goal.reading, planner,
                                          Budget.of_cpu(cpu_seconds))
-        report = StageReport(_relations(goal, key), sorted(a.text() for a in atoms - before),
+        new = Goal(atoms - before,
+                   [c for c in goal_of(atoms).choices if c not in goal_of(before).choices])
+        report = StageReport(_relations(goal, key), new.describe(),
                              found.status, time.perf_counter() - t0,
                              [str(s) for s in found.steps])
         out.append(report)
         if not found.solved:
             objects = abstraction.focus(stage, start, goal.reading) or task.objects
-            report.nearest = nearest_steps(abstraction.bundle.planned, state, atoms, objects)
+            report.nearest = nearest_steps(abstraction.bundle.planned, state, flat(atoms),
+                                           objects)
             break
         for step in found.steps:
             state = step.apply(state)

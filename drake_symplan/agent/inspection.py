@@ -46,7 +46,7 @@ from drake_symplan.agent.inspection_draw import (
 from drake_symplan.agent.inspection_draw import draw_goal_scene as draw_goal_scene
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.solve import Agent
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, other_outcomes
+from drake_symplan.symbolic.structs import PlanStep, Reposition, Step, goal_of, other_outcomes
 
 CLOUD_Z_MIN = 0.003  # m: points at the table's height and below are not drawn
 PALETTE = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#edc948", "#76b7b2",
@@ -301,7 +301,7 @@ def inspect(start_scene, abstraction: Abstraction, goal_scene=None, meshcat=None
         if relations:
             wanted = relation_goal(wanted, relations)
         result["goal"] = symbol_view(goal.scene, wanted.reading)
-        result["goal"]["atoms"] = sorted(a.text() for a in abstraction.goal_atoms(wanted.reading))
+        result["goal"]["atoms"] = goal_of(abstraction.goal_atoms(wanted.reading)).describe()
         found = make_planner(abstraction, config).plan(
             Observation(start.scene, start_reading, Boxes.of(start.scene)), wanted)
         result["plan_status"], result["plan_level"] = found.status, found.level

@@ -92,6 +92,10 @@ def _register_bundle(subparsers) -> None:
                    help="effect learner: states hold each object's contact degree "
                    "(touching0..3: 'nothing else touches ?o0'); off: more coverage and "
                    "precision, no operator can require that (default on)")
+    b.add_argument("--patterns", action="store_true",
+                   help="also read the goal relations (on, bears, beside) in the symbols "
+                   "from --data's scenes (patterns.json, symbolic/relation_patterns.py); "
+                   "without --run, added to the bundle in --out")
     b.add_argument("--margin", type=nonnegative_float, default=3.0,
                    help="a bit is uncertain when |logit| < margin (default 3)")
     b.add_argument("--generalize", type=probability, default=None, metavar="TOLERANCE",
@@ -252,6 +256,12 @@ def cmd_bundle(args) -> dict:
     check_output_dir(args.out)
     if args.symbols is not None and args.run is not None:
         raise CommandError("give --run or --symbols, not both")
+    if args.run is None and args.symbols is None and args.patterns \
+            and args.continuous is None:
+        if args.data is None:
+            raise CommandError("--patterns needs --data (the scenes to read them in)")
+        check_input_dir(args.data, "--data")
+        return _bundle_patterns(args.out, args.data)
     if args.run is None and args.symbols is None and args.continuous is not None:
         ModelBundle.load(args.out)  # an existing bundle, or a one-line error
         for run in args.continuous:
@@ -277,7 +287,25 @@ def cmd_bundle(args) -> dict:
                   "data": str(args.data), "data_fingerprint": fingerprint(args.data)}
     write_bundle(args.out, model if args.symbols else args.run, operators, semantics, info,
                  provenance, args.margin, args.continuous)
-    return {"out": str(args.out), "operators": len(operators), **info}
+    out = {"out": str(args.out), "operators": len(operators), **info}
+    if args.patterns:
+        out["patterns"] = _bundle_patterns(args.out, args.data)
+    return out
+
+
+def _bundle_patterns(folder: Path, data: Path) -> dict:
+    """The goal relations' patterns read from `data` in the bundle in `folder`, written
+    there (patterns.json); what was read."""
+    from drake_symplan.shards import fingerprint
+    from drake_symplan.symbolic import relation_patterns
+    from drake_symplan.symbolic.bundle import ModelBundle
+
+    kept, info = relation_patterns.read_patterns(ModelBundle.load(folder), data)
+    info = {"data": str(data), "data_fingerprint": fingerprint(data),
+            "min_share": relation_patterns.MIN_SHARE, "purity": relation_patterns.PURITY,
+            **info}
+    path = relation_patterns.save(kept, folder, info)
+    return {"file": str(path), **info, "patterns": {k: len(v) for k, v in kept.items()}}
 
 
 def cmd_eval_operators(args) -> dict:

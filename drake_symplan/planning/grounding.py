@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 from drake_symplan.planning.planners import (
@@ -25,7 +25,7 @@ from drake_symplan.planning.planners import (
     PlanResult,
     fast_downward_sas,
 )
-from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task
+from drake_symplan.symbolic.structs import Atom, LiftedOperator, Task, goal_of
 
 TRUE, FALSE = 0, 1  # variable values, as the translator numbers an atom's
 
@@ -42,13 +42,21 @@ class GroundAction:
 @dataclass
 class GroundTask:
     """The reachable part of a task: its variables (non-static atoms), actions, initial
-    state and goal; `unreachable`: the goal atoms no action can make true."""
+    state and goal; `unreachable`: the goal atoms no action can make true; `choices`: of
+    a goal's choices (structs.Goal), the sets still reachable, each cut to its variables
+    (empty: a set that holds for good)."""
 
     variables: list[Atom]
     actions: list[GroundAction]
     init: frozenset
     goal: frozenset
     unreachable: frozenset
+    choices: list[list[frozenset]] = field(default_factory=list)
+
+    def solved(self) -> bool:
+        """Does the goal hold in the initial state?"""
+        return self.goal <= self.init and all(any(a <= self.init for a in alternatives)
+                                              for alternatives in self.choices)
 
 
 def _slot_order(op: LiftedOperator) -> list[list[tuple[str, tuple[int, ...]]]]:
@@ -134,33 +142,61 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
                                  if n <= len(args)))
         if act.add or act.delete:
             kept.append(act)
+    goal = goal_of(task.goal)
+    choices = [[a & changing for a in alternatives if a <= facts]
+               for _, alternatives in goal.choices]
+    unreachable = frozenset(goal) - facts
+    for (_, alternatives), reachable in zip(goal.choices, choices, strict=True):
+        if not reachable:  # no set of the choice can hold: report the first's atoms
+            unreachable |= alternatives[0] - facts if alternatives else frozenset()
     return GroundTask(sorted(changing), kept, frozenset(task.init) & changing,
-                      frozenset(task.goal) & changing, frozenset(task.goal) - facts)
+                      frozenset(goal) & changing, unreachable, choices)
+
+
+CHOICE = "goal-choice"  # the plan steps that pick a choice's set (no operator's name)
 
 
 def sas_text(task: GroundTask) -> str:
-    """The task in FD's SAS+ format, version 3, with action costs."""
+    """The task in FD's SAS+ format, version 3, with action costs. A goal's choices are
+    compiled as disjunctive goals are: a variable `acting`, true at the start and asked
+    by every action, and per choice a variable its goal; per set of a choice an action of
+    cost 0 (named CHOICE) that asks for the set, makes the choice's variable true and
+    `acting` false, so no action follows it and the sets hold at the plan's end."""
     index = {atom: i for i, atom in enumerate(task.variables)}
+    names = [f"Atom {a[0]}({', '.join(a[1:])})" for a in task.variables]
+    acting = len(names) if task.choices else None
+    if task.choices:
+        names += ["Atom acting()"] + [f"Atom chosen{i}()" for i in range(len(task.choices))]
     lines = ["begin_version", "3", "end_version", "begin_metric", "1", "end_metric",
-             str(len(task.variables))]
-    for i, atom in enumerate(task.variables):
-        text = f"{atom[0]}({', '.join(atom[1:])})"
-        lines += ["begin_variable", f"var{i}", "-1", "2", f"Atom {text}",
-                  f"NegatedAtom {text}", "end_variable"]
-    lines += ["0", "begin_state"]
-    lines += [str(TRUE if atom in task.init else FALSE) for atom in task.variables]
-    lines += ["end_state", "begin_goal", str(len(task.goal))]
-    lines += [f"{index[a]} {TRUE}" for a in sorted(task.goal)]
-    lines += ["end_goal", str(len(task.actions))]
-    for act in task.actions:
-        prevail = sorted(index[a] for a in act.pre - act.delete)
-        effects = [(index[a], -1, TRUE) for a in act.add]
-        effects += [(index[a], TRUE if a in act.pre else -1, FALSE) for a in act.delete]
-        lines += ["begin_operator", act.name, str(len(prevail))]
+             str(len(names))]
+    for i, text in enumerate(names):
+        lines += ["begin_variable", f"var{i}", "-1", "2", text, "Negated" + text,
+                  "end_variable"]
+    init = [TRUE if atom in task.init else FALSE for atom in task.variables]
+    if task.choices:
+        init += [TRUE] + [FALSE] * len(task.choices)
+    goal = [index[a] for a in sorted(task.goal)]
+    goal += [acting + 1 + i for i in range(len(task.choices))]
+    lines += ["0", "begin_state", *map(str, init), "end_state", "begin_goal", str(len(goal))]
+    lines += [f"{v} {TRUE}" for v in goal]
+    actions = [(act.name, sorted(index[a] for a in act.pre - act.delete),
+                [(index[a], -1, TRUE) for a in act.add]
+                + [(index[a], TRUE if a in act.pre else -1, FALSE) for a in act.delete],
+                act.cost) for act in task.actions]
+    if task.choices:
+        actions = [(n, sorted([*prevail, acting]), effects, cost)
+                   for n, prevail, effects, cost in actions]
+        actions += [(f"{CHOICE} {i} {k}", sorted(index[a] for a in alternative),
+                     [(acting + 1 + i, -1, TRUE), (acting, -1, FALSE)], 0)
+                    for i, alternatives in enumerate(task.choices)
+                    for k, alternative in enumerate(alternatives)]
+    lines += ["end_goal", str(len(actions))]
+    for name, prevail, effects, cost in actions:
+        lines += ["begin_operator", name, str(len(prevail))]
         lines += [f"{v} {TRUE}" for v in prevail]
         lines += [str(len(effects))]
         lines += [f"0 {v} {pre} {post}" for v, pre, post in sorted(effects)]
-        lines += [str(act.cost), "end_operator"]
+        lines += [str(cost), "end_operator"]
     lines += ["0"]
     return "\n".join(lines) + "\n"
 
@@ -183,11 +219,12 @@ def fast_downward_task(operators: Sequence[LiftedOperator], task: Task,
         atoms = ", ".join(Atom.of(a).text() for a in sorted(grounded.unreachable)[:3])
         return result("unsolvable", f"unsolvable (proved by grounding: no action reaches "
                                     f"{atoms})")
-    if not grounded.goal - grounded.init:
+    if grounded.solved():
         return result("solved")
     used = time.perf_counter() - start
     found = fast_downward_sas(sas_text(grounded), max(wall_seconds - used, 1e-3), search,
                               None if cpu_seconds is None else
                               max(cpu_seconds - (time.thread_time() - cpu0), 1e-3))
     found.seconds += used
+    found.plan = [step for step in found.plan if not step.startswith(f"({CHOICE}")]
     return found

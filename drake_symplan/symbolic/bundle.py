@@ -37,6 +37,7 @@ from drake_symplan.learning.checkpoint import (
 )
 from drake_symplan.learning.gumbel import DEFAULT_MARGIN
 from drake_symplan.learning.handmade import HandmadeSymbols
+from drake_symplan.symbolic import relation_patterns
 from drake_symplan.symbolic.effect_operators import (
     EFFECT,
     PAPER,
@@ -123,6 +124,8 @@ class ModelBundle:
         self.domain_strips = domain_pddl(self.planned, self.n_unary, self.n_relations,
                                          costs=False)
         self._domains: dict[tuple[int, bool], str] = {}
+        # the goal relations read in the symbols (relation_patterns.py), where measured
+        self.patterns = relation_patterns.load(path)
 
     def domain_for(self, n_objects: int, costs: bool = True) -> str:
         """The planner's domain for a task of `n_objects` objects (pddl.domain_pddl)."""

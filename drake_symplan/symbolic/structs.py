@@ -225,6 +225,60 @@ def other_outcomes(steps: Sequence[PlanStep], init, operators: Iterable[LiftedOp
     return out
 
 
+class Goal(frozenset):
+    """Goal atoms, all wanted, and `choices`: per named pair (its key, the pair of
+    objects) alternative sets of atoms, any one of which will do (a goal relation read in
+    the discovered symbols, symbolic/relation_patterns.py; the example's own reading
+    first). `goal <= state` holds where the atoms and one set of each choice do; a plain
+    frozenset is a Goal without choices. The planners compile the choices
+    (planning/grounding.py); where one cannot, it plans the first of each (`flat`)."""
+
+    choices: tuple = ()
+
+    def __new__(cls, atoms: Iterable = (), choices: Iterable = ()):
+        out = super().__new__(cls, atoms)
+        out.choices = tuple((tuple(key), tuple(frozenset(a) for a in alternatives))
+                            for key, alternatives in choices)
+        return out
+
+    def __reduce__(self):
+        return Goal, (frozenset(self), self.choices)
+
+    def __le__(self, other) -> bool:
+        return frozenset(self) <= other and all(any(a <= other for a in alternatives)
+                                               for _, alternatives in self.choices)
+
+    issubset = __le__
+
+    def open_choices(self, state) -> list[tuple]:
+        """The choices none of whose sets holds in `state`."""
+        return [(key, alts) for key, alts in self.choices if not any(a <= state for a in alts)]
+
+    def describe(self) -> list[str]:
+        """The goal as lines: each atom, then each choice as its sets, "one of" them."""
+        def text(atoms) -> str:
+            return ", ".join(sorted(Atom.of(a).text() for a in atoms)) or "(nothing)"
+
+        return sorted(Atom.of(a).text() for a in self) + [
+            "one of: " + " | ".join(text(a) for a in alternatives)
+            for _, alternatives in self.choices]
+
+    def restricted(self, keep) -> Goal:
+        """The goal over the objects in `keep` only."""
+        return Goal((a for a in self if set(a[1:]) <= keep),
+                    [(k, alts) for k, alts in self.choices if set(k) <= keep])
+
+
+def goal_of(atoms) -> Goal:
+    """`atoms` as a Goal (itself where it is one)."""
+    return atoms if isinstance(atoms, Goal) else Goal(atoms)
+
+
+def flat(goal) -> frozenset:
+    """A goal's atoms with the first set of each choice (the example's reading)."""
+    return frozenset(goal).union(*(alts[0] for _, alts in goal_of(goal).choices if alts))
+
+
 def reaches(steps: Iterable[PlanStep], state, goal) -> bool:
     """Do `steps` apply one after the other from `state` and end where `goal` holds?"""
     state = frozenset(state)
@@ -232,7 +286,7 @@ def reaches(steps: Iterable[PlanStep], state, goal) -> bool:
         if not step.applicable(state):
             return False
         state = step.apply(state)
-    return set(goal) <= state
+    return goal_of(goal) <= state
 
 
 @dataclass(frozen=True)
@@ -248,13 +302,10 @@ class Task:
     def restricted(self, objects: Iterable[str]) -> Task:
         """The task over `objects` only (in this task's order), atoms over others left out."""
         keep = set(objects)
-
-        def kept(atoms):
-            return frozenset(a for a in atoms if set(a[1:]) <= keep)
-
-        return Task(tuple(o for o in self.objects if o in keep), kept(self.init),
-                    kept(self.goal), self.name, self.unknown)
+        return Task(tuple(o for o in self.objects if o in keep),
+                    frozenset(a for a in self.init if set(a[1:]) <= keep),
+                    goal_of(self.goal).restricted(keep), self.name, self.unknown)
 
     @property
     def solved(self) -> bool:
-        return self.goal <= self.init
+        return goal_of(self.goal) <= self.init

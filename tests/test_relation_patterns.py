@@ -1,0 +1,64 @@
+"""The goal relations read in the learned bits: patterns counted on scenes with known
+answers, kept by share and purity."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+from drake_symplan.datasets import ObjectState
+from drake_symplan.symbolic import relation_patterns as rp
+
+
+def cube(name: str, x: float, y: float, z: float) -> ObjectState:
+    return ObjectState(name, "cube", np.array([x, y, z]), 0.0, 0.0)
+
+
+def scene(upper_z: float, r0: int, uncertain_r1: bool = False):
+    """Two cubes: slot 1 on slot 0 (upper_z 0.075) or beside it along +y (0.025), one
+    relation bit each way (r0 from 1 to 0 as given, from 0 to 1 off) and r1 (on)."""
+    objects = {0: cube("0", 0.6, 0.0, 0.025),
+               1: cube("1", 0.6, 0.0 if upper_z > 0.05 else 0.055, upper_z)}
+    rel = np.zeros((2, 2, 2), bool)
+    rel[0, 1, 0], rel[1, 1, 0] = r0, True
+    uncertain = np.zeros((2, 2, 2), bool)
+    uncertain[1, 1, 0] = uncertain_r1
+    return objects, {(0, 1)}, rel, uncertain
+
+
+def test_a_pairs_pattern_is_its_certain_bits_both_ways_upper_first():
+    _, _, rel, uncertain = scene(0.075, 1, uncertain_r1=True)
+    assert rp.pair_pattern(rel, uncertain, 1, 0) == {
+        ("r0", 0, 1), ("not_r0", 1, 0), ("not_r1", 1, 0)}  # r1 from 1 to 0 uncertain
+
+
+def test_patterns_are_kept_where_frequent_and_mostly_of_their_kind():
+    # on: 8 pairs read r0 (up to down), 2 do not; beside: 5 pairs read no r0, as 2 on do
+    scenes = [scene(0.075, 1)] * 8 + [scene(0.075, 0)] * 2 + [scene(0.025, 0)] * 5
+    by_kind, every = rp.count_patterns(scenes)
+    read_on = rp.pair_pattern(*scene(0.075, 1)[2:], 1, 0)
+    read_flat = rp.pair_pattern(*scene(0.075, 0)[2:], 1, 0)
+    assert by_kind["on"] == {read_on: 8, read_flat: 2} and by_kind["bears"] == by_kind["on"]
+    # the beside pairs are (first, next) = (0, 1): their pattern reads from 0 to 1
+    assert sum(by_kind["beside"].values()) == 5
+    kept = rp.select(by_kind, every, min_share=0.1, purity=0.8)
+    assert kept["on"] == [read_on]  # read_flat: 2 of the 7 pairs that read it
+    assert kept["bears"] == [read_on]
+    # a pattern with a bit read uncertain (h) holds whatever that bit reads: it counts
+    # every pair whose bits hold it, whatever its kind: 8 + 3 on pairs of 15
+    h = frozenset({("r0", 0, 1), ("not_r0", 1, 0)})
+    with_r1, without = h | {("r1", 0, 1)}, h | {("not_r1", 0, 1)}
+    on = Counter({with_r1: 8, h: 3})
+    every = Counter({with_r1: 8, h: 3, without: 4})
+    none = {"on": on, "bears": Counter(), "beside": Counter()}
+    assert rp.select(none, every, min_share=0.1, purity=0.7)["on"] == [with_r1, h]
+    assert rp.select(none, every, min_share=0.1, purity=0.8)["on"] == [with_r1]
+
+
+def test_patterns_are_saved_and_loaded_with_a_bundle(tmp_path):
+    on = [frozenset({("r0", 0, 1), ("not_r0", 1, 0)})]
+    rp.save({"on": on, "beside": []}, tmp_path, {"scenes": 2})
+    assert rp.load(tmp_path) == {"on": on, "beside": []}
+    assert rp.load(tmp_path / "none") == {}
+    assert rp.ground(on[0], "a", "b") == {("r0", "a", "b"), ("not_r0", "b", "a")}
