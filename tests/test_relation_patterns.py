@@ -3,6 +3,7 @@ answers, kept by share and purity."""
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 from pathlib import Path
 
@@ -94,3 +95,37 @@ def test_the_symbols_plan_a_tower_of_three_in_two_moves_with_the_patterns():
         ("pick_center_place_center_n54_op21", ("o3", "o0", "o1"))]
     abstraction.bundle.patterns = {}  # the example's bits alone
     assert len(abstraction.plan(now.reading, goal.reading).steps) == 5
+
+
+def test_bundle_patterns_reads_them_in_a_data_sets_scenes(tmp_path, capsys):
+    # three scenes of a cube on a cube and one apart, before and after: six "on" pairs
+    # (each also bears), read by models/vicinity's symbols in one pattern
+    import shutil
+
+    from conftest import assert_bad_input, run
+
+    from drake_symplan.actions import ACTION_DIM, EFFECT_DIM
+    from drake_symplan.datasets import TransitionArrays
+    from drake_symplan.features import object_features
+    from drake_symplan.shards import write_manifest, write_shard
+
+    cubes = [(0.6, 0.0, 0.025), (0.6, 0.0, 0.075), (0.8, 0.3, 0.025)]
+    scene = np.stack([object_features("cube", np.array(p), np.eye(3)) for p in cubes])
+    t = 3
+    states = np.repeat(scene[None], t, 0).astype(np.float32)
+    arrays = TransitionArrays(states, np.zeros((t, 3, ACTION_DIM), np.float32),
+                              np.zeros((t, 3, EFFECT_DIM), np.float32), np.ones((t, 3), bool),
+                              np.arange(t), states.copy())
+    write_shard(tmp_path / "data", 0, arrays)
+    write_manifest(tmp_path / "data", {"config": {"made": "by hand"}})
+    bundle = shutil.copytree(REPO / "models" / "vicinity", tmp_path / "bundle")
+    (bundle / rp.FILE).unlink()
+    assert_bad_input(*run(["bundle", "--out", bundle, "--patterns"], capsys), "--data")
+    code, out, err = run(["bundle", "--out", bundle, "--patterns", "--data",
+                          tmp_path / "data", "--json"], capsys)
+    assert code == 0, err
+    kinds = json.loads(out)["kinds"]
+    assert kinds["on"]["pairs"] == kinds["bears"]["pairs"] == 6
+    assert kinds["beside"] == {"pairs": 0, "read": 0}
+    patterns = rp.load(bundle)
+    assert len(patterns["on"]) == 1 and kinds["on"]["read"] == 6

@@ -119,9 +119,11 @@ def read_patterns(bundle, data_dir: str | Path, scenes: int = SCENES
     from drake_symplan.shards import load_transitions
 
     arrays = load_transitions(data_dir)
-    half = max(1, scenes // 2)
-    states = np.concatenate([arrays.state[:half], arrays.next_state[:half]])
-    masks = np.concatenate([arrays.mask[:half], arrays.mask[:half]]).astype(bool)
+    after = arrays.next_state is not None
+    half = max(1, scenes // 2 if after else scenes)
+    states = np.concatenate([arrays.state[:half]]
+                            + ([arrays.next_state[:half]] if after else []))
+    masks = np.concatenate([arrays.mask[:half]] * (2 if after else 1)).astype(bool)
     _, _, rel, uncertain = read_symbols_batched(bundle.model, states, masks, bundle.margin)
 
     def scene(t: int):
