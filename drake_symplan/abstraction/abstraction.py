@@ -45,6 +45,9 @@ from drake_symplan.symbolic.structs import (
 # tools/bench_carry.py), -ln(26/45) at the operators' cost scale of 10. A whole-scene
 # goal is planned without it, as it always was.
 CARRY_COST = 5
+# The share of a plan's budget for the example's reading of a goal of relations, before
+# the plan with its kinds' patterns (Abstraction.plan)
+EXAMPLE_SHARE = 0.5
 
 
 @dataclass
@@ -344,16 +347,34 @@ class Abstraction:
         proves unsolvable, all of them, in the time left (`focus=False`: all of them). The
         empty plan, without a planner call, when the goal's atoms hold already. A goal of
         relations is planned stage by stage, the lowest pairs first (`stages`), where that
-        reaches it; else at once. `penalties`: see `plan_task`."""
+        reaches it; else at once. A goal whose pairs may read their kind's patterns
+        (`goal_atoms`) is planned to the example's reading first, in half the budget, then
+        with the patterns; the plan with the patterns runs only where it is shorter.
+        `penalties`: see `plan_task`."""
         t0 = time.perf_counter()
         budget = budget or Budget.of_cpu(DEFAULT_TIMEOUT)
         task = self.task(start, goal)
+        options = (planner, focus, penalties)
+        if not goal_of(task.goal).choices:
+            found = self._plan_goal(task, start, goal, budget, *options)
+        else:
+            own = self._plan_goal(replace(task, goal=Goal(flat(task.goal))), start, goal,
+                                  budget.share(EXAMPLE_SHARE), *options)
+            found = self._plan_goal(task, start, goal, budget, *options)
+            if not (found.solved and (not own.solved or len(found.steps) < len(own.steps))):
+                found = own
+        found.seconds = time.perf_counter() - t0
+        return found
+
+    def _plan_goal(self, task: Task, start: Reading, goal: Reading, budget: Budget,
+                   planner: str, focus: bool, penalties) -> Plan:
+        """`task` planned stage by stage where it is a goal of relations, else (or where
+        the stages find no plan) at once."""
         found = None
         if goal.pairs is not None:
             found = self._plan_stages(task, start, goal, planner, budget, focus, penalties)
         if found is None or not found.solved:
             found = self.plan_focused(task, start, goal, planner, budget, focus, penalties)
-        found.seconds = time.perf_counter() - t0
         return found
 
     def stages(self, goal: Reading, atoms: frozenset) -> list[frozenset]:
