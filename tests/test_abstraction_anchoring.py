@@ -38,11 +38,15 @@ def test_a_structure_begun_elsewhere_is_the_goal_where_it_stands():
     here = anchored.at(begun)
     np.testing.assert_allclose(here["a"], [0.7, -0.2, 0.125])
     np.testing.assert_allclose(here["c"], begun["c"])
-    # c moved but nothing set on it as in the example: the example's places stay
+    # c moved but nothing set on it as in the example, or a on b standing apart from c:
+    # the example's places stay (the stack is carried onto c, not built under)
     moved = {**begun, "b": np.array([0.5, 0.2, 0.025])}
-    kept = anchored.at(moved)
-    for name, place in TALL.items():
-        np.testing.assert_allclose(kept[name], place)
+    apart = {"a": np.array([0.5, 0.2, 0.075]), "b": np.array([0.5, 0.2, 0.025]),
+             "c": np.array([0.7, -0.2, 0.025])}
+    for scene in (moved, apart):
+        kept = anchored.at(scene)
+        for name, place in TALL.items():
+            np.testing.assert_allclose(kept[name], place)
 
 
 def test_the_search_finishes_a_tower_where_it_has_begun():

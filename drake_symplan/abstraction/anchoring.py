@@ -7,9 +7,10 @@ where the structures would hold. Once a structure has begun elsewhere (built the
 earlier plan, or knocked and rebuilt), the example's positions say each of its boxes is
 far off and ask to move them back, and the search wanders. So each structure (the boxes
 the named pairs connect) is anchored where it has begun: its example positions moved
-across the table with the lowest of its pairs that stands set as in the example. A
-structure none of whose pairs is set keeps the example's places, which the goal's author
-checked have room. Heights stay the example's.
+across the table with its lowest box (the first named of those as low) where a box of a
+pair on it stands set as in the example. A structure not begun so keeps the example's
+places, which the goal's author checked have room: a stack standing apart from the box
+it goes on is carried there, not built under. Heights stay the example's.
 """
 
 from __future__ import annotations
@@ -53,24 +54,21 @@ class AnchoredGoal:
     def __init__(self, relations: Iterable, goal: Mapping[str, np.ndarray]):
         self.goal = {n: np.asarray(p, float) for n, p in goal.items()}
         relations = list(relations)
-        self.parts = []  # (the part's boxes, its pairs (upper, lower), lowest lower first)
-        for part in structures(relations, self.goal):
-            pairs = [(a, b) for r in relations for a, b in r.pairs() if a in part and b in part]
-            pairs.sort(key=lambda pair: part.index(pair[1]))
-            self.parts.append((part, pairs))
+        self.parts = [(part, [(a, b) for r in relations for a, b in r.pairs()
+                               if a in part and b in part])
+                      for part in structures(relations, self.goal)]  # (boxes, pairs)
 
     def at(self, where: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The goal positions for the boxes standing at `where` (by name): per structure
-        begun somewhere (a pair of it set as in the example, within HELD), the example's
-        moved across the table with that pair's lower box; else the example's."""
+        begun somewhere (a box set on or beside its lowest as in the example, within
+        HELD), the example's moved across the table with that box; else the example's."""
         out = dict(self.goal)
         for part, pairs in self.parts:
-            for upper, lower in pairs:
-                if self._held(upper, lower, where):
-                    shift = np.zeros(3)
-                    shift[:2] = where[lower][:2] - self.goal[lower][:2]
-                    out.update({n: self.goal[n] + shift for n in part})
-                    break
+            anchor = part[0]
+            if any(lower == anchor and self._held(upper, lower, where) for upper, lower in pairs):
+                shift = np.zeros(3)
+                shift[:2] = where[anchor][:2] - self.goal[anchor][:2]
+                out.update({n: self.goal[n] + shift for n in part})
         return out
 
     def _held(self, upper: str, lower: str, where: Mapping[str, np.ndarray]) -> bool:
