@@ -114,7 +114,8 @@ def read_patterns(bundle, data_dir: str | Path, scenes: int = SCENES
     """The patterns of the goal relations in `bundle`'s symbols (module docstring), read
     from the perceived scenes of a data set (the first transitions' before and after,
     `scenes` in all), with counts to report beside them."""
-    from drake_symplan.abstraction.continuous import Boxes
+    from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph
+    from drake_symplan.features import box_of, shape_state
     from drake_symplan.learning.readout import read_symbols_batched
     from drake_symplan.shards import load_transitions
 
@@ -126,12 +127,14 @@ def read_patterns(bundle, data_dir: str | Path, scenes: int = SCENES
     masks = np.concatenate([arrays.mask[:half]] * (2 if after else 1)).astype(bool)
     _, _, rel, uncertain = read_symbols_batched(bundle.model, states, masks, bundle.margin)
 
+    radius = max(bundle.relevance_radius, CONTACT_TOLERANCE)
+
     def scene(t: int):
-        slots = np.flatnonzero(masks[t])
-        boxes = Boxes(tuple(str(i) for i in slots), states[t, slots], frozenset())
-        related = {tuple(sorted((int(a), int(b))))
-                   for a, b in boxes.neighbours(bundle.relevance_radius)}
-        objects = {int(n): o for n, o in boxes.object_states().items()}
+        shapes = {int(i): box_of(states[t, i]) for i in np.flatnonzero(masks[t])}
+        objects = {i: shape_state(str(i), *shape) for i, shape in shapes.items()}
+        related = {tuple(sorted(p)) for p in contact_graph(
+            {i: (c, R, np.asarray(HALF_EXTENTS[k])) for i, (k, c, R) in shapes.items()},
+            radius)}
         return objects, related, rel[t], uncertain[t].astype(bool)
 
     by_kind, every = count_patterns(scene(t) for t in range(len(states)))
