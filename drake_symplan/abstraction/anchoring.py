@@ -61,13 +61,15 @@ class AnchoredGoal:
     def at(self, where: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The goal positions for the boxes standing at `where` (by name): per structure
         begun somewhere (a box set on or beside its lowest as in the example, within
-        HELD), the example's moved across the table with that box; else the example's."""
-        out = dict(self.goal)
+        HELD), the example's moved across the table with that box; else the example's
+        (`goal` itself where no structure has begun)."""
+        out = self.goal
         for part, pairs in self.parts:
             anchor = part[0]
             if any(lower == anchor and self._held(upper, lower, where) for upper, lower in pairs):
                 shift = np.zeros(3)
                 shift[:2] = where[anchor][:2] - self.goal[anchor][:2]
+                out = dict(out) if out is self.goal else out
                 out.update({n: self.goal[n] + shift for n in part})
         return out
 

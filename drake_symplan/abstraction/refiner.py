@@ -341,7 +341,7 @@ class Refiner:
             if anchored is None:
                 return goal, order
             here = anchored.at(boxes.where())
-            return here, order.at(here)
+            return (goal, order) if here is anchored.goal else (here, order.at(here))
 
         def h(boxes):
             here, by = guided(boxes)

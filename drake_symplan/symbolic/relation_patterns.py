@@ -6,12 +6,14 @@ One example of a goal (the compiled goal scene, perceived) reads one pattern per
 pair, and the learned bits also say things no relation is about (how far off centre a cube
 sits, what stands above): a plan to the example's pattern can only reach it by chance, and
 the planner shuffles a box on its support to get there. So a goal pair holds in the
-symbols when its bits read any of its kind's patterns (a disjunctive goal, compiled for the
-planner in planning/grounding.py). A pattern is kept when it is frequent among the kind's
-pairs (at least MIN_SHARE of them) and mostly theirs: of all related pairs of the data
-whose bits hold it (a pattern with a bit read uncertain holds whatever that bit reads), at
-least PURITY are of the kind, so the symbols tell the kinds apart where they can. Only certain bits count: both directions of the pair's relations, the pair
-(upper, lower) or (first, next) as slots 0 and 1.
+symbols when its bits read the example's pattern or any of its kind's (a disjunctive goal,
+compiled for the planner in planning/grounding.py; Abstraction.plan runs the plan with
+the patterns only where it is shorter than the example's). A pattern is kept when it is
+frequent among the kind's pairs (at least MIN_SHARE of them) and mostly theirs: of all
+related pairs of the data whose bits hold it (a pattern with a bit read uncertain holds
+whatever that bit reads), at least PURITY are of the kind, so the symbols tell the kinds
+apart where they can. Only certain bits count, both directions of the pair's relations,
+the pair (upper, lower) or (first, next) as slots 0 and 1.
 """
 
 from __future__ import annotations

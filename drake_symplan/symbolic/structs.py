@@ -245,8 +245,7 @@ class Goal(frozenset):
         return Goal, (frozenset(self), self.choices)
 
     def __le__(self, other) -> bool:
-        return frozenset(self) <= other and all(any(a <= other for a in alternatives)
-                                               for _, alternatives in self.choices)
+        return frozenset(self) <= other and not self.open_choices(other)
 
     issubset = __le__
 
@@ -286,7 +285,7 @@ def reaches(steps: Iterable[PlanStep], state, goal) -> bool:
         if not step.applicable(state):
             return False
         state = step.apply(state)
-    return goal_of(goal) <= state
+    return (goal if isinstance(goal, frozenset) else frozenset(goal)) <= state
 
 
 @dataclass(frozen=True)
