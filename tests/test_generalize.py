@@ -3,7 +3,13 @@
 from __future__ import annotations
 
 from drake_symplan.symbolic.effect_operators import Lifted
-from drake_symplan.symbolic.generalize import droppable, generalize, generalize_one
+from drake_symplan.symbolic.generalize import (
+    bystanders,
+    droppable,
+    generalize,
+    generalize_one,
+    without_slot,
+)
 from drake_symplan.symbolic.lifted import LiftedOperator
 
 # A centred place (grasp 1, release 1) of object 0 on object 1: after it, r0(0, 1).
@@ -50,3 +56,33 @@ def test_a_drop_within_the_tolerance_is_taken_and_one_beyond_it_is_not():
     assert set(generalize([op], seen, tolerance=0.1)[0].pre) == {("p0", 0)}  # 19/20
     assert set(generalize([op], seen, tolerance=0.01)[0].pre) == {("p0", 0), ("p0", 1)}
     assert op.pre == operator([("p0", 0), ("p0", 1)]).pre  # the input is left as it was
+
+
+def test_a_bystander_the_outcome_does_not_need_is_dropped_with_its_preconditions():
+    # A place of 0 on 1 learned where a third box 2 stood beside the target; the effect
+    # names only 0 and 1. Alone on the table the place does the same: 2 goes.
+    op = operator([("p0", 0), ("r1", 1, 2), ("p0", 2)])
+    seen = [placed({("p0", 0), ("r1", 1, 2), ("p0", 2)}, n=3) for _ in range(5)]
+    seen += [placed({("p0", 0)}) for _ in range(5)]
+    general = generalize_one(op, seen, bystanders_too=True)
+    assert (general.n_params, set(general.pre)) == (2, {("p0", 0)})
+    assert (general.applicable, general.succeeded) == (10, 10)
+    assert generalize_one(op, seen).n_params == 3  # only with bystanders_too
+
+
+def test_a_bystander_the_outcome_needs_stays():
+    op = operator([("p0", 0), ("r1", 1, 2)])
+    seen = [placed({("p0", 0), ("r1", 1, 2)}, n=3) for _ in range(5)]
+    seen += [placed({("p0", 0)}, followed=False) for _ in range(5)]
+    general = generalize_one(op, seen, bystanders_too=True)
+    assert (general.n_params, set(general.pre)) == (3, {("p0", 0), ("r1", 1, 2)})
+    assert (general.applicable, general.succeeded) == (5, 5)
+
+
+def test_dropping_a_slot_renumbers_the_ones_above_it():
+    op = LiftedOperator(0, "center", "center", 4, (("p0", 2), ("r1", 1, 3), ("p0", 3)),
+                        (("r0", 0, 3),), (), count=10, example_slots=(5, 6, 7, 8))
+    assert bystanders(op) == [2]
+    out = without_slot(op, 2)
+    assert (out.n_params, out.pre, out.add, out.example_slots) == (
+        3, (("r1", 1, 2), ("p0", 2)), (("r0", 0, 2),), (5, 6, 8))

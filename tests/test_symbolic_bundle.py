@@ -256,3 +256,13 @@ def test_a_bundle_of_the_handmade_symbols_is_made_from_a_data_set_without_a_run(
     assert cli_main.main(["bundle", "--symbols", "handmade", "--run", str(tmp_path),
                           "--data", str(data), "--out", str(out)]) == 2
     assert "not both" in capsys.readouterr().err
+
+
+def test_a_bundle_is_made_again_from_a_bundles_model(bundle, tmp_path):
+    # `symplan bundle --run BUNDLE`: operators learned again on another bundle's symbols
+    again = write_bundle(tmp_path / "again", tmp_path / "bundle", [STACK], EFFECT,
+                         {"learner": "effect"}, {"command": "test"})
+    first = bundle.bundle.model.state_dict()
+    second = ModelBundle.load(again).model.state_dict()
+    assert first.keys() == second.keys()
+    assert all(torch.equal(first[k], second[k]) for k in first)

@@ -69,8 +69,9 @@ def _register_bundle(subparsers) -> None:
         "operators (effect-first by default; 'paper': the paper's method as implemented) and "
         "writes the bundle (model.pt, operators.json, domain.pddl, domain_strips.pddl, "
         "provenance.json) that `symplan solve` and `symplan eval operators` read.")
-    b.add_argument("--run", type=Path, help="trained run directory (required unless "
-                   "--symbols or --continuous is added to an existing bundle)")
+    b.add_argument("--run", type=Path, help="trained run directory, or a model bundle (its "
+                   "model.pt; required unless --symbols or --continuous is added to an "
+                   "existing bundle)")
     b.add_argument("--symbols", choices=("handmade",), default=None,
                    help="instead of --run: symbols made by hand (learning/handmade.py: "
                    "long, on, from the features), the ceiling of symbols of this kind")
@@ -102,6 +103,9 @@ def _register_bundle(subparsers) -> None:
                    help="effect learner: drop each unary precondition of the target and the "
                    "other objects whose absence costs the operator at most TOLERANCE of its "
                    "reliability on the data (symbolic/generalize.py; default: keep them all)")
+    b.add_argument("--bystanders", action="store_true",
+                   help="with --generalize: also drop each object no effect names (a box "
+                   "that only stood near), with every precondition on it, on the same test")
     add_json_argument(b)
     b.set_defaults(func=cmd_bundle)
 
@@ -272,6 +276,8 @@ def cmd_bundle(args) -> dict:
         raise CommandError("give --run (or --symbols) and --data (or --continuous RUN alone, "
                            "to add it to the bundle in --out)")
     check_input_dir(args.data, "--data")
+    if args.bystanders and args.generalize is None:
+        raise CommandError("--bystanders needs --generalize TOLERANCE")
     if args.symbols is not None:
         model, source = HandmadeSymbols(), {"symbols": args.symbols, "rule": HANDMADE_RULE}
     else:
@@ -281,7 +287,7 @@ def cmd_bundle(args) -> dict:
     data, _ = readout_scenes(model, args.data, args.margin)
     operators, semantics, info = learn_bundle_operators(
         data, args.learner, args.min_count, args.support, args.contact_degree == "on",
-        args.generalize)
+        args.generalize, args.bystanders)
     info["relevance_radius"] = relevance_radius(args.data)
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]), **source,
                   "data": str(args.data), "data_fingerprint": fingerprint(args.data)}

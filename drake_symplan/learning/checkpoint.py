@@ -25,6 +25,7 @@ from drake_symplan.learning.handmade import HANDMADE, HandmadeSymbols
 from drake_symplan.learning.models import EffectModel, build_model
 
 BEST = "best.pt"
+BUNDLE_MODEL = "model.pt"  # a model bundle's copy of its run's best checkpoint
 LAST = "last.pt"
 CONFIG = "config.json"
 LOG = "log.csv"
@@ -80,8 +81,18 @@ def models_from_file(path: str | Path) -> list[EffectModel]:
     return [model_from_checkpoint(c).eval() for c in ckpt.get("members", [ckpt])]
 
 
+def best_checkpoint(run_dir: str | Path) -> Path:
+    """A run's `best.pt`; of a model bundle (symbolic/bundle.py), its `model.pt`, the best
+    checkpoint of the run it was made from."""
+    run_dir = Path(run_dir)
+    if not (run_dir / BEST).is_file() and (run_dir / BUNDLE_MODEL).is_file():
+        return run_dir / BUNDLE_MODEL
+    return run_dir / BEST
+
+
 def load_run(run_dir: str | Path, which: str = BEST) -> tuple[EffectModel, dict]:
-    """(model in eval mode, config) from the `best.pt` checkpoint of `run_dir`.
+    """(model in eval mode, config) from the `best.pt` checkpoint of `run_dir` (or a
+    model bundle's model, `best_checkpoint`).
 
     config has "model", "model_config", "train_config", "data_fingerprint",
     "metrics" and "epoch" of the checkpoint.
@@ -90,7 +101,7 @@ def load_run(run_dir: str | Path, which: str = BEST) -> tuple[EffectModel, dict]
     if not run_dir.is_dir():
         what = "is not a directory" if run_dir.exists() else "does not exist"
         raise FileNotFoundError(f"run directory {run_dir} {what}")
-    ckpt = read_checkpoint(run_dir / which)
+    ckpt = read_checkpoint(best_checkpoint(run_dir) if which == BEST else run_dir / which)
     model = model_from_checkpoint(ckpt)
     model.eval()
     config = {key: ckpt.get(key) for key in

@@ -28,7 +28,7 @@ from drake_symplan.atomic import write_atomic
 from drake_symplan.boxes import CONTACT_TOLERANCE
 from drake_symplan.json_files import read_json, type_name
 from drake_symplan.learning.checkpoint import (
-    BEST,
+    best_checkpoint,
     load_run,
     model_from_checkpoint,
     models_from_file,
@@ -170,7 +170,7 @@ def copy_model(run_dirs: str | Path | list, path: Path) -> Path:
     runs = run_dirs if isinstance(run_dirs, (list, tuple)) else [run_dirs]
     kept = []
     for run in runs:
-        ckpt = read_checkpoint(Path(run) / BEST)
+        ckpt = read_checkpoint(best_checkpoint(run))
         kept.append({k: ckpt[k] for k in ("model", "model_config", "model_state", "epoch",
                                           "train_config", "data_fingerprint", "metrics")
                      if k in ckpt})
@@ -179,11 +179,12 @@ def copy_model(run_dirs: str | Path | list, path: Path) -> Path:
 
 def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
                            support: float = 0.95, contact_degree: bool = True,
-                           generalize: float | None = None):
+                           generalize: float | None = None, bystanders: bool = False):
     """(operators, semantics, info) learned from a SymbolDataset by `learner`:
     "effect" (effect_operators.py; `contact_degree`: with contact-degree atoms;
     `generalize`: preconditions cut to what the data shows matters, within that much
-    reliability, symbolic/generalize.py) or "paper" (operators.py, the paper's method as
+    reliability, and with `bystanders` the objects no effect names, symbolic/generalize.py)
+    or "paper" (operators.py, the paper's method as
     implemented, measured under its own semantics: every bit, every pair)."""
     if learner == "effect":
         semantics = EFFECT if contact_degree else dataclasses.replace(EFFECT, degree=False)
@@ -193,8 +194,9 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
         info = {**result.summary(), "contact_degree": contact_degree}
         if generalize is None:
             return result.operators, semantics, info
-        operators = generalize_operators(result.operators, lifted, generalize)
-        return operators, semantics, {**info, "generalize": generalize}
+        operators = generalize_operators(result.operators, lifted, generalize, bystanders)
+        return operators, semantics, {**info, "generalize": generalize,
+                                      "bystanders": bystanders}
     if learner == "paper":
         result = learn_operators(data, LearnConfig(min_count=min_count))
         measure_reliability(result.operators, lift_transitions(data, PAPER))

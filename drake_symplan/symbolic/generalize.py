@@ -11,7 +11,11 @@ preconditions hold, stays within `tolerance` of what it was. An atom whose absen
 transitions with other outcomes stays. Only the unary atoms (symbols and contact degrees)
 of the target and the other objects are tried, the other objects' first: what an action
 does to the box it moves, and which boxes its effect reaches (the relations that bind the
-other objects), stay as learned. The planner's cost (-log reliability) is remeasured.
+other objects), stay as learned. With `bystanders`, an object the effect does not name
+(a parameter only because it stood near: the box under a tower's top, a second tower
+beside the one a block is set on) is then tried as a whole, its parameter and every
+precondition on it dropped, on the same test. The planner's cost (-log reliability) is
+remeasured.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 
 from drake_symplan.symbolic.effect_operators import Lifted, action_of, by_action, counted
-from drake_symplan.symbolic.lifted import LiftedOperator
+from drake_symplan.symbolic.lifted import Atom, LiftedOperator
 
 DEFAULT_TOLERANCE = 0.02  # reliability an operator may lose with an atom dropped
 
@@ -33,6 +37,25 @@ def droppable(op: LiftedOperator) -> list:
     return sorted(atoms, key=lambda a: (-a[1], a[0]))
 
 
+def bystanders(op: LiftedOperator) -> list[int]:
+    """The parameter slots beyond source and target that no effect names, highest first."""
+    named = {s for a in (*op.add, *op.delete) for s in a[1:]}
+    return [s for s in range(op.n_params - 1, 1, -1) if s not in named]
+
+
+def without_slot(op: LiftedOperator, slot: int) -> LiftedOperator:
+    """`op` without parameter `slot`: its preconditions on it dropped, the slots above it
+    renumbered down by one."""
+    def renamed(atoms) -> tuple:
+        return tuple(Atom(a[0], *(s - (s > slot) for s in a[1:])) for a in atoms
+                     if slot not in a[1:])
+
+    kept = tuple(s for i, s in enumerate(op.example_slots) if i != slot)
+    return dataclasses.replace(op, n_params=op.n_params - 1, pre=renamed(op.pre),
+                               add=renamed(op.add), delete=renamed(op.delete),
+                               example_slots=kept)
+
+
 def _measured(op: LiftedOperator, pre: tuple, transitions: list[Lifted]) -> LiftedOperator:
     """`op` with preconditions `pre`, its counts measured on `transitions`."""
     out = dataclasses.replace(op, pre=pre)
@@ -41,20 +64,28 @@ def _measured(op: LiftedOperator, pre: tuple, transitions: list[Lifted]) -> Lift
 
 
 def generalize_one(op: LiftedOperator, transitions: list[Lifted],
-                   tolerance: float = DEFAULT_TOLERANCE) -> LiftedOperator:
-    """`op` with the atoms the data gives no evidence for dropped (module docstring);
-    `transitions`: those of its action."""
+                   tolerance: float = DEFAULT_TOLERANCE,
+                   bystanders_too: bool = False) -> LiftedOperator:
+    """`op` with the atoms (and, `bystanders_too`, the objects) the data gives no evidence
+    for dropped (module docstring); `transitions`: those of its action."""
     best = _measured(op, op.pre, transitions)
     floor = best.reliability - tolerance
     for atom in droppable(op):
         trial = _measured(best, tuple(a for a in best.pre if a != atom), transitions)
         if trial.applicable and trial.reliability >= floor:
             best = trial
+    for slot in bystanders(best) if bystanders_too else ():
+        trial = without_slot(best, slot)
+        trial = _measured(trial, trial.pre, transitions)
+        if trial.applicable and trial.reliability >= floor:
+            best = trial
     return best
 
 
 def generalize(operators: list[LiftedOperator], lifted: list[Lifted],
-               tolerance: float = DEFAULT_TOLERANCE) -> list[LiftedOperator]:
+               tolerance: float = DEFAULT_TOLERANCE,
+               bystanders_too: bool = False) -> list[LiftedOperator]:
     """Every operator generalized on the transitions `lifted` (`generalize_one`)."""
     actions = by_action(lifted)
-    return [generalize_one(op, actions.get(action_of(op), []), tolerance) for op in operators]
+    return [generalize_one(op, actions.get(action_of(op), []), tolerance, bystanders_too)
+            for op in operators]
