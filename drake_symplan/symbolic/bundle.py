@@ -184,8 +184,8 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
     "effect" (effect_operators.py; `contact_degree`: with contact-degree atoms;
     `generalize`: preconditions cut to what the data shows matters, within that much
     reliability, and with `bystanders` the objects no effect names, symbolic/generalize.py)
-    or "paper" (operators.py, the paper's method as
-    implemented, measured under its own semantics: every bit, every pair)."""
+    or "paper" (operators.py, the paper's method as implemented, measured under its own
+    semantics: every bit, every pair)."""
     if learner == "effect":
         semantics = EFFECT if contact_degree else dataclasses.replace(EFFECT, degree=False)
         lifted = lift_transitions(data, semantics)
