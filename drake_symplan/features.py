@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, contact_graph
+from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, YAW_PERIOD, contact_graph
 from drake_symplan.datasets import ObjectState
 
 FEATURE_NAMES = ("x", "y", "z", "cos_tilt", "long_axis_up", "cos_k_yaw", "sin_k_yaw",
@@ -54,14 +54,20 @@ def object_features(kind: str, position: np.ndarray, R: np.ndarray) -> np.ndarra
                      kind == "cube", kind == "long"], dtype=np.float32)
 
 
+def feature_graph(state: np.ndarray, slots, tolerance: float = CONTACT_TOLERANCE
+                  ) -> set[tuple[int, int]]:
+    """The pairs of a scene's boxes (features [M, D], the `slots` present) whose surfaces
+    are within `tolerance` by their geometry (boxes.contact_graph)."""
+    shapes = {int(i): box_of(state[i]) for i in slots}
+    return contact_graph({i: (c, R, np.asarray(HALF_EXTENTS[k]))
+                          for i, (k, c, R) in shapes.items()}, tolerance)
+
+
 def touching(state: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """[T, M, M] bool: the pairs of each scene's boxes (features [T, M, D]) in contact by
     their geometry (boxes.contact_graph), as perception finds them."""
     out = np.zeros(mask.shape + mask.shape[-1:], bool)
     for t in range(len(state)):
-        slots = np.flatnonzero(mask[t])
-        shapes = {int(i): box_of(state[t, i]) for i in slots}
-        for i, j in contact_graph({i: (c, R, np.asarray(HALF_EXTENTS[k]))
-                                   for i, (k, c, R) in shapes.items()}):
+        for i, j in feature_graph(state[t], np.flatnonzero(mask[t])):
             out[t, i, j] = out[t, j, i] = True
     return out

@@ -116,8 +116,8 @@ def read_patterns(bundle, data_dir: str | Path, scenes: int = SCENES
     """The patterns of the goal relations in `bundle`'s symbols (module docstring), read
     from the perceived scenes of a data set (the first transitions' before and after,
     `scenes` in all), with counts to report beside them."""
-    from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph
-    from drake_symplan.features import box_of, shape_state
+    from drake_symplan.boxes import CONTACT_TOLERANCE
+    from drake_symplan.features import box_of, feature_graph, shape_state
     from drake_symplan.learning.readout import read_symbols_batched
     from drake_symplan.shards import load_transitions
 
@@ -132,11 +132,9 @@ def read_patterns(bundle, data_dir: str | Path, scenes: int = SCENES
     radius = max(bundle.relevance_radius, CONTACT_TOLERANCE)
 
     def scene(t: int):
-        shapes = {int(i): box_of(states[t, i]) for i in np.flatnonzero(masks[t])}
-        objects = {i: shape_state(str(i), *shape) for i, shape in shapes.items()}
-        related = {tuple(sorted(p)) for p in contact_graph(
-            {i: (c, R, np.asarray(HALF_EXTENTS[k])) for i, (k, c, R) in shapes.items()},
-            radius)}
+        slots = np.flatnonzero(masks[t])
+        objects = {int(i): shape_state(str(i), *box_of(states[t, i])) for i in slots}
+        related = {tuple(sorted(p)) for p in feature_graph(states[t], slots, radius)}
         return objects, related, rel[t], uncertain[t].astype(bool)
 
     by_kind, every = count_patterns(scene(t) for t in range(len(states)))
