@@ -40,6 +40,10 @@ def test_the_bridges_recipe_starts_from_towers_side_by_side_and_needs_five_boxes
         recipe_config("bridges", transitions=10, min_objects=4)
     with pytest.raises(ValueError, match="unknown start 'stacks'"):
         CollectConfig(start="stacks")
+    table = recipe_config("bridges_table", transitions=10).episode_config()
+    assert (table.start, table.min_objects, table.max_objects) == ("cubes", 3, 4)
+    with pytest.raises(ValueError, match="min_objects >= 3"):
+        recipe_config("bridges_table", transitions=10, min_objects=2)
 
 
 def test_a_recipe_is_checked_against_the_config_fields(tmp_path):
@@ -58,7 +62,8 @@ def test_an_unknown_recipe_is_one_line_and_exit_2(tmp_path, capsys):
     code, out, err = run(["collect", "--recipe", "nope", "--transitions", "10", "--out",
                           out_dir], capsys)
     assert_bad_input(code, out, err, "symplan collect: error: unknown data recipe 'nope'; "
-                     "configs/recipes.yaml has ['bridges', 'current', 'paper', 'shipped', 'vicinity']")
+                     "configs/recipes.yaml has ['bridges', 'bridges_table', 'current', 'paper', "
+                     "'shipped', 'vicinity']")
     assert not out_dir.exists()
 
 

@@ -9,6 +9,7 @@ from drake_symplan.world.scenes import (
     SceneError,
     as_saved,
     load_scene,
+    sample_cubes_scene,
     sample_scene,
     sample_towers_scene,
     save_scene,
@@ -94,6 +95,17 @@ def test_a_towers_start_has_two_towers_side_by_side_a_bridge_apart_and_a_long_bl
     assert all(o.position[2] == 0.025 for o in scene.objects[4:])  # the rest on the table
     with pytest.raises(SceneError, match="5 or more"):
         sample_towers_scene(np.random.default_rng(4), 4)
+
+
+def test_a_cubes_start_has_two_cubes_a_bridge_apart_on_the_table_and_a_long_block():
+    scene = sample_cubes_scene(np.random.default_rng(5), 4)
+    validate_scene(scene)
+    a, b, block = scene.objects[:3]
+    assert a.position[2] == b.position[2] == 0.025 and a.position[0] == b.position[0]
+    assert b.position[1] - a.position[1] - 0.05 == pytest.approx(0.025)
+    assert block.type == "long" and len(scene.objects) == 4
+    with pytest.raises(SceneError, match="3 or more"):
+        sample_cubes_scene(np.random.default_rng(5), 2)
 
 
 def test_a_scene_is_checked_as_its_file_reads_back(tmp_path):

@@ -75,7 +75,8 @@ def add_data_arguments(collect) -> None:
                          "model's kind of data (what `reproduce` and `curve` collect); "
                          "shipped, its very set (to extend it); current, the present world; "
                          "vicinity, relevance by vicinity; bridges, vicinity with starts "
-                         "that hold two towers side by side and a long block (5-6 boxes). "
+                         "that hold two towers side by side and a long block (5-6 boxes); "
+                         "bridges_table, the same with two cubes side by side (3-4 boxes). "
                          "Options given here override the recipe; without one, each option "
                          "has the default shown")
     # The data's options default to None, so that an option given overrides the recipe.

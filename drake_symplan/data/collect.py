@@ -84,8 +84,9 @@ class CollectConfig:
     active: dict = dc.field(default_factory=dict)
     # Relevance (m): the contact rule (boxes.CONTACT_TOLERANCE) or vicinity (boxes.VICINITY)
     relevance_radius: float = CONTACT_TOLERANCE
-    # An episode's first scene: "random" (scattered boxes) or "towers" (two towers of two
-    # side by side among them, 5 or more objects; world/scenes.STARTS)
+    # An episode's first scene: "random" (scattered boxes), "towers" (two towers of two
+    # side by side among them, 5 or more objects) or "cubes" (two cubes side by side, 3 or
+    # more; world/scenes.STARTS)
     start: str = "random"
 
     def __post_init__(self):
@@ -115,9 +116,10 @@ class CollectConfig:
                              f"{self.min_objects}-{self.max_objects}")
         if self.start not in STARTS:
             raise ValueError(f"unknown start {self.start!r}; expected one of {tuple(STARTS)}")
-        if self.start == "towers" and self.min_objects < 5:
-            raise ValueError(f"a start with towers side by side needs min_objects >= 5, got "
-                             f"{self.min_objects}")
+        least = {"towers": 5, "cubes": 3}.get(self.start, 2)
+        if self.min_objects < least:
+            raise ValueError(f"a start with {self.start} side by side needs min_objects >= "
+                             f"{least}, got {self.min_objects}")
 
     @property
     def num_chunks(self) -> int:

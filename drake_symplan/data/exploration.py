@@ -1,7 +1,7 @@
 """Random exploration: episodes of random actions, recorded as perceived transitions.
 
 An episode puts a random scene on the table (scattered boxes, or with `start` "towers"
-two towers side by side among them: world/scenes.STARTS) and executes up to `length` actions chosen by
+or "cubes" two towers or two cubes side by side among them: world/scenes.STARTS) and executes up to `length` actions chosen by
 an explorer over the objects the robot perceives: by default random ones (source !=
 target, grasp and release offsets uniform); `explorers/` has the active one. Each action is perceived before, at the end of the lift and after; the
 'after' scene of one action is the 'before' of the next. A transition records the

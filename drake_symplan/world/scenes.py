@@ -237,6 +237,8 @@ UNITS: dict[str, list[tuple[str, float, float, float]]] = {
     # supports as goals/compiler.py sets them, a gap of 2.5 cm (within boxes.VICINITY).
     "towers_side": [("cube", 0, 0, _level(0)), ("cube", 0, 0, _level(1)),
                     ("cube", 0, _SIDE_BY_SIDE, _level(0)), ("cube", 0, _SIDE_BY_SIDE, _level(1))],
+    # Two cubes on the table side by side as towers_side's bottoms: a bridge's supports.
+    "cubes_side": [("cube", 0, 0, _level(0)), ("cube", 0, _SIDE_BY_SIDE, _level(0))],
     "touching_x": [("cube", 0, 0, _level(0)), ("cube", SIDE, 0, _level(0))],
     "touching_y": [("cube", 0, 0, _level(0)), ("cube", 0, SIDE, _level(0))],
     # A cube against the block's side, 5 cm along it from the block's centre.
@@ -288,21 +290,39 @@ def sample_structured_scene(
     return validate_scene(Scene(objects))
 
 
-def sample_towers_scene(rng: np.random.Generator, num_objects: int,
-                        long_fraction: float = 0.5) -> Scene:
-    """A start with two towers of two cubes side by side (UNITS["towers_side"]), a long
-    block, and the rest scattered as sample_scene scatters them: a scene in which one
-    random action (the block onto a top) can build a bridge on towers, which scenes of
-    scattered boxes almost never give."""
-    if num_objects < 5:
-        raise SceneError(f"a start with towers side by side needs 5 or more objects, got "
+def _supports_scene(rng: np.random.Generator, num_objects: int, unit: str,
+                    long_fraction: float) -> Scene:
+    """A start with UNITS[unit] (a bridge's supports), a long block, and the rest scattered
+    as sample_scene scatters them."""
+    parts = len(UNITS[unit])
+    if num_objects < parts + 1:
+        raise SceneError(f"a start with {unit} needs {parts + 1} or more objects, got "
                          f"{num_objects}")
+
     def kind(i: int) -> str:
         return "long" if i == 0 or rng.random() < long_fraction else "cube"
 
-    towers = sample_structured_scene(rng, 4, units=("towers_side",)).objects
-    return validate_scene(Scene(_scatter(rng, towers, num_objects - 4, kind, min_gap=0.03)))
+    supports = sample_structured_scene(rng, parts, units=(unit,)).objects
+    return validate_scene(Scene(_scatter(rng, supports, num_objects - parts, kind,
+                                         min_gap=0.03)))
+
+
+def sample_towers_scene(rng: np.random.Generator, num_objects: int,
+                        long_fraction: float = 0.5) -> Scene:
+    """A start with two towers of two cubes side by side (UNITS["towers_side"]), a long
+    block, and the rest scattered: a scene in which one random action (the block onto a
+    top) can build a bridge on towers, which scenes of scattered boxes almost never give."""
+    return _supports_scene(rng, num_objects, "towers_side", long_fraction)
+
+
+def sample_cubes_scene(rng: np.random.Generator, num_objects: int,
+                       long_fraction: float = 0.5) -> Scene:
+    """A start with two cubes side by side (UNITS["cubes_side"]), a long block, and the
+    rest scattered: one random action (the block onto a cube, towards the other) builds a
+    bridge over two cubes, which scattered starts give too rarely for an operator."""
+    return _supports_scene(rng, num_objects, "cubes_side", long_fraction)
 
 
 # The starts an exploration episode can be given (data/exploration.EpisodeConfig.start).
-STARTS = {"random": sample_scene, "towers": sample_towers_scene}
+STARTS = {"random": sample_scene, "towers": sample_towers_scene,
+          "cubes": sample_cubes_scene}
