@@ -266,3 +266,25 @@ def test_a_bundle_is_made_again_from_a_bundles_model(bundle, tmp_path):
     second = ModelBundle.load(again).model.state_dict()
     assert first.keys() == second.keys()
     assert all(torch.equal(first[k], second[k]) for k in first)
+
+
+def test_extending_a_bundle_keeps_its_operators_and_asks_for_its_own_model(
+        bundle, tmp_path, capsys, monkeypatch):
+    from drake_symplan.cli import main as cli_main
+
+    data, out = stacking_data(tmp_path / "data"), tmp_path / "extended"
+    base = tmp_path / "bundle"
+    argv = ["bundle", "--run", str(base), "--data", str(data), "--out", str(out),
+            "--extend", str(base), "--json"]
+    monkeypatch.setattr("sys.argv", ["symplan", *argv])
+    assert cli_main.main(argv) == 0
+    # the stacking data teach no operator that spans two boxes: the bundle's own, as it is
+    assert json.loads(capsys.readouterr().out)["operators"] == 1
+    extended = ModelBundle.load(out)
+    assert [op.to_dict() for op in extended.operators] == [STACK.to_dict()]
+    assert json.loads((out / "provenance.json").read_text())["extends"] == str(base)
+    other = ["bundle", "--run", str(tmp_path / "run"), "--data", str(data), "--out",
+             str(tmp_path / "other"), "--extend", str(base)]
+    assert cli_main.main(other) == 2
+    assert "model.pt is not --run's model" in capsys.readouterr().err
+    assert not (tmp_path / "other").exists()

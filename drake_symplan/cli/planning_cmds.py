@@ -106,6 +106,10 @@ def _register_bundle(subparsers) -> None:
     b.add_argument("--bystanders", action="store_true",
                    help="with --generalize: also drop each object no effect names (a box "
                    "that only stood near), with every precondition on it, on the same test")
+    b.add_argument("--extend", type=Path, default=None, metavar="BUNDLE",
+                   help="keep BUNDLE's operators and goal patterns as they are and add those "
+                   "learned here whose effect relates the moved box to two others (a "
+                   "block laid across two supports); --run must be BUNDLE's model")
     add_json_argument(b)
     b.set_defaults(func=cmd_bundle)
 
@@ -241,6 +245,7 @@ def cmd_plan(args) -> dict:
 
 def cmd_bundle(args) -> dict:
     import shlex
+    import shutil
     import sys
 
     from drake_symplan.data.storage import relevance_radius
@@ -278,6 +283,9 @@ def cmd_bundle(args) -> dict:
     check_input_dir(args.data, "--data")
     if args.bystanders and args.generalize is None:
         raise CommandError("--bystanders needs --generalize TOLERANCE")
+    if args.extend is not None and args.run is None:
+        raise CommandError("--extend needs --run (the bundle's own model)")
+    base = _extension(args) if args.extend is not None else None
     if args.symbols is not None:
         model, source = HandmadeSymbols(), {"symbols": args.symbols, "rule": HANDMADE_RULE}
     else:
@@ -291,12 +299,45 @@ def cmd_bundle(args) -> dict:
     info["relevance_radius"] = relevance_radius(args.data)
     provenance = {"command": shlex.join(["symplan", *sys.argv[1:]]), **source,
                   "data": str(args.data), "data_fingerprint": fingerprint(args.data)}
+    if args.extend is not None:
+        operators, info = _extended(args, base, operators, semantics, info)
+        provenance["extends"] = str(args.extend)
     write_bundle(args.out, model if args.symbols else args.run, operators, semantics, info,
                  provenance, args.margin, args.continuous)
     out = {"out": str(args.out), "operators": len(operators), **info}
-    if args.patterns:
+    if args.extend is not None and (args.extend / "patterns.json").is_file():
+        shutil.copyfile(args.extend / "patterns.json", args.out / "patterns.json")
+    elif args.patterns:
         out["patterns"] = _bundle_patterns(args.out, args.data)
     return out
+
+
+def _extension(args):
+    """--extend's bundle, loaded; CommandError where its model is not --run's."""
+    from drake_symplan.learning.checkpoint import BUNDLE_MODEL
+    from drake_symplan.symbolic.bundle import ModelBundle
+
+    base = ModelBundle.load(args.extend)
+    run_model = args.run / BUNDLE_MODEL if args.run.is_dir() else args.run
+    if not run_model.is_file() or \
+            run_model.read_bytes() != (args.extend / BUNDLE_MODEL).read_bytes():
+        raise CommandError(f"--extend {args.extend}: its {BUNDLE_MODEL} is not --run's "
+                           "model; give --run the bundle itself")
+    return base
+
+
+def _extended(args, base, learned, semantics, info) -> tuple[list, dict]:
+    """--extend: `base`'s operators, and those `learned` here that span two boxes
+    (symbolic/bundle.extend_operators); CommandError where its semantics are not these."""
+    from drake_symplan.symbolic.bundle import extend_operators
+
+    if base.semantics != semantics:
+        raise CommandError(f"--extend {args.extend}: its operators read the symbols under "
+                           "other semantics than these (--contact-degree)")
+    operators = extend_operators(base.operators, learned)
+    added = len(operators) - len(base.operators)
+    return operators, {**base.info, "extended": {"data": str(args.data), "added": added,
+                                                 "learned": info}}
 
 
 def _bundle_patterns(folder: Path, data: Path) -> dict:

@@ -204,6 +204,22 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
     raise ValueError(f"unknown learner {learner!r}; one of {LEARNERS}")
 
 
+def spans(op: LiftedOperator) -> bool:
+    """Does `op`'s effect relate the box it moves to two or more others at once (a block
+    laid across two supports)?"""
+    return len({frozenset(a[1:]) for a in op.add if len(a) == 3 and 0 in a[1:]}) >= 2
+
+
+def extend_operators(base: list[LiftedOperator], learned: list[LiftedOperator]
+                     ) -> list[LiftedOperator]:
+    """`base` as it is, then the `learned` operators that span (`spans`), numbered after
+    it: operators a data set of its own taught (a bridge over two cubes) added to a
+    bundle's, whose other operators keep the reliabilities of the data they came from."""
+    added = [op for op in learned if spans(op)]
+    return [*base, *(dataclasses.replace(op, index=len(base) + i)
+                     for i, op in enumerate(added))]
+
+
 def write_bundle(out: str | Path, run_dir: str | Path | HandmadeSymbols, operators,
                  semantics: Semantics, info: dict, provenance: dict,
                  margin: float = DEFAULT_MARGIN,
