@@ -205,9 +205,11 @@ def learn_bundle_operators(data, learner: str = "effect", min_count: int = 10,
 
 
 def spans(op: LiftedOperator) -> bool:
-    """Does `op`'s effect relate the box it moves to two or more others at once (a block
-    laid across two supports)?"""
-    return len({frozenset(a[1:]) for a in op.add if len(a) == 3 and 0 in a[1:]}) >= 2
+    """Is `op` over three objects, its effect relating the box it moves to both others at
+    once (a block laid across two supports)? One with more objects (boxes under the
+    supports) would ground to every ordered choice of them: n^5 actions for five."""
+    related = {frozenset(a[1:]) for a in op.add if len(a) == 3 and 0 in a[1:]}
+    return op.n_params == 3 and len(related) == 2
 
 
 def extend_operators(base: list[LiftedOperator], learned: list[LiftedOperator]
