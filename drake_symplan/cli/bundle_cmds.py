@@ -77,7 +77,6 @@ def register_bundle(subparsers) -> None:
     b.set_defaults(func=cmd_bundle)
 
 
-
 def cmd_bundle(args) -> dict:
     import shlex
     import shutil
