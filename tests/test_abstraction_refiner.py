@@ -8,8 +8,9 @@ from bilevel_fixtures import STACK, START, TOWER, Skeletons, Stacking, boxes, so
 
 from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.abstraction.refiner import Refiner, moves, set_down_tips
+from drake_symplan.abstraction.refiner import Refiner, moves
 from drake_symplan.abstraction.refusals import allows
+from drake_symplan.abstraction.set_down import set_down_tips
 from drake_symplan.actions import Action
 from drake_symplan.features import object_features
 from drake_symplan.planning.budget import Budget

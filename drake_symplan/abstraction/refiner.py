@@ -23,10 +23,10 @@ from drake_symplan.abstraction.continuous import MOVED, Boxes, goal_errors, roll
 from drake_symplan.abstraction.goal_order import GoalOrder
 from drake_symplan.abstraction.offsets import PredictedScorer, central, ranked
 from drake_symplan.abstraction.refusals import Refusals, allows
+from drake_symplan.abstraction.set_down import set_down_tips
 from drake_symplan.abstraction.stability import unstable
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
-from drake_symplan.boxes import GOAL_TOLERANCE, HALF_EXTENTS, goal_reached
-from drake_symplan.features import FEATURE_NAMES
+from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.planning.budget import Budget
 from drake_symplan.relations import unmet
 from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Reposition, Step
@@ -41,7 +41,6 @@ MOVE_LEFT = 1.0  # the search's heuristic per move the goal's order asks for (go
 DEFER = 3.0  # the search's f added to the moves the goal's order does not ask for next
 MISSED = 3.0  # the search's cost added to a move each time the arm missed it in this solve
 NEARER = 0.05  # m: a partial plan runs only if predicted to bring the boxes this much nearer
-LEANS = 0.06  # m: a source set down with its bottom this low leans on the table if it tips
 SLACK = 0.01  # m: a box the subgoal leaves off its goal may be predicted this much farther
 
 
@@ -113,34 +112,6 @@ def moves(names, sources, half_length, kind: str = "reposition", riding=None,
             if tgt != src and tgt not in barred and grasp_on_box(grasp, length):
                 out.append(Reposition(Action(src, grasp, tgt, release), kind))
     return out
-
-
-def set_down_tips(boxes: Boxes, action: Action) -> bool:
-    """Would `action`'s source topple where the action sets it down by its own points
-    (skills/geometry.set_down_at; stability.unstable), its riders with it, from higher than
-    LEANS (one box on the table: a block with its end on a cube leans on the table, as
-    goals have it)? A block grasped at its end and released over the centre of a cube
-    atop a tower comes down with its centre 7.5 cm off it, and falls; the model, which
-    saw few such steps, may predict it resting there. The source is judged as it comes
-    down, level in the hand: one picked up leaning (a block with its end on a cube) is set
-    down on a face, and tips where its centre is beyond its supports."""
-    from drake_symplan.skills.geometry import set_down_at  # the skill's geometry
-
-    objects = boxes.object_states()
-    centre = set_down_at(action, objects)
-    if centre[2] - HALF_EXTENTS[objects[action.source].type][2] <= LEANS:
-        return False
-    i = boxes.names.index(action.source)
-    positions = boxes.positions.copy()
-    # what rides on the source comes down with it (left where it was, a rider as high as
-    # the source's new bottom was read as its second support: a block released 15 cm off
-    # a cube, a block on it, and the tower under it fell)
-    carried = [i] + [boxes.names.index(n) for n in boxes.riding(action.source)]
-    positions[carried] += centre - positions[i]
-    down = boxes.moved(positions)
-    down.features[i, FEATURE_NAMES.index("cos_tilt")] = 1.0
-    down.features[i, FEATURE_NAMES.index("long_axis_up")] = 0.0
-    return unstable(down, [action.source])
 
 
 class Refiner:

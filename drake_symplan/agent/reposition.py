@@ -1,5 +1,6 @@
-"""Putting a box down at its goal spot on the table, which the symbols do not say, and
-setting aside a box that stands in the arm's way (`clearing_step`).
+"""Putting a box down at its goal spot on the table, which the symbols do not say, setting
+aside a box that stands in the arm's way (`clearing_step`), and running first the later
+step that moves a box a step would be set down against (`unblocking`).
 
 The symbols do not say where on the table a box stands, so a plan can reach the
 goal's atoms with a stack built 20 cm from where the goal has it. `reposition_step` fills
@@ -23,7 +24,7 @@ from drake_symplan.abstraction.refiner import moves
 from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.skills.geometry import grasp_refused
-from drake_symplan.symbolic.structs import PlanStep, Reposition
+from drake_symplan.symbolic.structs import PlanStep, Reposition, reaches
 
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
 CLEARANCE = 0.01  # m: free table between a repositioned box and every other box
@@ -118,4 +119,19 @@ def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Repositi
                 best = (far, move)
         if best is not None:
             return best[1]
+    return None
+
+
+def unblocking(step: PlanStep, rest: list[PlanStep], state, goal, met: set[str]) -> int | None:
+    """The index in `rest` (the steps after `step`) of the first that moves a box of `met`
+    (those `step` would set its source down against: set_down.set_down_meets), applies in
+    `state` and, run before `step`, leaves the plan reaching `goal`; or None. The symbols
+    do not see where a block's ends reach; the order of steps they leave free is the
+    agent's to choose (two towers: the second's block set on its cube came to rest on the
+    first's top cube, still on the table beside it, and the planner's next plans failed)."""
+    for i, later in enumerate(rest):
+        if later.action.source not in met:
+            continue
+        if reaches([later, step, *rest[:i], *rest[i + 1:]], state, goal):
+            return i
     return None

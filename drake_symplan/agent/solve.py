@@ -41,7 +41,7 @@ import time
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan, relation_goal
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.offsets import GeometricScorer, choose
-from drake_symplan.abstraction.refiner import set_down_tips
+from drake_symplan.abstraction.set_down import set_down_meets, set_down_tips
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
@@ -49,6 +49,7 @@ from drake_symplan.agent.reposition import (
     REPOSITIONS_PER_OBJECT,
     clearing_step,
     reposition_step,
+    unblocking,
 )
 from drake_symplan.agent.result import PhaseClock, SolveResult
 from drake_symplan.agent.verdict import verdict
@@ -156,6 +157,7 @@ class _Run:
         self.todo: list[_Planned] = []
         self.repositions = 0
         self.refused: set = set()  # actions the arm refused in the scene as it stands
+        self.unblocked: set[str] = set()  # steps _unblock looked at
 
     @property
     def rest(self) -> list[PlanStep]:
@@ -220,6 +222,8 @@ class _Run:
     def _next(self) -> bool:
         """Is there a step to run? Completing a plan on symbols, a repositioning goes first
         where a box the rest of the plan leaves alone is off its goal spot."""
+        if self._completes() and self.todo:
+            self._unblock()
         limit = REPOSITIONS_PER_OBJECT * len(self.scene.names)
         if self._completes() and self.repositions < limit and not self.relations:
             extra = reposition_step(self.rest, self.scene, self.goal_scene, GOAL_TOLERANCE)
@@ -227,6 +231,23 @@ class _Run:
                 self.todo.insert(0, _Planned(extra))
                 self.repositions += 1
         return bool(self.todo)
+
+    def _unblock(self) -> None:
+        """Where the next step would set its source down against a box it does not name
+        (set_down.set_down_meets), the later step that moves that box runs first if the
+        plan still reaches the goal (reposition.unblocking), else such a box the goal
+        leaves free is set aside (`_clearing`); once per step."""
+        step = self.todo[0].step
+        if not isinstance(step, Step) or str(step) in self.unblocked:
+            return
+        self.unblocked.add(str(step))
+        met = set_down_meets(Boxes.of(self.scene), self._offsets(step).action) - set(step.args)
+        later = unblocking(step, self.rest[1:], self.believed, self.goal_atoms, met) \
+            if met else None
+        if later is not None:
+            self.todo.insert(0, self.todo.pop(later + 1))
+        elif met and (clear := self._clearing(step, sorted(met))) is not None:
+            self.todo.insert(0, _Planned(clear))
 
     def _completes(self) -> bool:
         """Does the agent complete the plan as it runs (offsets, repositionings)? For plans
@@ -237,7 +258,7 @@ class _Run:
     def _offsets(self, step: PlanStep) -> PlanStep:
         """`step` with the offsets the geometric scorer chooses, completing a plan on
         symbols (abstraction/offsets.py), else as planned: the best that does not set its
-        source down to topple (refiner.set_down_tips), where one does not, held nearest
+        source down to topple (set_down.set_down_tips), where one does not, held nearest
         its centre (offsets.central)."""
         if not (self._completes() and isinstance(step, Step)):
             return step
