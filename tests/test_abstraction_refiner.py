@@ -10,7 +10,6 @@ from drake_symplan.abstraction.abstraction import Plan
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.refiner import Refiner, moves
 from drake_symplan.abstraction.refusals import allows
-from drake_symplan.abstraction.set_down import set_down_tips
 from drake_symplan.actions import Action
 from drake_symplan.features import object_features
 from drake_symplan.planning.budget import Budget
@@ -174,45 +173,6 @@ def test_no_step_sets_a_load_down_whose_rider_comes_down_into_a_tower():
                   Action("c", "center", "d", "right"),  # beside a lone cube
                   Action("l", "center", "t3", "right")):  # the block alone, 7.5 cm beside
         assert not refusals.sets_down_into(scene, clear), clear
-
-
-def test_a_block_grasped_at_its_end_and_released_over_a_cube_would_topple():
-    # traced (eight boxes): pick(o3:right) place(o6:center) brought the block's centre down
-    # 7.5 cm off a cube atop a tower, and block and tower fell; the model predicted the
-    # block resting on the cube. The action's own points say where it comes down (c
-    # stands on d: a tower of two).
-    features = np.stack([object_features("cube", np.array([0.89, 0.31, z]), np.eye(3))
-                         for z in (0.025, 0.075)]
-                        + [object_features("long", np.array([0.7, 0.0, 0.025]), np.eye(3))])
-    scene = Boxes(("d", "c", "l"), features, frozenset()).moved(features[:, :3])
-    assert set_down_tips(scene, Action("l", "right", "c", "center"))  # centre 7.5 cm off
-    assert set_down_tips(scene, Action("l", "left", "c", "center"))
-    assert not set_down_tips(scene, Action("l", "center", "c", "center"))  # centred
-    assert not set_down_tips(scene, Action("l", "right", "c", "right"))  # offsets cancel
-    assert not set_down_tips(scene, Action("c", "center", "l", "right"))  # on its end: held
-    # on a cube on the table the block leans on the table (goals have blocks so)
-    assert not set_down_tips(scene, Action("l", "right", "d", "center"))
-    # traced (six boxes): a block picked up leaning (20 degrees) at its end and released
-    # over a cube atop a tower fell just the same; the tilt it had is not the one it lands with
-    leaning = scene.features.copy()
-    leaning[2, 3] = np.cos(np.radians(20))
-    scene = Boxes(scene.names, leaning, frozenset()).moved(leaning[:, :3])
-    assert set_down_tips(scene, Action("l", "right", "c", "center"))
-    assert not set_down_tips(scene, Action("l", "center", "c", "center"))
-
-
-def test_a_block_carrying_a_block_is_judged_where_both_come_down():
-    # traced (eight boxes): pick(o4:left) place(o5:right), a block with a block on it
-    # released 15 cm off a cube atop a tower (its end on the cube's edge: half a block and
-    # half a cube), and block, rider and tower fell. The rider comes down with the block
-    # (left where it was, it can read as a second support), the edge holds the block's end.
-    where = {"c0": ("cube", (0.65, -0.16, 0.025)), "c1": ("cube", (0.65, -0.16, 0.075)),
-             "l": ("long", (0.65, 0.18, 0.025)), "r": ("long", (0.65, 0.18, 0.075))}
-    features = np.stack([object_features(kind, np.array(p), np.eye(3))
-                         for kind, p in where.values()])
-    scene = Boxes(tuple(where), features, frozenset()).moved(features[:, :3])
-    assert set_down_tips(scene, Action("l", "left", "c1", "right"))
-    assert not set_down_tips(scene, Action("l", "center", "c1", "center"))
 
 
 @pytest.mark.slow

@@ -113,3 +113,20 @@ def test_a_free_box_in_the_arms_way_is_set_aside_as_far_as_there_is_from_the_ste
                      "d": ("cube", (0.75, 0.3, 0.025))})
     assert clearing_step(["b", "e"], refused, stacked, set()) == \
         Reposition(Action("e", "center", "d", "right"))  # not b: it carries e
+
+
+def test_the_later_step_moving_a_box_a_step_would_meet_runs_first_where_the_plan_allows():
+    from drake_symplan.agent.reposition import unblocking
+
+    state = frozenset({("p0", n) for n in "abcd"})
+    first, later = step("(pick_center_place_center_n10_op0 a b)"), \
+        step("(pick_center_place_center_n10_op0 c d)")
+    goal = frozenset({("r0", "a", "b"), ("r0", "c", "d")})
+    # a set on b would meet c, which the next step moves anyway: that one runs first
+    assert unblocking(first, [later], state, goal, {"c"}) == 0
+    # no later step moves d
+    assert unblocking(first, [later], state, goal, {"d"}) is None
+    # c set on a first takes a's top (p0 a), and a could no longer go on b
+    onto_a = step("(pick_center_place_center_n10_op0 c a)")
+    assert unblocking(first, [onto_a], state, frozenset({("r0", "a", "b"), ("r0", "c", "a")}),
+                      {"c"}) is None
