@@ -7,8 +7,9 @@ from __future__ import annotations
 from conftest import bundle_for_tests
 from test_relation_order import perceived
 
-from drake_symplan.abstraction.abstraction import Abstraction, relation_goal
+from drake_symplan.abstraction.abstraction import Abstraction
 from drake_symplan.abstraction.diagnosis import diagnose, nearest_steps
+from drake_symplan.abstraction.relation_goal import relation_goal
 from drake_symplan.relations import parse
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.structs import Atom, LiftedOperator

@@ -1,4 +1,4 @@
-"""Goals of relations in planning (abstraction.relation_goal): judged wherever the
+"""Goals of relations in planning (abstraction/relation_goal.py): judged wherever the
 structure stands, planned from the bottom up, at up to 16 boxes."""
 
 from __future__ import annotations
@@ -12,20 +12,20 @@ from bilevel_fixtures import STACK, Skeletons, Stacking, boxes, observed, solve
 from bilevel_fixtures import START as BOXES
 from conftest import run
 
-from drake_symplan.abstraction.abstraction import (
-    Abstraction,
-    Observation,
-    Plan,
-    Reading,
-    relation_goal,
-)
+from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan, Reading
 from drake_symplan.abstraction.bilevel import Search, plan_bilevel
 from drake_symplan.abstraction.refiner import Refiner
+from drake_symplan.abstraction.relation_goal import (
+    BASES,
+    pair_choices,
+    relation_goal,
+    relation_pairs,
+)
 from drake_symplan.boxes import CONTACT_TOLERANCE, VICINITY
 from drake_symplan.planning.budget import Budget
 from drake_symplan.relations import parse
 from drake_symplan.symbolic.states import SymbolicState
-from drake_symplan.symbolic.structs import Step
+from drake_symplan.symbolic.structs import Goal, Step, Task
 from drake_symplan.world.scenes import ObjectSpec, Scene, save_scene
 
 # The example built c at (0.6, 0.1) with a on it; the skeleton leaves c where it stands.
@@ -138,6 +138,60 @@ def test_a_pair_whose_kind_the_symbols_read_in_patterns_is_a_choice_of_them():
     assert not goal <= {("r0", "a", "b"), ("r0", "b", "a")}  # the first but for not_r0
     assert vicinity.stages(reading, goal) == [goal] and vicinity.stages(
         reading, goal)[0].choices == goal.choices
+
+
+
+def test_a_bridge_on_towers_names_its_towers_bottoms_first_and_one_on_the_table_does_not():
+    # l bears on a and b, which stand on c and d, 7.5 cm apart along y
+    built = Scene([ObjectSpec("a", "cube", [0.6, 0.1, 0.075]),
+                   ObjectSpec("b", "cube", [0.6, 0.175, 0.075]),
+                   ObjectSpec("c", "cube", [0.6, 0.1, 0.025]),
+                   ObjectSpec("d", "cube", [0.6, 0.175, 0.025]),
+                   ObjectSpec("l", "long", [0.6, 0.14, 0.125])]).object_states()
+    pairs, kinds = relation_pairs(parse(["tower a c", "tower b d", "bridge l a b"]), built)
+    assert pairs == {("a", "c"): (0, 0), ("b", "d"): (0, 1), ("l", "a"): (1, 2),
+                     ("l", "b"): (1, 2), ("c", "d"): (0, BASES)}
+    assert ("c", "d") not in kinds and kinds[("l", "a")] == "bears"
+    on_table = Scene([ObjectSpec("c", "cube", [0.6, 0.1, 0.025]),
+                      ObjectSpec("d", "cube", [0.6, 0.175, 0.025]),
+                      ObjectSpec("l", "long", [0.6, 0.14, 0.075])]).object_states()
+    pairs, _ = relation_pairs(parse(["bridge l c d"]), on_table)
+    assert pairs == {("l", "c"): (0, 0), ("l", "d"): (0, 0)}
+
+
+def test_a_bears_pair_may_also_read_what_its_example_and_patterns_share_an_on_pair_not():
+    example = {("r0", "l", "a"), ("r1", "a", "l"), ("r2", "l", "a")}
+    patterns = [frozenset({("r1", 1, 0), ("r2", 0, 1), ("not_r0", 1, 0)}),
+                frozenset({("r0", 0, 1), ("r1", 1, 0), ("r2", 0, 1), ("not_r2", 1, 0)})]
+    goal = pair_choices({("l", "a"): "bears"}, frozenset(example), {"bears": patterns})
+    (_, readings), = goal.choices
+    assert readings[-1] == {("r1", "a", "l"), ("r2", "l", "a")} and len(readings) == 4
+    assert goal <= {("r1", "a", "l"), ("r2", "l", "a")}
+    on = pair_choices({("l", "a"): "on"}, frozenset(example), {"on": patterns})
+    assert len(on.choices[0][1]) == 3 and not on <= {("r1", "a", "l"), ("r2", "l", "a")}
+
+
+def test_where_a_later_stage_has_no_plan_the_first_stages_plan_runs_and_the_rest_waits(
+        monkeypatch):
+    # tower a b c: stage one (b on c) has a plan, stage two (a on b) none; nor has the
+    # goal at once: the plan of stage one, level "staged", ends at a subgoal
+    step = Step(STACK["center"], ("b", "c"))
+    found = {"at once": Plan("timeout")}
+
+    def focused(self, task, start, goal, planner, budget, focus, penalties):
+        if len(task.goal) == 2:
+            return found["at once"]
+        return Plan("solved", [step]) if ("r0", "b", "c") in task.goal else Plan("timeout")
+
+    monkeypatch.setattr(Abstraction, "plan_focused", focused)
+    abstraction = Abstraction(None)
+    reading = SimpleNamespace(pairs={("b", "c"): (0, 0), ("a", "b"): (1, 0)})
+    task = Task(("a", "b", "c"), frozenset(), Goal([("r0", "b", "c"), ("r0", "a", "b")]))
+    plan = abstraction._plan_goal(task, reading, reading, Budget.of_cpu(1.0), "fd", True, {})
+    assert plan.solved and plan.steps == [step] and plan.level == "staged" and plan.subgoal
+    found["at once"] = Plan("solved", [step, step])  # the goal at once: that plan
+    plan = abstraction._plan_goal(task, reading, reading, Budget.of_cpu(1.0), "fd", True, {})
+    assert plan.steps == [step, step] and not plan.subgoal
 
 
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),

@@ -73,7 +73,8 @@ def test_the_symbols_plan_a_tower_of_three_in_two_moves_with_the_patterns():
     # the planner put o0 on o1 four times, at three offsets, to read as in the example
     from test_relation_order import perceived
 
-    from drake_symplan.abstraction.abstraction import Abstraction, relation_goal
+    from drake_symplan.abstraction.abstraction import Abstraction
+    from drake_symplan.abstraction.relation_goal import relation_goal
     from drake_symplan.relations import parse
     from drake_symplan.symbolic.bundle import ModelBundle
     from drake_symplan.world.scenes import ObjectSpec

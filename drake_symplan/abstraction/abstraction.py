@@ -20,6 +20,7 @@ from functools import partial
 import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes
+from drake_symplan.abstraction.relation_goal import pair_choices, pair_of, stage_keys
 from drake_symplan.boxes import CONTACT_TOLERANCE, neighbour_pairs
 from drake_symplan.learning.readout import read_symbols
 from drake_symplan.planning.budget import Budget
@@ -27,7 +28,6 @@ from drake_symplan.planning.grounding import fast_downward_task
 from drake_symplan.planning.planners import DEFAULT_TIMEOUT, PlanResult, plan_pddl, search_binary
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.symbolic.pddl import problem_from_atoms
-from drake_symplan.symbolic.relation_patterns import ground as ground_pattern
 from drake_symplan.symbolic.states import SymbolicState, check_name
 from drake_symplan.symbolic.structs import (
     Atom,
@@ -97,47 +97,6 @@ class Observation:
     relations: tuple = ()  # a goal of relations (relations.Relation); (): a whole scene
 
 
-def relation_goal(goal: Observation, relations) -> Observation:
-    """The perceived example `goal` of `relations` as a goal of relations: its boxes only
-    the named ones (the others are free), its reading's goal atoms only those of the pairs
-    the relations name (Reading.pairs), each pair with the layer of its lower box and
-    its relation's index."""
-    from drake_symplan.boxes import SIDE
-    from drake_symplan.relations import PAIR_KIND, bottom, named
-
-    names = [n for n in named(relations) if n in goal.boxes.names]
-    rows = [goal.boxes.names.index(n) for n in names]
-    boxes = Boxes(tuple(names), goal.boxes.features[rows],
-                  frozenset(p for p in goal.boxes.contacts if set(p) <= set(names)))
-    states = goal.boxes.object_states()
-    pairs, kinds = {}, {}
-    for index, r in enumerate(relations):
-        for upper, lower in r.pairs():
-            layer = max(0, int(round(bottom(states[lower]) / SIDE))) if lower in states else 0
-            pairs[(upper, lower)] = (layer, index)
-            kinds[(upper, lower)] = PAIR_KIND[r.word]
-    reading = None if goal.reading is None else replace(goal.reading, pairs=pairs,
-                                                         kinds=kinds)
-    return Observation(goal.scene, reading, boxes, tuple(relations))
-
-
-def pair_of(pairs: dict, atom, both: bool = True) -> tuple | None:
-    """The named pair (upper, lower) a relation atom is about, or None; with `both`, in
-    either order: under vicinity a pair's relation is its bits both ways (b on a and b
-    beside a read the same bits from a to b), under contact the bits from upper to lower
-    say it (more are incidental and cost plans: measured on the written goals)."""
-    for key in ((atom[1], atom[2]), (atom[2], atom[1]))[:2 if both else 1]:
-        if key in pairs:
-            return key
-    return None
-
-
-def stage_keys(goal: Reading) -> list[tuple]:
-    """The stages of a goal of relations (Abstraction.stages), in order: the (layer,
-    relation index) values of its Reading.pairs."""
-    return sorted(set(goal.pairs.values()))
-
-
 @dataclass(frozen=True)
 class Level:
     """What the level that found a plan implies for running it: `predicts_positions`, the
@@ -154,11 +113,13 @@ class Level:
     subgoal: bool = False
 
 
-# Plan.level's values: the symbolic planner's plan, a refined skeleton, a skeleton's first
-# steps refined to its subgoal, the continuous search's plan, the steps predicted nearest
-# the goal (bilevel.py), the oracle's replay.
+# Plan.level's values: the symbolic planner's plan, its plan of a goal of relations' first
+# stages (the rest planned from what is seen then: Abstraction._plan_stages), a refined
+# skeleton, a skeleton's first steps refined to its subgoal, the continuous search's
+# plan, the steps predicted nearest the goal (bilevel.py), the oracle's replay.
 LEVELS = {level.name: level for level in (
     Level("symbolic", predicts_positions=False, symbolic=True),
+    Level("staged", predicts_positions=False, symbolic=True, subgoal=True),
     Level("bilevel", predicts_positions=True, symbolic=False),
     Level("receding", predicts_positions=True, symbolic=False, subgoal=True),
     Level("continuous", predicts_positions=True, symbolic=False),
@@ -296,25 +257,9 @@ class Abstraction:
             return frozenset(a for a in atoms if set(a[1:]) <= named)
         both = self.bundle.relevance_radius > CONTACT_TOLERANCE
         named = frozenset(a for a in atoms if len(a) == 3 and pair_of(goal.pairs, a, both))
-        return self._choices(goal, named, both)
-
-    def _choices(self, goal: Reading, atoms: frozenset, both: bool) -> Goal:
-        """A goal of relations' atoms as a Goal: each named pair whose kind the bundle
-        reads in patterns (symbolic/relation_patterns.py) a choice of the example's atoms
-        of it or any of its kind's patterns; the other pairs' atoms wanted as they are."""
-        patterns = self.bundle.patterns
-        if not both or not patterns or goal.kinds is None:
-            return Goal(atoms)
-        wanted, choices = set(atoms), []
-        for pair, kind in goal.kinds.items():
-            if not patterns.get(kind):
-                continue
-            own = frozenset(a for a in atoms if pair_of({pair: None}, a))
-            wanted -= own
-            alternatives = dict.fromkeys([own, *(ground_pattern(p, *pair)
-                                                 for p in patterns[kind])])
-            choices.append((pair, list(alternatives)))
-        return Goal(wanted, choices)
+        if not both or not self.bundle.patterns or goal.kinds is None:
+            return Goal(named)
+        return pair_choices(goal.kinds, named, self.bundle.patterns)
 
     def goal_holds(self, reading: Reading, goal: frozenset) -> bool:
         """Do the goal's atoms hold in `reading` (the planner's own criterion)?"""
@@ -360,22 +305,23 @@ class Abstraction:
         else:
             own = self._plan_goal(replace(task, goal=Goal(flat(task.goal))), start, goal,
                                   budget.share(EXAMPLE_SHARE), *options)
-            found = self._plan_goal(task, start, goal, budget, *options)
-            if not (found.solved and (not own.solved or len(found.steps) < len(own.steps))):
-                found = own
+            found = min(own, self._plan_goal(task, start, goal, budget, *options),
+                        key=lambda p: (not p.solved, p.subgoal, len(p.steps)))
         found.seconds = time.perf_counter() - t0
         return found
 
     def _plan_goal(self, task: Task, start: Reading, goal: Reading, budget: Budget,
                    planner: str, focus: bool, penalties) -> Plan:
         """`task` planned stage by stage where it is a goal of relations, else (or where
-        the stages find no plan) at once."""
-        found = None
+        the stages find no plan to the goal) at once; where that finds none either, the
+        plan of the first stages (level "staged")."""
+        staged = None
         if goal.pairs is not None:
-            found = self._plan_stages(task, start, goal, planner, budget, focus, penalties)
-        if found is None or not found.solved:
-            found = self.plan_focused(task, start, goal, planner, budget, focus, penalties)
-        return found
+            staged = self._plan_stages(task, start, goal, planner, budget, focus, penalties)
+            if staged is not None and not staged.subgoal:
+                return staged
+        found = self.plan_focused(task, start, goal, planner, budget, focus, penalties)
+        return staged if staged is not None and not found.solved else found
 
     def stages(self, goal: Reading, atoms: frozenset) -> list[frozenset]:
         """A goal of relations' atoms in growing stages, by Reading.pairs' values (layer,
@@ -393,7 +339,10 @@ class Abstraction:
     def _plan_stages(self, task: Task, start: Reading, goal: Reading, planner: str,
                      budget: Budget, focus: bool, penalties) -> Plan | None:
         """`task` planned stage by stage (`stages`), each from the state the plan before
-        it predicts; None where a stage finds no plan or the stages do not reach the goal."""
+        it predicts; where a stage finds no plan, the plan of the stages before it that
+        moves something (level "staged": the agent runs it and plans on from what it
+        sees, where what no operator predicts may hold: two towers' tops a bridge apart);
+        None where there is none or the stages do not reach the goal."""
         stages = self.stages(goal, task.goal)
         if len(stages) < 2:
             return None
@@ -402,7 +351,8 @@ class Abstraction:
             found = self.plan_focused(replace(task, init=state, goal=atoms), start, goal,
                                     planner, budget, focus, penalties)
             if not found.solved:
-                return None
+                return Plan("solved", steps, 0.0, found.message, planner, "staged") \
+                    if steps else None
             for step in found.steps:
                 state = step.apply(state)
             steps += found.steps

@@ -15,7 +15,7 @@ import itertools
 import time
 from dataclasses import dataclass, field, replace
 
-from drake_symplan.abstraction.abstraction import stage_keys
+from drake_symplan.abstraction.relation_goal import stage_keys
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import Goal, Step, flat, goal_of
 

@@ -26,14 +26,10 @@ from __future__ import annotations
 import html as _html
 from pathlib import Path
 
-from drake_symplan.abstraction.abstraction import (
-    Abstraction,
-    Observation,
-    relation_goal,
-    reliability,
-)
+from drake_symplan.abstraction.abstraction import Abstraction, Observation, reliability
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
 from drake_symplan.abstraction.diagnosis import diagnose
+from drake_symplan.abstraction.relation_goal import relation_goal
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.inspection_draw import PREFIX as PREFIX
 from drake_symplan.agent.inspection_draw import (

@@ -38,9 +38,10 @@ from __future__ import annotations
 import dataclasses as dc
 import time
 
-from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan, relation_goal
+from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.offsets import GeometricScorer, choose
+from drake_symplan.abstraction.relation_goal import relation_goal
 from drake_symplan.abstraction.set_down import set_down_meets, set_down_tips
 from drake_symplan.agent import beliefs
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig

@@ -1963,7 +1963,7 @@
       (not (r2 ?o0 ?o2))
     )
   )
-  ; rank 103: 61 transitions; reliability 0.74 (64/87), cost 4
+  ; rank 103: 61 transitions; reliability 0.71 (64/90), cost 4
   (:action pick_right_place_center_n61_op103
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -1996,8 +1996,8 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 104: 43 transitions; reliability 0.83 (65/78), cost 3
-  (:action pick_right_place_right_n43_op104
+  ; rank 104: 44 transitions; reliability 0.85 (66/78), cost 3
+  (:action pick_right_place_right_n44_op104
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2010,6 +2010,7 @@
       (r2 ?o2 ?o1)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o1 ?o0)
@@ -2062,40 +2063,7 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 106: 41 transitions; reliability 0.77 (58/75), cost 4
-  (:action pick_center_place_center_n41_op106
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_r0 ?o2 ?o1)
-      (p0 ?o0)
-      (r0 ?o1 ?o2)
-      (r1 ?o2 ?o1)
-      (r2 ?o2 ?o1)
-      (touching0 ?o0)
-      (touching0 ?o1)
-      (touching0 ?o2)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (not_r0 ?o2 ?o0)
-      (not_r2 ?o1 ?o0)
-      (not_r2 ?o2 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o1)
-      (r1 ?o1 ?o0)
-      (r1 ?o2 ?o0)
-      (touching1 ?o1)
-      (touching1 ?o2)
-      (touching2 ?o0)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (not (touching0 ?o2))
-    )
-  )
-  ; rank 107: 39 transitions; reliability 0.00 (0/0), cost 70
+  ; rank 107: 39 transitions; reliability 0.00 (0/23), cost 70
   (:action pick_left_place_left_n39_op107
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2105,15 +2073,12 @@
       (not_r0 ?o1 ?o2)
       (not_r2 ?o2 ?o1)
       (p0 ?o0)
-      (p0 ?o1)
       (p0 ?o2)
       (r0 ?o2 ?o1)
       (r1 ?o1 ?o2)
       (r1 ?o2 ?o1)
       (r2 ?o1 ?o2)
       (touching0 ?o0)
-      (touching0 ?o1)
-      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o0 ?o2)
@@ -2133,7 +2098,41 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 109: 36 transitions; reliability 0.79 (59/75), cost 3
+  ; rank 108: 39 transitions; reliability 0.73 (40/55), cost 4
+  (:action pick_center_place_left_n39_op108
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_r0 ?o1 ?o2)
+      (p0 ?o0)
+      (r0 ?o2 ?o1)
+      (r1 ?o1 ?o2)
+      (r2 ?o1 ?o2)
+      (touching0 ?o0)
+      (touching0 ?o1)
+      (touching0 ?o2)
+    )
+    :effect (and
+      (not_r0 ?o0 ?o1)
+      (not_r0 ?o0 ?o2)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r0 ?o1 ?o0)
+      (r1 ?o0 ?o1)
+      (r1 ?o0 ?o2)
+      (r1 ?o2 ?o0)
+      (r2 ?o0 ?o1)
+      (touching1 ?o1)
+      (touching1 ?o2)
+      (touching2 ?o0)
+      (not (touching0 ?o0))
+      (not (touching0 ?o1))
+      (not (touching0 ?o2))
+    )
+  )
+  ; rank 109: 36 transitions; reliability 0.76 (59/78), cost 4
   (:action pick_center_place_left_n36_op109
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2166,7 +2165,7 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 110: 34 transitions; reliability 0.76 (50/66), cost 4
+  ; rank 110: 34 transitions; reliability 0.74 (50/68), cost 4
   (:action pick_left_place_center_n34_op110
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2180,6 +2179,7 @@
       (r2 ?o1 ?o2)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o1 ?o0)
@@ -2198,39 +2198,7 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 111: 29 transitions; reliability 0.69 (43/62), cost 5
-  (:action pick_left_place_left_n29_op111
-    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
-    :precondition (and
-      (different ?o0 ?o1)
-      (different ?o0 ?o2)
-      (different ?o1 ?o2)
-      (not_r0 ?o2 ?o1)
-      (p0 ?o0)
-      (r0 ?o1 ?o2)
-      (r1 ?o2 ?o1)
-      (r2 ?o2 ?o1)
-      (touching0 ?o0)
-      (touching0 ?o2)
-    )
-    :effect (and
-      (not_r0 ?o1 ?o0)
-      (not_r0 ?o2 ?o0)
-      (not_r2 ?o1 ?o0)
-      (not_r2 ?o2 ?o0)
-      (r0 ?o0 ?o2)
-      (r1 ?o0 ?o1)
-      (r1 ?o1 ?o0)
-      (r1 ?o2 ?o0)
-      (touching1 ?o1)
-      (touching1 ?o2)
-      (touching2 ?o0)
-      (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (not (touching0 ?o2))
-    )
-  )
-  ; rank 112: 29 transitions; reliability 0.71 (45/63), cost 4
+  ; rank 112: 29 transitions; reliability 0.70 (45/64), cost 5
   (:action pick_right_place_right_n29_op112
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2244,6 +2212,7 @@
       (r2 ?o1 ?o2)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o0 ?o2)
@@ -2301,7 +2270,41 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 116: 25 transitions; reliability 0.58 (35/60), cost 6
+  ; rank 115: 26 transitions; reliability 0.81 (44/54), cost 3
+  (:action pick_right_place_center_n26_op115
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_r0 ?o2 ?o1)
+      (p0 ?o0)
+      (r0 ?o1 ?o2)
+      (r1 ?o2 ?o1)
+      (r2 ?o2 ?o1)
+      (touching0 ?o0)
+      (touching0 ?o1)
+      (touching0 ?o2)
+    )
+    :effect (and
+      (not_r0 ?o0 ?o1)
+      (not_r0 ?o1 ?o0)
+      (not_r0 ?o2 ?o0)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r1 ?o0 ?o1)
+      (r1 ?o0 ?o2)
+      (r1 ?o1 ?o0)
+      (r1 ?o2 ?o0)
+      (touching1 ?o1)
+      (touching1 ?o2)
+      (touching2 ?o0)
+      (not (touching0 ?o0))
+      (not (touching0 ?o1))
+      (not (touching0 ?o2))
+    )
+  )
+  ; rank 116: 25 transitions; reliability 0.57 (35/61), cost 7
   (:action pick_left_place_right_n25_op116
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2332,7 +2335,7 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 118: 21 transitions; reliability 0.83 (65/78), cost 3
+  ; rank 118: 21 transitions; reliability 0.85 (66/78), cost 3
   (:action pick_right_place_right_n21_op118
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2346,6 +2349,7 @@
       (r2 ?o2 ?o1)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o1 ?o0)
@@ -2365,8 +2369,8 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 119: 19 transitions; reliability 0.57 (39/68), cost 7
-  (:action pick_center_place_right_n19_op119
+  ; rank 120: 19 transitions; reliability 0.57 (39/68), cost 7
+  (:action pick_center_place_right_n19_op120
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2379,6 +2383,7 @@
       (r2 ?o2 ?o1)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o1 ?o0)
@@ -2396,7 +2401,7 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 121: 18 transitions; reliability 0.79 (59/75), cost 3
+  ; rank 121: 18 transitions; reliability 0.76 (59/78), cost 4
   (:action pick_center_place_left_n18_op121
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2442,6 +2447,7 @@
       (r2 ?o2 ?o1)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o1 ?o0)
@@ -2452,6 +2458,39 @@
       (r1 ?o1 ?o0)
       (r1 ?o2 ?o0)
       (r2 ?o1 ?o0)
+      (touching1 ?o1)
+      (touching1 ?o2)
+      (touching2 ?o0)
+      (not (touching0 ?o0))
+      (not (touching0 ?o1))
+      (not (touching0 ?o2))
+    )
+  )
+  ; rank 123: 18 transitions; reliability 0.81 (44/54), cost 3
+  (:action pick_right_place_center_n18_op123
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_r0 ?o2 ?o1)
+      (p0 ?o0)
+      (r0 ?o1 ?o2)
+      (r1 ?o2 ?o1)
+      (r2 ?o2 ?o1)
+      (touching0 ?o0)
+      (touching0 ?o1)
+      (touching0 ?o2)
+    )
+    :effect (and
+      (not_r0 ?o0 ?o1)
+      (not_r0 ?o2 ?o0)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r1 ?o0 ?o1)
+      (r1 ?o0 ?o2)
+      (r1 ?o1 ?o0)
+      (r1 ?o2 ?o0)
       (touching1 ?o1)
       (touching1 ?o2)
       (touching2 ?o0)
@@ -2494,7 +2533,7 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 126: 16 transitions; reliability 0.81 (56/69), cost 3
+  ; rank 126: 16 transitions; reliability 0.80 (56/70), cost 3
   (:action pick_left_place_left_n16_op126
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
@@ -2508,6 +2547,7 @@
       (r2 ?o1 ?o2)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o0 ?o2)
@@ -2540,7 +2580,7 @@
       (r1 ?o1 ?o2)
       (r1 ?o2 ?o1)
       (touching0 ?o0)
-      (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o1 ?o0)
@@ -2560,8 +2600,8 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 128: 15 transitions; reliability 0.22 (15/68), cost 16
-  (:action pick_center_place_right_n15_op128
+  ; rank 129: 15 transitions; reliability 0.21 (15/73), cost 17
+  (:action pick_center_place_right_n15_op129
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2590,8 +2630,43 @@
       (not (touching0 ?o1))
     )
   )
-  ; rank 130: 14 transitions; reliability 0.25 (18/72), cost 15
-  (:action pick_center_place_left_n14_op130
+  ; rank 130: 15 transitions; reliability 0.26 (19/73), cost 14
+  (:action pick_right_place_right_n15_op130
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_r0 ?o2 ?o1)
+      (not_r2 ?o1 ?o2)
+      (p0 ?o0)
+      (r0 ?o1 ?o2)
+      (r1 ?o2 ?o1)
+      (touching0 ?o0)
+      (touching1 ?o1)
+      (touching1 ?o2)
+    )
+    :effect (and
+      (not_p0 ?o0)
+      (not_r0 ?o1 ?o0)
+      (not_r0 ?o2 ?o0)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r0 ?o0 ?o2)
+      (r1 ?o1 ?o0)
+      (r1 ?o2 ?o0)
+      (r2 ?o0 ?o1)
+      (touching2 ?o0)
+      (touching2 ?o1)
+      (touching2 ?o2)
+      (not (p0 ?o0))
+      (not (touching0 ?o0))
+      (not (touching1 ?o1))
+      (not (touching1 ?o2))
+    )
+  )
+  ; rank 132: 14 transitions; reliability 0.27 (18/67), cost 14
+  (:action pick_center_place_left_n14_op132
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2606,6 +2681,7 @@
       (r2 ?o1 ?o2)
       (touching0 ?o0)
       (touching1 ?o1)
+      (touching1 ?o2)
     )
     :effect (and
       (not_r0 ?o0 ?o1)
@@ -2624,8 +2700,8 @@
       (not (touching1 ?o2))
     )
   )
-  ; rank 131: 14 transitions; reliability 0.34 (22/64), cost 12
-  (:action pick_center_place_right_n14_op131
+  ; rank 133: 14 transitions; reliability 0.33 (22/66), cost 12
+  (:action pick_center_place_right_n14_op133
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2657,8 +2733,8 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 132: 13 transitions; reliability 0.76 (50/66), cost 4
-  (:action pick_left_place_center_n13_op132
+  ; rank 134: 13 transitions; reliability 0.74 (50/68), cost 4
+  (:action pick_left_place_center_n13_op134
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2671,6 +2747,7 @@
       (r2 ?o1 ?o2)
       (touching0 ?o0)
       (touching0 ?o1)
+      (touching0 ?o2)
     )
     :effect (and
       (not_r0 ?o1 ?o0)
@@ -2690,8 +2767,8 @@
       (not (touching0 ?o2))
     )
   )
-  ; rank 134: 12 transitions; reliability 0.30 (21/70), cost 13
-  (:action pick_center_place_center_n12_op134
+  ; rank 136: 12 transitions; reliability 0.31 (22/72), cost 13
+  (:action pick_center_place_center_n12_op136
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2723,41 +2800,149 @@
       (not (touching0 ?o1))
     )
   )
-  ; rank 135: 11 transitions; reliability 0.69 (43/62), cost 5
-  (:action pick_left_place_left_n11_op135
+  ; rank 137: 12 transitions; reliability 0.25 (16/65), cost 15
+  (:action pick_right_place_center_n12_op137
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
       (different ?o0 ?o2)
       (different ?o1 ?o2)
       (not_r0 ?o2 ?o1)
+      (not_r2 ?o1 ?o2)
       (p0 ?o0)
       (r0 ?o1 ?o2)
       (r1 ?o2 ?o1)
-      (r2 ?o2 ?o1)
       (touching0 ?o0)
-      (touching0 ?o2)
+      (touching1 ?o1)
+      (touching1 ?o2)
     )
     :effect (and
-      (not_r0 ?o1 ?o0)
+      (not_p0 ?o0)
+      (not_r0 ?o0 ?o1)
       (not_r0 ?o2 ?o0)
-      (not_r2 ?o0 ?o2)
       (not_r2 ?o1 ?o0)
       (not_r2 ?o2 ?o0)
-      (r0 ?o0 ?o2)
       (r1 ?o0 ?o1)
       (r1 ?o1 ?o0)
       (r1 ?o2 ?o0)
-      (touching1 ?o1)
-      (touching1 ?o2)
+      (r2 ?o0 ?o2)
       (touching2 ?o0)
+      (touching2 ?o1)
+      (touching2 ?o2)
+      (not (p0 ?o0))
       (not (touching0 ?o0))
-      (not (touching0 ?o1))
-      (not (touching0 ?o2))
+      (not (touching1 ?o1))
+      (not (touching1 ?o2))
     )
   )
-  ; rank 136: 10 transitions; reliability 0.58 (35/60), cost 6
-  (:action pick_left_place_right_n10_op136
+  ; rank 139: 11 transitions; reliability 0.25 (19/76), cost 15
+  (:action pick_left_place_center_n11_op139
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_r0 ?o1 ?o2)
+      (not_r2 ?o2 ?o1)
+      (p0 ?o0)
+      (r0 ?o2 ?o1)
+      (r1 ?o1 ?o2)
+      (touching0 ?o0)
+      (touching1 ?o1)
+      (touching1 ?o2)
+    )
+    :effect (and
+      (not_p0 ?o0)
+      (not_r0 ?o1 ?o0)
+      (not_r0 ?o2 ?o0)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r0 ?o0 ?o1)
+      (r1 ?o1 ?o0)
+      (r1 ?o2 ?o0)
+      (r2 ?o0 ?o2)
+      (touching2 ?o0)
+      (touching2 ?o1)
+      (touching2 ?o2)
+      (not (p0 ?o0))
+      (not (touching0 ?o0))
+      (not (touching1 ?o1))
+      (not (touching1 ?o2))
+    )
+  )
+  ; rank 140: 11 transitions; reliability 0.24 (21/87), cost 15
+  (:action pick_center_place_center_n11_op140
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_r0 ?o1 ?o2)
+      (not_r2 ?o2 ?o1)
+      (p0 ?o0)
+      (r0 ?o2 ?o1)
+      (r1 ?o1 ?o2)
+      (touching0 ?o0)
+      (touching1 ?o1)
+      (touching1 ?o2)
+    )
+    :effect (and
+      (not_p0 ?o0)
+      (not_r0 ?o0 ?o2)
+      (not_r0 ?o1 ?o0)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r1 ?o0 ?o2)
+      (r1 ?o1 ?o0)
+      (r1 ?o2 ?o0)
+      (r2 ?o0 ?o1)
+      (touching2 ?o0)
+      (touching2 ?o1)
+      (touching2 ?o2)
+      (not (p0 ?o0))
+      (not (touching0 ?o0))
+      (not (touching1 ?o1))
+      (not (touching1 ?o2))
+    )
+  )
+  ; rank 141: 11 transitions; reliability 0.28 (11/40), cost 14
+  (:action pick_right_place_right_n11_op141
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_p0 ?o2)
+      (not_r0 ?o1 ?o2)
+      (not_r2 ?o2 ?o1)
+      (p0 ?o0)
+      (r0 ?o2 ?o1)
+      (r1 ?o1 ?o2)
+      (touching0 ?o0)
+      (touching1 ?o1)
+      (touching1 ?o2)
+    )
+    :effect (and
+      (not_p0 ?o0)
+      (not_r0 ?o0 ?o2)
+      (not_r0 ?o1 ?o0)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r1 ?o0 ?o2)
+      (r1 ?o1 ?o0)
+      (r1 ?o2 ?o0)
+      (r2 ?o0 ?o1)
+      (touching2 ?o0)
+      (touching2 ?o1)
+      (touching2 ?o2)
+      (not (p0 ?o0))
+      (not (touching0 ?o0))
+      (not (touching1 ?o1))
+      (not (touching1 ?o2))
+    )
+  )
+  ; rank 142: 10 transitions; reliability 0.57 (35/61), cost 7
+  (:action pick_left_place_right_n10_op142
     :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
     :precondition (and
       (different ?o0 ?o1)
@@ -2786,6 +2971,43 @@
       (not (touching0 ?o0))
       (not (touching0 ?o1))
       (not (touching0 ?o2))
+    )
+  )
+  ; rank 143: 10 transitions; reliability 0.93 (14/15), cost 2
+  (:action pick_center_place_center_n10_op143
+    :parameters (?o0 - obj ?o1 - obj ?o2 - obj)
+    :precondition (and
+      (different ?o0 ?o1)
+      (different ?o0 ?o2)
+      (different ?o1 ?o2)
+      (not_p0 ?o1)
+      (not_p0 ?o2)
+      (not_r0 ?o2 ?o1)
+      (not_r2 ?o1 ?o2)
+      (p0 ?o0)
+      (r0 ?o1 ?o2)
+      (r1 ?o2 ?o1)
+      (touching0 ?o0)
+      (touching1 ?o1)
+      (touching1 ?o2)
+    )
+    :effect (and
+      (not_p0 ?o0)
+      (not_r0 ?o1 ?o0)
+      (not_r0 ?o2 ?o0)
+      (not_r2 ?o1 ?o0)
+      (not_r2 ?o2 ?o0)
+      (r0 ?o0 ?o2)
+      (r1 ?o1 ?o0)
+      (r1 ?o2 ?o0)
+      (r2 ?o0 ?o1)
+      (touching2 ?o0)
+      (touching2 ?o1)
+      (touching2 ?o2)
+      (not (p0 ?o0))
+      (not (touching0 ?o0))
+      (not (touching1 ?o1))
+      (not (touching1 ?o2))
     )
   )
 )
