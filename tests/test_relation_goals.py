@@ -194,6 +194,16 @@ def test_where_a_later_stage_has_no_plan_the_first_stages_plan_runs_and_the_rest
     assert plan.steps == [step, step] and not plan.subgoal
 
 
+
+def test_a_plan_of_first_stages_is_no_skeleton_for_bilevel_planning():
+    from drake_symplan.abstraction.bilevel import skeletons
+
+    staged = Plan("solved", [Step(STACK["center"], ("b", "c"))], level="staged")
+    abstraction = SimpleNamespace(plan=lambda *args, **options: staged)
+    first = next(skeletons(abstraction, None, None, "fd", Budget.of_cpu(1.0)))
+    assert not first.solved and first.steps == [] and staged.solved
+
+
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),
                ObjectSpec("o1", "long", [0.80, 0.10, 0.025]),
                ObjectSpec("o2", "cube", [0.60, 0.05, 0.025]),

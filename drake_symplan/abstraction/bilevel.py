@@ -269,7 +269,10 @@ def skeletons(abstraction, start, goal, planner: str, budget: Budget,
 
     def call(**options):
         options.setdefault("penalties", base or None)
-        return abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE), **options)
+        found = abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE), **options)
+        if found.subgoal:  # a skeleton is refined to the goal: a plan of first stages is none
+            return replace(found, status="unsolvable", steps=[])
+        return found
 
     first = call()
     yield first
