@@ -130,3 +130,21 @@ def test_the_later_step_moving_a_box_a_step_would_meet_runs_first_where_the_plan
     onto_a = step("(pick_center_place_center_n10_op0 c a)")
     assert unblocking(first, [onto_a], state, frozenset({("r0", "a", "b"), ("r0", "c", "a")}),
                       {"c"}) is None
+
+
+def test_no_later_step_runs_first_that_sets_its_box_on_one_the_plan_still_moves():
+    from drake_symplan.agent.reposition import unblocking
+
+    # a carry: the source need not be clear, so c set on a, then a (with c) on b, reaches
+    # the goal in symbols; but a is still to move, and c would ride wherever a goes
+    carry = LiftedOperator(1, "center", "center", 2, (("p0", 1),), (("r0", 0, 1),),
+                           (("p0", 1),), 10, 10, 10)
+    steps = {carry.name: carry}
+    first = parse_step(f"({carry.name} a b)", steps)
+    later = parse_step(f"({carry.name} c a)", steps)
+    state = frozenset({("p0", n) for n in "abc"})
+    goal = frozenset({("r0", "a", "b"), ("r0", "c", "a")})
+    assert unblocking(first, [later], state, goal, {"c"}) is None
+    # c on b, which no step before it moves: first
+    onto_b = parse_step(f"({carry.name} c d)", steps)
+    assert unblocking(first, [onto_b], state | {("p0", "d")}, frozenset(), {"c"}) == 0

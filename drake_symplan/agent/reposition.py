@@ -125,13 +125,16 @@ def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Repositi
 def unblocking(step: PlanStep, rest: list[PlanStep], state, goal, met: set[str]) -> int | None:
     """The index in `rest` (the steps after `step`) of the first that moves a box of `met`
     (those `step` would set its source down against: set_down.set_down_meets), applies in
-    `state` and, run before `step`, leaves the plan reaching `goal`; or None. The symbols
+    `state`, sets its box on or beside one no step before it moves, and, run before
+    `step`, leaves the plan reaching `goal`; or None. The symbols
     do not see where a block's ends reach; the order of steps they leave free is the
     agent's to choose (two towers: the second's block set on its cube came to rest on the
     first's top cube, still on the table beside it, and the planner's next plans failed)."""
     for i, later in enumerate(rest):
-        if later.action.source not in met:
+        first = [step, *rest[:i]]
+        if later.action.source not in met or later.action.target in {
+                s.action.source for s in first}:  # set against a box the plan still moves
             continue
-        if reaches([later, step, *rest[:i], *rest[i + 1:]], state, goal):
+        if reaches([later, *first, *rest[i + 1:]], state, goal):
             return i
     return None
