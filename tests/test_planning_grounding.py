@@ -49,6 +49,17 @@ def test_ground_keeps_the_reachable_actions_on_distinct_objects():
     assert names(ground([PUT, MARK, THREE], two)) == sorted([f"{put} a b", f"{mark} a b"])
 
 
+
+def test_grounding_past_the_plans_budget_is_a_timeout_and_is_not_kept():
+    # sixteen boxes ground 170,000 actions in 15 to 30 s: the budget counts that time
+    task = Task(("a", "b", "c", "d"), frozenset({Atom("p0", "a")}),
+                frozenset({Atom("p1", "b")}))
+    found = fast_downward_task([PUT, MARK, THREE], task, wall_seconds=1.0, cpu_seconds=0.0)
+    assert found.status == "timeout" and found.message == "grounding out of time"
+    with pytest.raises(grounding.OutOfTime):
+        ground([PUT, MARK, THREE], task, out_of_time=lambda: True)
+    assert len(ground([PUT, MARK, THREE], task).actions) == 12  # grounded anew, in full
+
 def test_a_task_grounded_again_is_priced_by_its_own_penalties():
     # The reachable part is kept between calls (a plan's skeletons ground one task twice);
     # each call's penalties price it anew, a longer key only the actions that name it all.
