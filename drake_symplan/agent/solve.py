@@ -236,8 +236,8 @@ class _Run:
     def _unblock(self) -> None:
         """Where the next step would set its source down against a box it does not name
         (set_down.set_down_meets), the later step that moves that box runs first if the
-        plan still reaches the goal (reposition.unblocking), else such a box the goal
-        leaves free, or a later step moves, is set aside (`_clearing`); once per step."""
+        plan still reaches the goal (reposition.unblocking); once per step. (Setting such
+        a box aside instead put it beside a tower the arm then could not grasp it by.)"""
         step = self.todo[0].step
         if not isinstance(step, Step) or str(step) in self.unblocked:
             return
@@ -247,9 +247,6 @@ class _Run:
             if met else None
         if later is not None:
             self.todo.insert(0, self.todo.pop(later + 1))
-        elif met and (clear := self._clearing(step, sorted(met), {
-                s.action.source for s in self.rest[1:]})) is not None:
-            self.todo.insert(0, _Planned(clear))
 
     def _completes(self) -> bool:
         """Does the agent complete the plan as it runs (offsets, repositionings)? For plans
@@ -360,18 +357,17 @@ class _Run:
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message) from None
 
-    def _clearing(self, step: PlanStep, obstacles, moved=frozenset()) -> Reposition | None:
+    def _clearing(self, step: PlanStep, obstacles) -> Reposition | None:
         """Completing a plan on symbols, with repositionings left: a step that sets aside
         a box the arm named in its way (reposition.clearing_step), one the goal leaves
-        free: not named by its relations (where a structure stands is theirs) unless in
-        `moved` (a later step puts it where it goes), of a whole-scene goal not at its
-        goal position already."""
+        free: not named by its relations (where a structure stands is theirs), of a
+        whole-scene goal not at its goal position already."""
         if not (self._completes() and obstacles and self.repositions
                 < REPOSITIONS_PER_OBJECT * len(self.scene.names)):
             return None
         now, goal = beliefs.positions(self.scene), beliefs.positions(self.goal_scene)
         at_goal = goal_distances(now, {n: p for n, p in goal.items() if n in now})
-        keep = set(named(self.relations)) - set(moved) if self.relations else {
+        keep = set(named(self.relations)) if self.relations else {
             n for n, d in at_goal.items() if d <= GOAL_TOLERANCE}
         clear = clearing_step(obstacles, step, self.scene, keep)
         self.repositions += clear is not None
