@@ -243,8 +243,7 @@ class _Run:
             return
         self.unblocked.add(str(step))
         met = set_down_meets(Boxes.of(self.scene), self._offsets(step).action) - set(step.args)
-        later = unblocking(step, self.rest[1:], self.believed, self.goal_atoms, met) \
-            if met else None
+        later = unblocking(step, self.rest[1:], self.believed, self.goal_atoms, met)
         if later is not None:
             self.todo.insert(0, self.todo.pop(later + 1))
 
