@@ -15,7 +15,7 @@ import itertools
 import time
 from dataclasses import dataclass, field, replace
 
-from drake_symplan.abstraction.relation_goal import stage_keys
+from drake_symplan.abstraction.relation_goal import BASES, stage_keys
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import Goal, Step, flat, goal_of
 
@@ -93,7 +93,10 @@ def diagnose(abstraction, start, goal, planner: str = "fd",
 
 
 def _relations(goal, key: tuple) -> list[str]:
-    """The text of the relation whose pairs make the stage `key` (layer, relation index)."""
+    """The text of the relation whose pairs make the stage `key` (layer, relation index);
+    the bridges' towers' bottoms (relation_goal.BASES): "bases of" each bridge."""
+    if key[1] == BASES:
+        return [f"bases of {r.text()}" for r in goal.relations if r.word == "bridge"]
     return [goal.relations[key[1]].text()] if key[1] < len(goal.relations) else []
 
 
