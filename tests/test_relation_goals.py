@@ -204,6 +204,36 @@ def test_a_plan_of_first_stages_is_no_skeleton_for_bilevel_planning():
     assert not first.solved and first.steps == [] and staged.solved
 
 
+
+def test_a_stage_is_planned_on_the_boxes_it_changes_first_then_more_where_unsolvable(
+        monkeypatch):
+    from drake_symplan.abstraction import abstraction as module
+    from drake_symplan.planning.planners import PlanResult
+
+    tried, answers = [], []
+
+    def planned(operators, domain, task, *args, **options):
+        tried.append(task.objects)
+        return answers.pop(0)
+
+    monkeypatch.setattr(module, "plan_task", planned)
+    bundle = SimpleNamespace(planned=[], domain_for=lambda *a: "")
+    abstraction = Abstraction(bundle)
+    # a on b wanted; c touches a at the start; d apart
+    start = SimpleNamespace(contacts={("a", "c")})
+    task = Task(("a", "b", "c", "d"), frozenset(), Goal([("r0", "a", "b")]))
+    goal = SimpleNamespace(contacts=set(), pairs=None)
+    answers[:] = [PlanResult("solved", [], 0.0, "", "fd")]
+    abstraction.plan_focused(task, start, goal, budget=Budget.of_cpu(1.0))
+    assert tried == [("a", "b")]  # the boxes the goal changes: a plan there holds for all
+    tried.clear()
+    answers[:] = [PlanResult("unsolvable", [], 0.0, "", "fd"),
+                  PlanResult("unsolvable", [], 0.0, "", "fd"),
+                  PlanResult("timeout", [], 0.0, "", "fd")]
+    abstraction.plan_focused(task, start, goal, budget=Budget.of_cpu(1.0))
+    assert tried == [("a", "b"), ("a", "b", "c"), ("a", "b", "c", "d")]
+
+
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),
                ObjectSpec("o1", "long", [0.80, 0.10, 0.025]),
                ObjectSpec("o2", "cube", [0.60, 0.05, 0.025]),
