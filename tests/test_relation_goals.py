@@ -205,7 +205,7 @@ def test_a_plan_of_first_stages_is_no_skeleton_for_bilevel_planning():
 
 
 
-def test_a_stage_is_planned_on_the_boxes_it_changes_first_then_more_where_unsolvable(
+def test_a_stage_is_planned_on_the_boxes_touching_what_it_changes_first_then_more(
         monkeypatch):
     from drake_symplan.abstraction import abstraction as module
     from drake_symplan.planning.planners import PlanResult
@@ -217,21 +217,20 @@ def test_a_stage_is_planned_on_the_boxes_it_changes_first_then_more_where_unsolv
         return answers.pop(0)
 
     monkeypatch.setattr(module, "plan_task", planned)
-    bundle = SimpleNamespace(planned=[], domain_for=lambda *a: "")
-    abstraction = Abstraction(bundle)
-    # a on b wanted; c touches a at the start; d apart
-    start = SimpleNamespace(contacts={("a", "c")})
-    task = Task(("a", "b", "c", "d"), frozenset(), Goal([("r0", "a", "b")]))
-    goal = SimpleNamespace(contacts=set(), pairs=None)
+    abstraction = Abstraction(SimpleNamespace(planned=[], domain_for=lambda *a: ""))
+    # a on b wanted; c touches a at the start, d is near b (related under vicinity), e apart
+    start = SimpleNamespace(contacts={("a", "c"), ("b", "d")}, touching={("a", "c")})
+    goal = SimpleNamespace(contacts=set(), touching=set(), pairs=None)
+    task = Task(tuple("abcde"), frozenset(), Goal([("r0", "a", "b")]))
     answers[:] = [PlanResult("solved", [], 0.0, "", "fd")]
     abstraction.plan_focused(task, start, goal, budget=Budget.of_cpu(1.0))
-    assert tried == [("a", "b")]  # the boxes the goal changes: a plan there holds for all
+    assert tried == [("a", "b", "c")]  # a plan over those holds for every box
     tried.clear()
     answers[:] = [PlanResult("unsolvable", [], 0.0, "", "fd"),
                   PlanResult("unsolvable", [], 0.0, "", "fd"),
                   PlanResult("timeout", [], 0.0, "", "fd")]
     abstraction.plan_focused(task, start, goal, budget=Budget.of_cpu(1.0))
-    assert tried == [("a", "b"), ("a", "b", "c"), ("a", "b", "c", "d")]
+    assert tried == [("a", "b", "c"), ("a", "b", "c", "d"), tuple("abcde")]
 
 
 START = Scene([ObjectSpec("o0", "cube", [0.60, -0.25, 0.025]),
