@@ -5,6 +5,8 @@ source would topple there (`set_down_tips`) and which boxes it would come to tou
 
 from __future__ import annotations
 
+import numpy as np
+
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.stability import unstable
 from drake_symplan.actions import Action
@@ -14,14 +16,19 @@ from drake_symplan.features import FEATURE_NAMES
 LEANS = 0.06  # m: a source set down with its bottom this low leans on the table if it tips
 
 
-def set_down(boxes: Boxes, action: Action) -> Boxes:
-    """`boxes` with `action`'s source where the action sets it down by its own points
-    (skills/geometry.set_down_at), level in the hand, what rides on it carried along (a
-    rider as high as the source's new bottom, left behind, was read as its second support:
-    a block released 15 cm off a cube, a block on it, and the tower under it fell)."""
+def _centre(boxes: Boxes, action: Action) -> np.ndarray:
+    """Where `action` sets its source's centre down, by its own points."""
     from drake_symplan.skills.geometry import set_down_at  # the skill's geometry
 
-    centre = set_down_at(action, boxes.object_states())
+    return set_down_at(action, boxes.object_states())
+
+
+def set_down(boxes: Boxes, action: Action, centre: np.ndarray | None = None) -> Boxes:
+    """`boxes` with `action`'s source where the action sets it down (`centre`, else
+    skills/geometry.set_down_at), level in the hand, what rides on it carried along (a
+    rider as high as the source's new bottom, left behind, was read as its second support:
+    a block released 15 cm off a cube, a block on it, and the tower under it fell)."""
+    centre = _centre(boxes, action) if centre is None else centre
     i = boxes.names.index(action.source)
     positions = boxes.positions.copy()
     carried = [i] + [boxes.names.index(n) for n in boxes.riding(action.source)]
@@ -41,11 +48,10 @@ def set_down_tips(boxes: Boxes, action: Action) -> bool:
     it resting there. The source is judged as it comes down, level in the hand: one picked
     up leaning (a block with its end on a cube) is set down on a face, and tips where its
     centre is beyond its supports."""
-    down = set_down(boxes, action)
-    bottom = down.positions[down.names.index(action.source)][2]
-    if bottom - HALF_EXTENTS[boxes.kinds()[action.source]][2] <= LEANS:
+    centre = _centre(boxes, action)  # the refiner's search asks this of every move
+    if centre[2] - HALF_EXTENTS[boxes.shapes[boxes.names.index(action.source)][0]][2] <= LEANS:
         return False
-    return unstable(down, [action.source])
+    return unstable(set_down(boxes, action, centre), [action.source])
 
 
 def set_down_meets(boxes: Boxes, action: Action) -> set[str]:
