@@ -161,6 +161,21 @@ def test_without_a_search_binary_the_task_goes_to_the_planner_as_pddl(learned, m
 
 
 @needs_search
+def test_of_plans_of_equal_moves_a_choices_first_set_is_planned_a_shorter_plan_wins():
+    # a pair read as the example reads it (a choice's first set) against a kept pattern:
+    # put a or b on c, one move each: the first set's; a plan a move shorter (put, no
+    # mark) to the second set beats the first's two
+    init = frozenset({Atom("p0", "a"), Atom("p0", "b")})
+    for first, other in (("a", "b"), ("b", "a")):
+        task = Task(("a", "b", "c"), init, Goal((), [(("c",), [
+            {Atom("r0", first, "c")}, {Atom("r0", other, "c")}])]))
+        assert fast_downward_task([PUT, MARK], task).plan == [f"({PUT.name} {first} c)"]
+    task = Task(("a", "b", "c"), init, Goal((), [(("b", "c"), [
+        {Atom("p1", "b"), Atom("r0", "a", "b")}, {Atom("r0", "b", "c")}])]))
+    assert fast_downward_task([PUT, MARK], task).plan == [f"({PUT.name} b c)"]
+
+
+@needs_search
 def test_a_goal_with_choices_is_reached_by_any_of_its_sets():
     # b on c may read r0 (put) or p1 under it (mark after put on c): either set will do,
     # and no action follows the set it ends at (the atoms hold at the plan's end)

@@ -14,6 +14,7 @@ from conftest import run
 
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan, Reading
 from drake_symplan.abstraction.bilevel import Search, plan_bilevel
+from drake_symplan.abstraction.goal_plans import plan_goal, stages
 from drake_symplan.abstraction.refiner import Refiner
 from drake_symplan.abstraction.relation_goal import (
     BASES,
@@ -73,7 +74,7 @@ def test_a_goal_of_relations_is_planned_in_stages_from_the_lowest_pairs():
     atoms = frozenset({("r0", "a", "b"), ("r0", "b", "c"), ("not_r2", "b", "c"),
                        ("r0", "d", "e")})
     bottom = frozenset({("r0", "b", "c"), ("not_r2", "b", "c")})
-    assert Abstraction(None).stages(goal, atoms) == [
+    assert stages(goal, atoms) == [
         bottom, bottom | {("r0", "d", "e")}, atoms]
 
 
@@ -93,7 +94,7 @@ def test_a_model_without_relations_keeps_the_named_objects_atoms_of_a_relation_g
     bundle = SimpleNamespace(n_relations=0, semantics=UnaryOnly())
     atoms = Abstraction(bundle).goal_atoms(reading)
     assert atoms == {("u0", "a"), ("touching1", "b")}  # c is not named: free
-    assert Abstraction(bundle).stages(reading, atoms) == [atoms]
+    assert stages(reading, atoms) == [atoms]
 
 
 class RowBits:
@@ -113,7 +114,7 @@ def test_under_vicinity_a_named_pairs_relation_is_its_bits_both_ways_and_no_othe
                                            relevance_radius=VICINITY, patterns={}))
     atoms = vicinity.goal_atoms(reading)
     assert atoms == {("r1", "a", "b"), ("r2", "a", "b"), ("r0", "b", "a")}
-    assert vicinity.stages(reading, atoms) == [atoms]
+    assert stages(reading, atoms) == [atoms]
     contact = Abstraction(SimpleNamespace(n_relations=3, semantics=RowBits(),
                                           relevance_radius=CONTACT_TOLERANCE, patterns={}))
     assert contact.goal_atoms(reading) == {("r1", "a", "b"), ("r2", "a", "b")}
@@ -136,7 +137,7 @@ def test_a_pair_whose_kind_the_symbols_read_in_patterns_is_a_choice_of_them():
         example, {("r0", "a", "b"), ("not_r0", "b", "a")}, {("r1", "a", "b")})),)
     assert goal <= {("r1", "a", "b"), ("r0", "c", "a")}  # the second pattern holds
     assert not goal <= {("r0", "a", "b"), ("r0", "b", "a")}  # the first but for not_r0
-    assert vicinity.stages(reading, goal) == [goal] and vicinity.stages(
+    assert stages(reading, goal) == [goal] and stages(
         reading, goal)[0].choices == goal.choices
 
 
@@ -178,7 +179,7 @@ def test_where_a_later_stage_has_no_plan_the_first_stages_plan_runs_and_the_rest
     step = Step(STACK["center"], ("b", "c"))
     found = {"at once": Plan("timeout")}
 
-    def focused(self, task, start, goal, planner, budget, focus, penalties):
+    def focused(self, task, start, goal, planner, budget, focus, penalties, bound=None):
         if len(task.goal) == 2:
             return found["at once"]
         return Plan("solved", [step]) if ("r0", "b", "c") in task.goal else Plan("timeout")
@@ -187,10 +188,10 @@ def test_where_a_later_stage_has_no_plan_the_first_stages_plan_runs_and_the_rest
     abstraction = Abstraction(None)
     reading = SimpleNamespace(pairs={("b", "c"): (0, 0), ("a", "b"): (1, 0)})
     task = Task(("a", "b", "c"), frozenset(), Goal([("r0", "b", "c"), ("r0", "a", "b")]))
-    plan = abstraction._plan_goal(task, reading, reading, Budget.of_cpu(1.0), "fd", True, {})
+    plan = plan_goal(abstraction, task, reading, reading, Budget.of_cpu(1.0), "fd", True, {})
     assert plan.solved and plan.steps == [step] and plan.level == "staged" and plan.subgoal
     found["at once"] = Plan("solved", [step, step])  # the goal at once: that plan
-    plan = abstraction._plan_goal(task, reading, reading, Budget.of_cpu(1.0), "fd", True, {})
+    plan = plan_goal(abstraction, task, reading, reading, Budget.of_cpu(1.0), "fd", True, {})
     assert plan.steps == [step, step] and not plan.subgoal
 
 

@@ -130,34 +130,3 @@ def test_bundle_patterns_reads_them_in_a_data_sets_scenes(tmp_path, capsys):
     assert kinds["beside"] == {"pairs": 0, "read": 0}
     patterns = rp.load(bundle)
     assert len(patterns["on"]) == 1 and kinds["on"]["read"] == 6
-
-
-def test_the_examples_reading_is_planned_where_the_patterns_give_no_shorter_plan(monkeypatch):
-    # with the patterns alone the planner set a cube 7.5 cm off a block's centre to read a
-    # pattern of "on" (the written tower4/o8/p000), where the example's reading also takes
-    # three moves: the patterns' plan runs only where it is shorter
-    from types import SimpleNamespace
-
-    from drake_symplan.abstraction.abstraction import Abstraction, Plan
-    from drake_symplan.symbolic.structs import Goal, Task
-
-    plans = {}
-
-    def planned(self, task, start, goal, budget, *options):
-        return plans["patterns" if task.goal.choices else "example"]
-
-    monkeypatch.setattr(Abstraction, "_plan_goal", planned)
-    goal = Goal((), [(("a", "b"), [{("r0", "a", "b")}, {("r1", "a", "b")}])])
-    abstraction = Abstraction(None)
-    monkeypatch.setattr(abstraction, "task", lambda s, g: Task(("a", "b"), frozenset(), goal))
-    reading = SimpleNamespace(pairs={("a", "b"): (0, 0)})
-
-    def chosen(example, patterns):
-        plans["example"], plans["patterns"] = (
-            Plan("solved", list(range(n))) if n is not None else Plan("timeout")
-            for n in (example, patterns))
-        found = abstraction.plan(reading, reading)
-        return "patterns" if found is plans["patterns"] else "example"
-
-    assert chosen(3, 3) == "example" and chosen(5, 2) == "patterns"
-    assert chosen(None, 4) == "patterns" and chosen(2, None) == "example"

@@ -20,7 +20,8 @@ from functools import partial
 import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.abstraction.relation_goal import pair_choices, pair_of, stage_keys
+from drake_symplan.abstraction.goal_plans import plan_goal
+from drake_symplan.abstraction.relation_goal import pair_choices, pair_of
 from drake_symplan.boxes import CONTACT_TOLERANCE, neighbour_pairs
 from drake_symplan.learning.readout import read_symbols
 from drake_symplan.planning.budget import Budget
@@ -45,9 +46,6 @@ from drake_symplan.symbolic.structs import (
 # tools/bench_carry.py), -ln(26/45) at the operators' cost scale of 10. A whole-scene
 # goal is planned without it, as it always was.
 CARRY_COST = 5
-# The share of a plan's budget for the example's reading of a goal of relations, before
-# the plan with its kinds' patterns (Abstraction.plan)
-EXAMPLE_SHARE = 0.5
 
 
 @dataclass
@@ -294,77 +292,17 @@ class Abstraction:
              budget: Budget | None = None, focus: bool = True,
              penalties: Mapping[tuple[str, ...], int] | None = None) -> Plan:
         """Plans from start to goal within `budget` (planning.budget.Budget, from now;
-        default DEFAULT_TIMEOUT CPU seconds). The `focus` objects first; only if that
-        proves unsolvable, all of them, in the time left (`focus=False`: all of them). The
-        empty plan, without a planner call, when the goal's atoms hold already. A goal of
-        relations is planned stage by stage, the lowest pairs first (`stages`), where that
-        reaches it; else at once. A goal whose pairs may read their kind's patterns
-        (`goal_atoms`) is planned to the example's reading first, in half the budget, then
-        with the patterns; the plan with the patterns runs only where it is shorter.
-        `penalties`: see `plan_task`."""
+        default DEFAULT_TIMEOUT CPU seconds): a goal of relations stage by stage, else
+        at once (abstraction/goal_plans.py); each planner call on the `focus` objects
+        first, all of them where that proves unsolvable (`plan_focused`; `focus=False`:
+        all of them). The empty plan, without a planner call, when the goal's atoms hold
+        already. `penalties`: see `plan_task`."""
         t0 = time.perf_counter()
         budget = budget or Budget.of_cpu(DEFAULT_TIMEOUT)
-        task = self.task(start, goal)
-        options = (planner, focus, penalties)
-        if not goal_of(task.goal).choices:
-            found = self._plan_goal(task, start, goal, budget, *options)
-        else:
-            own = self._plan_goal(replace(task, goal=Goal(flat(task.goal))), start, goal,
-                                  budget.share(EXAMPLE_SHARE), *options)
-            found = min(own, self._plan_goal(task, start, goal, budget, *options),
-                        key=lambda p: (not p.solved, p.subgoal, len(p.steps)))
+        found = plan_goal(self, self.task(start, goal), start, goal, budget, planner, focus,
+                          penalties)
         found.seconds = time.perf_counter() - t0
         return found
-
-    def _plan_goal(self, task: Task, start: Reading, goal: Reading, budget: Budget,
-                   planner: str, focus: bool, penalties) -> Plan:
-        """`task` planned stage by stage where it is a goal of relations, else (or where
-        the stages find no plan to the goal) at once; where that finds none either, the
-        plan of the first stages (level "staged")."""
-        staged = None
-        if goal.pairs is not None:
-            staged = self._plan_stages(task, start, goal, planner, budget, focus, penalties)
-            if staged is not None and not staged.subgoal:
-                return staged
-        found = self.plan_focused(task, start, goal, planner, budget, focus, penalties)
-        return staged if staged is not None and not found.solved else found
-
-    def stages(self, goal: Reading, atoms: frozenset) -> list[frozenset]:
-        """A goal of relations' atoms in growing stages, by Reading.pairs' values (layer,
-        relation): those of the first relation's pairs whose lower box stands in the lowest
-        layer of the example, then the next relation's in that layer with them, and so on
-        up: structures planned from the bottom up, as a person builds them, one at a time,
-        with no move that carries a built part."""
-        if any(len(a) != 3 for a in atoms):  # a model without relations: one stage
-            return [atoms]
-        choices = goal_of(atoms).choices
-        return [Goal((a for a in atoms if goal.pairs[pair_of(goal.pairs, a)] <= stage),
-                     [(key, alts) for key, alts in choices if goal.pairs[key] <= stage])
-                for stage in stage_keys(goal)]
-
-    def _plan_stages(self, task: Task, start: Reading, goal: Reading, planner: str,
-                     budget: Budget, focus: bool, penalties) -> Plan | None:
-        """`task` planned stage by stage (`stages`), each from the state the plan before
-        it predicts; where a stage finds no plan, the plan of the stages before it that
-        moves something (level "staged": the agent runs it and plans on from what it
-        sees, where what no operator predicts may hold: two towers' tops a bridge apart);
-        None where there is none or the stages do not reach the goal."""
-        stages = self.stages(goal, task.goal)
-        if len(stages) < 2:
-            return None
-        state, steps = task.init, []
-        for atoms in stages:
-            found = self.plan_focused(replace(task, init=state, goal=atoms), start, goal,
-                                    planner, budget, focus, penalties)
-            if not found.solved:
-                return Plan("solved", steps, 0.0, found.message, planner, "staged") \
-                    if steps else None
-            for step in found.steps:
-                state = step.apply(state)
-            steps += found.steps
-        if not goal_of(task.goal) <= state:
-            return None
-        return Plan("solved", steps, 0.0, "", planner)
 
     def plan_focused(self, task: Task, start: Reading, goal: Reading, planner: str = "fd",
                      budget: Budget | None = None, focus: bool = True,

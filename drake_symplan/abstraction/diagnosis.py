@@ -1,5 +1,5 @@
 """Why the symbols plan a goal of relations, or do not: its stages planned one by one on the
-learned operators (Abstraction.stages), and for the first stage that finds no plan, the
+learned operators (goal_plans.stages), and for the first stage that finds no plan, the
 ground steps nearest to reaching it with the atoms each lacks.
 
 A stage the symbols cannot plan is either one no operator's effect reaches (the nearest
@@ -15,6 +15,7 @@ import itertools
 import time
 from dataclasses import dataclass, field, replace
 
+from drake_symplan.abstraction.goal_plans import stages
 from drake_symplan.abstraction.relation_goal import BASES, stage_keys
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import Goal, Step, flat, goal_of
@@ -68,9 +69,9 @@ def diagnose(abstraction, start, goal, planner: str = "fd",
     if goal.reading is None or goal.reading.pairs is None:
         raise ValueError("a stage diagnosis needs a goal of relations (relation_goal)")
     task = abstraction.task(start, goal.reading)
-    stages = abstraction.stages(goal.reading, task.goal)
+    parts = stages(goal.reading, task.goal)
     state, before, out = task.init, frozenset(), []
-    for key, atoms in zip(stage_keys(goal.reading), stages, strict=False):
+    for key, atoms in zip(stage_keys(goal.reading), parts, strict=False):
         t0 = time.perf_counter()
         stage = replace(task, init=state, goal=atoms)
         found = abstraction.plan_focused(stage, start, goal.reading, planner,

@@ -1,6 +1,7 @@
 """Putting a box down at its goal spot on the table, which the symbols do not say, setting
-aside a box that stands in the arm's way (`clearing_step`), and running first the later
-step that moves a box a step would be set down against (`unblocking`).
+aside a box that stands in the arm's way (`clearing_step`), running first the later step
+that moves a box a step would be set down against (`unblocking`), and else moving the
+step's target to where the step has room (`room_step`).
 
 The symbols do not say where on the table a box stands, so a plan can reach the
 goal's atoms with a stack built 20 cm from where the goal has it. `reposition_step` fills
@@ -120,6 +121,28 @@ def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Repositi
         if best is not None:
             return best[1]
     return None
+
+
+def room_step(step: PlanStep, now) -> Reposition | None:
+    """A step that moves `step`'s target, resting on nothing and with nothing on it, to a
+    free spot of the table where `step`'s source, set down on it as the step sets it,
+    stands clear of every other box: the one nearest where the target stands; or None.
+    The symbols do not say where a tower's base stands; a person building on it where a
+    block would come to rest on the next structure moves the base first."""
+    boxes = {o.name: o for o in now.objects}
+    src, tgt = step.action.source, step.action.target
+    if src not in boxes or tgt not in boxes or carried(now, tgt) or rests_on(now, tgt):
+        return None
+    here, best = boxes[tgt].position[:2], None
+    for move, land in _landings(tgt, boxes, now.object_states()):
+        if move.action.target == src or not _free(land, tgt, boxes):
+            continue
+        if not _free(release_centre(land, step.action), src, boxes, {tgt}):
+            continue
+        travel = float(np.linalg.norm(land - here))
+        if best is None or travel < best[0]:
+            best = (travel, move)
+    return None if best is None else best[1]
 
 
 def unblocking(step: PlanStep, rest: list[PlanStep], state, goal, met: set[str]) -> int | None:

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 import time
+from collections import Counter
 
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes
@@ -50,6 +51,7 @@ from drake_symplan.agent.reposition import (
     REPOSITIONS_PER_OBJECT,
     clearing_step,
     reposition_step,
+    room_step,
     unblocking,
 )
 from drake_symplan.agent.result import PhaseClock, SolveResult
@@ -158,6 +160,7 @@ class _Run:
         self.todo: list[_Planned] = []
         self.repositions = 0
         self.refused: set = set()  # actions the arm refused in the scene as it stands
+        self.refusals: Counter = Counter()  # the arm's refusals in this solve, by step args
         self.unblocked: set[str] = set()  # steps _unblock looked at
 
     @property
@@ -236,8 +239,10 @@ class _Run:
     def _unblock(self) -> None:
         """Where the next step would set its source down against a box it does not name
         (set_down.set_down_meets), the later step that moves that box runs first if the
-        plan still reaches the goal (reposition.unblocking); once per step. (Setting such
-        a box aside instead put it beside a tower the arm then could not grasp it by.)"""
+        plan still reaches the goal (reposition.unblocking), else, where the goal leaves
+        the step's target free to stand elsewhere (`_movable_base`), the target is first
+        moved to where the step has room (reposition.room_step); once per step. (Setting such a box aside
+        instead put it beside a tower the arm then could not grasp it by.)"""
         step = self.todo[0].step
         if not isinstance(step, Step) or str(step) in self.unblocked:
             return
@@ -246,6 +251,21 @@ class _Run:
         later = unblocking(step, self.rest[1:], self.believed, self.goal_atoms, met)
         if later is not None:
             self.todo.insert(0, self.todo.pop(later + 1))
+        elif met and self._movable_base(step) and self.repositions < (
+                REPOSITIONS_PER_OBJECT * len(self.scene.names)):
+            room = room_step(self._offsets(step), self.scene)
+            if room is not None:
+                self.todo.insert(0, _Planned(room))
+                self.repositions += 1
+
+    def _movable_base(self, step: Step) -> bool:
+        """May `step`'s target move before it, where the goal is one of relations? Where
+        the goal pairs it with no box but the step's source (a tower's base, not a row's
+        cube nor a bridge's support, whose place the other boxes of the pair fix)."""
+        pairs = self.goal.reading.pairs if self.goal and self.goal.reading else None
+        src, tgt = step.action.source, step.action.target
+        return bool(self.relations) and pairs is not None and all(
+            src in pair for pair in pairs if tgt in pair)
 
     def _completes(self) -> bool:
         """Does the agent complete the plan as it runs (offsets, repositionings)? For plans
@@ -344,6 +364,7 @@ class _Run:
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message)
         self.result.refusals += 1
+        self.refusals[tuple(step.args)] += 1
         clear = self._clearing(step, obstacles)
         if clear is not None:  # what stands in the way is set aside, and the step tried again
             self.todo = [_Planned(clear), _Planned(step), *self.todo]
@@ -360,7 +381,10 @@ class _Run:
         """Completing a plan on symbols, with repositionings left: a step that sets aside
         a box the arm named in its way (reposition.clearing_step), one the goal leaves
         free: not named by its relations (where a structure stands is theirs), of a
-        whole-scene goal not at its goal position already."""
+        whole-scene goal not at its goal position already. A step refused a second time
+        sets aside a named box too: the plans after it build that box's part elsewhere
+        (a tower's base stood where a row went on, and its two ends were refused in
+        turn until the solve gave up)."""
         if not (self._completes() and obstacles and self.repositions
                 < REPOSITIONS_PER_OBJECT * len(self.scene.names)):
             return None
@@ -368,6 +392,8 @@ class _Run:
         at_goal = goal_distances(now, {n: p for n, p in goal.items() if n in now})
         keep = set(named(self.relations)) if self.relations else {
             n for n, d in at_goal.items() if d <= GOAL_TOLERANCE}
+        if self.relations and self.refusals[tuple(step.args)] > 1:
+            keep = set()
         clear = clearing_step(obstacles, step, self.scene, keep)
         self.repositions += clear is not None
         return clear

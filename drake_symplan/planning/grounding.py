@@ -43,18 +43,18 @@ class GroundTask:
     """The reachable part of a task: its variables (non-static atoms), actions, initial
     state and goal; `unreachable`: the goal atoms no action can make true; `choices`: of
     a goal's choices (structs.Goal), the sets still reachable, each cut to its variables
-    (empty: a set that holds for good)."""
+    (empty: a set that holds for good), with the cost of taking it."""
 
     variables: list[Atom]
     actions: list[GroundAction]
     init: frozenset
     goal: frozenset
     unreachable: frozenset
-    choices: list[list[frozenset]] = field(default_factory=list)
+    choices: list[list[tuple[frozenset, int]]] = field(default_factory=list)
 
     def solved(self) -> bool:
         """Does the goal hold in the initial state?"""
-        return self.goal <= self.init and all(any(a <= self.init for a in alternatives)
+        return self.goal <= self.init and all(any(a <= self.init for a, _ in alternatives)
                                               for alternatives in self.choices)
 
 
@@ -160,7 +160,8 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
         if act.add or act.delete:
             kept.append(act)
     goal = goal_of(task.goal)
-    choices = [[a & changing for a in alternatives if a <= facts]
+    choices = [[(a & changing, 0 if k == 0 else OTHER_READING_COST)
+                for k, a in enumerate(alternatives) if a <= facts]
                for _, alternatives in goal.choices]
     unreachable = frozenset(goal) - facts
     for (_, alternatives), reachable in zip(goal.choices, choices, strict=True):
@@ -171,14 +172,26 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
 
 
 CHOICE = "goal-choice"  # the plan steps that pick a choice's set (no operator's name)
+# A goal choice's set other than its first (a pair read by a kept pattern of its kind,
+# not as the example reads it: structs.Goal) costs half a sure move (the task's action
+# costs are the operators' doubled, CHOICE_SCALE; an operator's own cost is at least 1):
+# of plans of equal moves, the one to the example's reading; a shorter one to a kept
+# pattern. With no preference, the planner set a cube 7.5 cm off a block's centre, an
+# operator whose unreliable effect reads a kept pattern of "on", where a centred
+# placement gives the example's reading: the written towers of four fell from 8 to 5
+# of 10 with the symbols alone.
+OTHER_READING_COST = 1
+CHOICE_SCALE = 2
 
 
 def sas_text(task: GroundTask) -> str:
     """The task in FD's SAS+ format, version 3, with action costs. A goal's choices are
     compiled as disjunctive goals are: a variable `acting`, true at the start and asked
-    by every action, and per choice a variable its goal; per set of a choice an action of
-    cost 0 (named CHOICE) that asks for the set, makes the choice's variable true and
-    `acting` false, so no action follows it and the sets hold at the plan's end."""
+    by every action, and per choice a variable its goal; per set of a choice an action
+    (named CHOICE) that asks for the set, makes the choice's variable true and `acting`
+    false, so no action follows it and the sets hold at the plan's end: of cost 0 for a
+    choice's first set, OTHER_READING_COST for the others (the actions' costs then
+    CHOICE_SCALE times their own)."""
     index = {atom: i for i, atom in enumerate(task.variables)}
     names = [f"Atom {a[0]}({', '.join(a[1:])})" for a in task.variables]
     acting = len(names) if task.choices else None
@@ -199,14 +212,14 @@ def sas_text(task: GroundTask) -> str:
     actions = [(act.name, sorted(index[a] for a in act.pre - act.delete),
                 [(index[a], -1, TRUE) for a in act.add]
                 + [(index[a], TRUE if a in act.pre else -1, FALSE) for a in act.delete],
-                act.cost) for act in task.actions]
+                act.cost * (CHOICE_SCALE if task.choices else 1)) for act in task.actions]
     if task.choices:
         actions = [(n, sorted([*prevail, acting]), effects, cost)
                    for n, prevail, effects, cost in actions]
         actions += [(f"{CHOICE} {i} {k}", sorted(index[a] for a in alternative),
-                     [(acting + 1 + i, -1, TRUE), (acting, -1, FALSE)], 0)
+                     [(acting + 1 + i, -1, TRUE), (acting, -1, FALSE)], cost)
                     for i, alternatives in enumerate(task.choices)
-                    for k, alternative in enumerate(alternatives)]
+                    for k, (alternative, cost) in enumerate(alternatives)]
     lines += ["end_goal", str(len(actions))]
     for name, prevail, effects, cost in actions:
         lines += ["begin_operator", name, str(len(prevail))]
