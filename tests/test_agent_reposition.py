@@ -18,9 +18,11 @@ def step(text):
 
 def scene(boxes, contacts=()):
     """A perceived scene of upright boxes: name -> (type, xyz)."""
+    from drake_symplan.features import object_features
     from drake_symplan.perception.perceive import PerceivedObject, PerceivedScene
 
-    return PerceivedScene([PerceivedObject(n, t, np.array(p, float), 0.0, 0.0, np.zeros(9),
+    return PerceivedScene([PerceivedObject(n, t, np.array(p, float), 0.0, 0.0,
+                                           object_features(t, np.array(p, float), np.eye(3)),
                                            False, np.eye(3)) for n, (t, p) in boxes.items()],
                           set(contacts))
 
@@ -148,3 +150,22 @@ def test_no_later_step_runs_first_that_sets_its_box_on_one_the_plan_still_moves(
     # c on b, which no step before it moves: first
     onto_b = parse_step(f"({carry.name} c d)", steps)
     assert unblocking(first, [onto_b], state | {("p0", "d")}, frozenset(), {"c"}) == 0
+
+
+def test_a_towers_base_moves_to_where_its_step_has_room():
+    from drake_symplan.agent.reposition import room_step
+
+    # b stands against c, which carries e: a cube set on b would rest against e. b is set
+    # down 7.5 cm from c instead, where a on it meets no box: of such spots, the nearest
+    boxes = {"a": ("cube", (0.4, -0.3, 0.025)), "b": ("cube", (0.6, 0.0, 0.025)),
+             "c": ("cube", (0.6, 0.05, 0.025)), "e": ("cube", (0.6, 0.05, 0.075)),
+             "d": ("cube", (0.75, 0.3, 0.025))}
+    onto_b = step("(pick_center_place_center_n10_op0 a b)")
+    assert room_step(onto_b, scene(boxes, [("c", "e")])) == \
+        Reposition(Action("b", "center", "c", "left"))
+    # with a box on b, b stays (its load is the tower's part)
+    loaded = scene({**boxes, "f": ("cube", (0.6, 0.0, 0.075))}, [("c", "e"), ("b", "f")])
+    assert room_step(onto_b, loaded) is None
+    # a block set on a cube reaches 12.5 cm along y: beside any box, it rests on that one too
+    block = scene({**boxes, "a": ("long", (0.4, -0.3, 0.025))}, [("c", "e")])
+    assert room_step(onto_b, block) is None

@@ -21,7 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from drake_symplan import relations
+from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.refiner import moves
+from drake_symplan.abstraction.set_down import set_down, set_down_meets
 from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
 from drake_symplan.skills.geometry import grasp_refused
@@ -126,21 +128,22 @@ def clearing_step(obstacles, refused: PlanStep, now, keep: set[str]) -> Repositi
 def room_step(step: PlanStep, now) -> Reposition | None:
     """A step that moves `step`'s target, resting on nothing and with nothing on it, to a
     free spot of the table where `step`'s source, set down on it as the step sets it,
-    stands clear of every other box: the one nearest where the target stands; or None.
-    The symbols do not say where a tower's base stands; a person building on it where a
-    block would come to rest on the next structure moves the base first."""
+    meets no box but its target (set_down.set_down_meets): the one nearest where the
+    target stands; or None. The symbols do not say where a tower's base stands; a person
+    building on it where a box would come to rest against the next structure moves the
+    base first."""
     boxes = {o.name: o for o in now.objects}
     src, tgt = step.action.source, step.action.target
     if src not in boxes or tgt not in boxes or carried(now, tgt) or rests_on(now, tgt):
         return None
-    here, best = boxes[tgt].position[:2], None
+    seen, here, best = Boxes.of(now), boxes[tgt].position[:2], None
     for move, land in _landings(tgt, boxes, now.object_states()):
-        if move.action.target == src or not _free(land, tgt, boxes):
-            continue
-        if not _free(release_centre(land, step.action), src, boxes, {tgt}):
-            continue
         travel = float(np.linalg.norm(land - here))
-        if best is None or travel < best[0]:
+        if move.action.target == src or (best is not None and travel >= best[0]) \
+                or not _free(land, tgt, boxes):
+            continue
+        on_table = np.r_[land, boxes[tgt].position[2]]  # it rests on nothing now
+        if not set_down_meets(set_down(seen, move.action, on_table), step.action):
             best = (travel, move)
     return None if best is None else best[1]
 

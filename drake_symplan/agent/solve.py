@@ -35,31 +35,26 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
 
 from __future__ import annotations
 
-import dataclasses as dc
 import time
 from collections import Counter
 
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes
-from drake_symplan.abstraction.offsets import GeometricScorer, choose
 from drake_symplan.abstraction.relation_goal import relation_goal
-from drake_symplan.abstraction.set_down import set_down_meets, set_down_tips
 from drake_symplan.agent import beliefs
+from drake_symplan.agent.completion import Completion, Planned
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.reposition import (
     REPOSITIONS_PER_OBJECT,
-    clearing_step,
     reposition_step,
-    room_step,
-    unblocking,
 )
 from drake_symplan.agent.result import PhaseClock, SolveResult
 from drake_symplan.agent.verdict import verdict
-from drake_symplan.boxes import GOAL_TOLERANCE, goal_distances, neighbour_pairs
-from drake_symplan.relations import named, riders
+from drake_symplan.boxes import GOAL_TOLERANCE
+from drake_symplan.relations import riders
 from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
-from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
+from drake_symplan.symbolic.structs import PlanStep
 from drake_symplan.world.visualization import StartMeshcat
 
 # Planner statuses -> the agent's status (= failure cause) when the plan cannot be had.
@@ -129,16 +124,7 @@ class _Stop(Exception):
         self.scene, self.cause, self.message = scene, cause, message
 
 
-@dc.dataclass
-class _Planned:
-    """A step to run, with the scene the plan predicted after it (None: a plan on
-    symbols, a repositioning)."""
-
-    step: PlanStep
-    predicted: Boxes | None = None
-
-
-class _Run:
+class _Run(Completion):
     """The loop of one solve (module docstring): `go` plans, then executes the plan step
     by step (`_execute`), monitoring each (`_monitor`) and the end (`_goal_seen`). `scene`
     is the scene perceived last, `now` the Observation last read (they differ open loop,
@@ -157,7 +143,7 @@ class _Run:
         self.scene = None
         self.now: Observation | None = None
         self.believed = frozenset()
-        self.todo: list[_Planned] = []
+        self.todo: list[Planned] = []
         self.repositions = 0
         self.refused: set = set()  # actions the arm refused in the scene as it stands
         self.refusals: Counter = Counter()  # the arm's refusals in this solve, by step args
@@ -202,17 +188,17 @@ class _Run:
         with self.clock("plan"):
             return self.planner.plan(self.now, self.goal)
 
-    def _steps(self, found: Plan) -> list[_Planned]:
+    def _steps(self, found: Plan) -> list[Planned]:
         """The steps of a plan found; _Stop when the planner found none."""
         if not found.solved:
             cause = PLANNER_STATUS.get(found.status, "error")
             raise _Stop(self.scene, cause, f"planner {self.config.planner}: {found.status}: "
                                            f"{found.message}".strip())
         predicted = list(found.predicted)
-        return [_Planned(s, predicted[i] if i < len(predicted) else None)
+        return [Planned(s, predicted[i] if i < len(predicted) else None)
                 for i, s in enumerate(found.steps)]
 
-    def _replan(self, scheduled: bool = False) -> list[_Planned]:
+    def _replan(self, scheduled: bool = False) -> list[Planned]:
         """A new plan from the scene perceived now: `scheduled` where the last plan
         ended at its subgoal (counted apart from the replans on a departure)."""
         if scheduled:
@@ -232,65 +218,11 @@ class _Run:
         if self._completes() and self.repositions < limit and not self.relations:
             extra = reposition_step(self.rest, self.scene, self.goal_scene, GOAL_TOLERANCE)
             if extra is not None:
-                self.todo.insert(0, _Planned(extra))
+                self.todo.insert(0, Planned(extra))
                 self.repositions += 1
         return bool(self.todo)
 
-    def _unblock(self) -> None:
-        """Where the next step would set its source down against a box it does not name
-        (set_down.set_down_meets), the later step that moves that box runs first if the
-        plan still reaches the goal (reposition.unblocking), else, where the goal leaves
-        the step's target free to stand elsewhere (`_movable_base`), the target is first
-        moved to where the step has room (reposition.room_step); once per step. (Setting such a box aside
-        instead put it beside a tower the arm then could not grasp it by.)"""
-        step = self.todo[0].step
-        if not isinstance(step, Step) or str(step) in self.unblocked:
-            return
-        self.unblocked.add(str(step))
-        met = set_down_meets(Boxes.of(self.scene), self._offsets(step).action) - set(step.args)
-        later = unblocking(step, self.rest[1:], self.believed, self.goal_atoms, met)
-        if later is not None:
-            self.todo.insert(0, self.todo.pop(later + 1))
-        elif met and self._movable_base(step) and self.repositions < (
-                REPOSITIONS_PER_OBJECT * len(self.scene.names)):
-            room = room_step(self._offsets(step), self.scene)
-            if room is not None:
-                self.todo.insert(0, _Planned(room))
-                self.repositions += 1
-
-    def _movable_base(self, step: Step) -> bool:
-        """May `step`'s target move before it, where the goal is one of relations? Where
-        the goal pairs it with no box but the step's source (a tower's base, not a row's
-        cube nor a bridge's support, whose place the other boxes of the pair fix)."""
-        pairs = self.goal.reading.pairs if self.goal and self.goal.reading else None
-        src, tgt = step.action.source, step.action.target
-        return bool(self.relations) and pairs is not None and all(
-            src in pair for pair in pairs if tgt in pair)
-
-    def _completes(self) -> bool:
-        """Does the agent complete the plan as it runs (offsets, repositionings)? For plans
-        on symbols only: plans checked in continuous space chose offsets and moves by
-        search, the oracle replays."""
-        return self.config.refine and self.planner.symbolic_plan
-
-    def _offsets(self, step: PlanStep) -> PlanStep:
-        """`step` with the offsets the geometric scorer chooses, completing a plan on
-        symbols (abstraction/offsets.py), else as planned: the best that does not set its
-        source down to topple (set_down.set_down_tips), where one does not, held nearest
-        its centre (offsets.central)."""
-        if not (self._completes() and isinstance(step, Step)):
-            return step
-        with self.clock("symbols"):
-            related = neighbour_pairs(self.goal_scene, self.abs.bundle.relevance_radius)
-            scorer = GeometricScorer(beliefs.positions(self.scene),
-                                     beliefs.positions(self.goal_scene), related)
-            boxes = Boxes.of(self.scene)
-            return choose(self.abs.bundle.planning, step, self.rest, self.believed,
-                          self.goal_atoms, scorer,
-                          lambda a: a in self.refused or set_down_tips(boxes, a),
-                          boxes.riding)
-
-    def _execute(self, planned: _Planned) -> None:
+    def _execute(self, planned: Planned) -> None:
         """Runs a step with the robot (its offsets chosen first), perceives the result."""
         step = self._offsets(planned.step)
         load = riders(step.action.source, self.scene.object_states())
@@ -367,7 +299,7 @@ class _Run:
         self.refusals[tuple(step.args)] += 1
         clear = self._clearing(step, obstacles)
         if clear is not None:  # what stands in the way is set aside, and the step tried again
-            self.todo = [_Planned(clear), _Planned(step), *self.todo]
+            self.todo = [Planned(clear), Planned(step), *self.todo]
             return
         where = self.now.boxes.where()
         self.planner.refused(step, {n: where[n] for n in obstacles if n in where}, at)
@@ -376,27 +308,6 @@ class _Run:
         except _Stop:
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message) from None
-
-    def _clearing(self, step: PlanStep, obstacles) -> Reposition | None:
-        """Completing a plan on symbols, with repositionings left: a step that sets aside
-        a box the arm named in its way (reposition.clearing_step), one the goal leaves
-        free: not named by its relations (where a structure stands is theirs), of a
-        whole-scene goal not at its goal position already. A step refused a second time
-        sets aside a named box too: the plans after it build that box's part elsewhere
-        (a tower's base stood where a row went on, and its two ends were refused in
-        turn until the solve gave up)."""
-        if not (self._completes() and obstacles and self.repositions
-                < REPOSITIONS_PER_OBJECT * len(self.scene.names)):
-            return None
-        now, goal = beliefs.positions(self.scene), beliefs.positions(self.goal_scene)
-        at_goal = goal_distances(now, {n: p for n, p in goal.items() if n in now})
-        keep = set(named(self.relations)) if self.relations else {
-            n for n, d in at_goal.items() if d <= GOAL_TOLERANCE}
-        if self.relations and self.refusals[tuple(step.args)] > 1:
-            keep = set()
-        clear = clearing_step(obstacles, step, self.scene, keep)
-        self.repositions += clear is not None
-        return clear
 
     def _goal_seen(self) -> bool:
         """The plan has run out. The monitor checks that the goal's atoms are seen too (a
