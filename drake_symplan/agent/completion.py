@@ -22,6 +22,7 @@ from drake_symplan.agent.reposition import (
 )
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_distances, neighbour_pairs
 from drake_symplan.relations import named
+from drake_symplan.skills.geometry import grasp_refused, set_down_struck
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
 
@@ -79,28 +80,28 @@ class Completion:
     def _offsets(self, step: PlanStep) -> PlanStep:
         """`step` with the offsets the geometric scorer chooses, completing a plan on
         symbols (abstraction/offsets.py), else as planned: the best that does not set its
-        source down to topple (set_down.set_down_tips), where one does not, held nearest
-        its centre (offsets.central)."""
+        source down to topple (set_down.set_down_tips) nor asks what the arm's own rules
+        refuse on the perceived boxes (a palm that would strike a box, a grasp under a
+        stack, a source driven into a box: skills/geometry.py, as the refiner's search
+        asks them), where one does not, held nearest its centre (offsets.central)."""
         if not (self._completes() and isinstance(step, Step)):
             return step
         with self.clock("symbols"):
             related = neighbour_pairs(self.goal_scene, self.abs.bundle.relevance_radius)
             scorer = GeometricScorer(beliefs.positions(self.scene),
                                      beliefs.positions(self.goal_scene), related)
-            boxes = Boxes.of(self.scene)
+            boxes, objects = Boxes.of(self.scene), self.scene.object_states()
             return choose(self.abs.bundle.planning, step, self.rest, self.believed,
                           self.goal_atoms, scorer,
-                          lambda a: a in self.refused or set_down_tips(boxes, a),
+                          lambda a: a in self.refused or set_down_tips(boxes, a)
+                          or grasp_refused(a, objects) or bool(set_down_struck(a, objects)),
                           boxes.riding)
 
     def _clearing(self, step: PlanStep, obstacles) -> Reposition | None:
         """Completing a plan on symbols, with repositionings left: a step that sets aside
         a box the arm named in its way (reposition.clearing_step), one the goal leaves
         free: not named by its relations (where a structure stands is theirs), of a
-        whole-scene goal not at its goal position already. A step refused a second time
-        sets aside a named box too: the plans after it build that box's part elsewhere
-        (a tower's base stood where a row went on, and its two ends were refused in
-        turn until the solve gave up)."""
+        whole-scene goal not at its goal position already."""
         if not (self._completes() and obstacles and self.repositions
                 < REPOSITIONS_PER_OBJECT * len(self.scene.names)):
             return None
@@ -108,8 +109,6 @@ class Completion:
         at_goal = goal_distances(now, {n: p for n, p in goal.items() if n in now})
         keep = set(named(self.relations)) if self.relations else {
             n for n, d in at_goal.items() if d <= GOAL_TOLERANCE}
-        if self.relations and self.refusals[tuple(step.args)] > 1:
-            keep = set()
         clear = clearing_step(obstacles, step, self.scene, keep)
         self.repositions += clear is not None
         return clear

@@ -36,7 +36,6 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
 from __future__ import annotations
 
 import time
-from collections import Counter
 
 from drake_symplan.abstraction.abstraction import Abstraction, Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes
@@ -146,7 +145,6 @@ class _Run(Completion):
         self.todo: list[Planned] = []
         self.repositions = 0
         self.refused: set = set()  # actions the arm refused in the scene as it stands
-        self.refusals: Counter = Counter()  # the arm's refusals in this solve, by step args
         self.unblocked: set[str] = set()  # steps _unblock looked at
 
     @property
@@ -296,7 +294,6 @@ class _Run(Completion):
             self.result.executed.append(step)
             raise _Stop(self.scene, "infeasible", message)
         self.result.refusals += 1
-        self.refusals[tuple(step.args)] += 1
         clear = self._clearing(step, obstacles)
         if clear is not None:  # what stands in the way is set aside, and the step tried again
             self.todo = [Planned(clear), Planned(step), *self.todo]
