@@ -139,11 +139,13 @@ class PlanningMode:
                 rest: list[PlanStep], believed, goal_atoms, goal: Observation | None = None
                 ) -> bool:
         """Has the scene `seen` after `step` left the plan? A plan on symbols: the step's
-        operator's prediction did not come true (a repositioning, which has none: the
-        rest no longer applies)."""
-        if isinstance(step, Reposition):  # no symbolic prediction: the rest must apply
-            return not reaches(rest, believed, goal_atoms)
-        return bool(self.abs.mismatches(seen.reading, step))
+        operator's prediction did not come true and the rest of the plan no longer
+        reaches the goal's atoms from what is seen (a miss the rest absorbs, a bit the
+        plan does not ask for, costs no replan); a repositioning, which predicts
+        nothing: the rest no longer applies."""
+        if isinstance(step, Step) and not self.abs.mismatches(seen.reading, step):
+            return False
+        return not reaches(rest, believed, goal_atoms)
 
     def observed(self, step: PlanStep, predicted: Boxes | None, before: Observation,
                  seen: Observation) -> None:
