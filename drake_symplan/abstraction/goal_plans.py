@@ -56,8 +56,6 @@ def plan_stages(abstraction, task: Task, start, goal, planner: str, budget: Budg
     something (level "staged": the agent runs it and plans on from what it sees, where
     what no operator predicts may hold: two towers' tops a bridge apart); None where
     there is none or the stages do not reach the goal."""
-    from drake_symplan.abstraction.abstraction import Plan
-
     parts = stages(goal, task.goal)
     if len(parts) < 2:
         return None
@@ -66,11 +64,11 @@ def plan_stages(abstraction, task: Task, start, goal, planner: str, budget: Budg
         found = abstraction.plan_focused(replace(task, init=state, goal=atoms), start, goal,
                                          planner, budget, focus, penalties)
         if not found.solved:
-            return Plan("solved", steps, 0.0, found.message, planner, "staged") \
+            return replace(found, status="solved", steps=steps, level="staged") \
                 if steps else None
         for step in found.steps:
             state = step.apply(state)
         steps += found.steps
     if not goal_of(task.goal) <= state:
         return None
-    return Plan("solved", steps, 0.0, "", planner)
+    return replace(found, steps=steps, message="")

@@ -20,11 +20,12 @@ is an `Abstraction` of a model bundle (abstraction/abstraction.py).
    source nearer its goal (abstraction/offsets.py; bilevel planning chose a plan's
    offsets with the same chooser and the learned model's scorer), and a box that the
    symbols leave off its goal position on the table may be put down beside another
-   first, a `Reposition` step (agent/reposition.py).
+   first, a `Reposition` step (agent/completion.py, agent/reposition.py).
 4. Monitoring: after each step the bundle compares the perceived symbols with what the
    step's operator predicted (a plan checked in continuous space: the perceived positions
-   with the predicted ones); on a departure the agent replans from the perceived state
-   (if that replan fails, the current plan runs on).
+   with the predicted ones); where the rest of the plan no longer reaches the goal from
+   what is seen, the agent replans from the perceived state (if that replan fails, the
+   current plan runs on).
    When the plan has run out, the goal must be seen (the mode's goal_seen), or it replans
    too; at most `max_replans` times. Without monitoring the first plan runs open loop.
 5. The check, on the scene perceived after the last step: every object within
