@@ -112,7 +112,7 @@ class Level:
 
 
 # Plan.level's values: the symbolic planner's plan, its plan of a goal of relations' first
-# stages (the rest planned from what is seen then: Abstraction._plan_stages), a refined
+# stages (the rest planned from what is seen then: goal_plans.plan_stages), a refined
 # skeleton, a skeleton's first steps refined to its subgoal, the continuous search's
 # plan, the steps predicted nearest the goal (bilevel.py), the oracle's replay.
 LEVELS = {level.name: level for level in (

@@ -76,7 +76,7 @@ def pair_of(pairs: dict, atom, both: bool = True) -> tuple | None:
 
 
 def stage_keys(goal) -> list[tuple]:
-    """The stages of a goal of relations (Abstraction.stages), in order: the (layer,
+    """The stages of a goal of relations (goal_plans.stages), in order: the (layer,
     relation index) values of its Reading.pairs."""
     return sorted(set(goal.pairs.values()))
 
