@@ -138,6 +138,9 @@ class _Put:
     def __init__(self, *atoms):
         self.atoms = frozenset(atoms)
 
+    def applicable(self, state):
+        return True
+
     def apply(self, state):
         return frozenset(state) | self.atoms
 

@@ -21,7 +21,7 @@ from dataclasses import replace
 
 from drake_symplan.abstraction.relation_goal import pair_of, stage_keys
 from drake_symplan.planning.budget import Budget
-from drake_symplan.symbolic.structs import Goal, Task, flat, goal_of
+from drake_symplan.symbolic.structs import Goal, Task, flat, goal_of, reaches
 
 # A stage's plan to the example's reading (plan_stage): at most this share of what is
 # left of the plan's budget, and this many times the CPU time its first search took, at
@@ -72,10 +72,7 @@ def plan_stage(abstraction, task: Task, start, goal, planner: str, budget: Budge
     if not (found.solved and found.steps and goal_of(task.goal).choices):
         return found
     example = Goal(flat(task.goal))
-    state = task.init
-    for step in found.steps:
-        state = step.apply(state)
-    if example <= state:
+    if reaches(found.steps, task.init, example):
         return found
     cap = min(EXAMPLE_SHARE * budget.cpu_left(),
               max(EXAMPLE_FLOOR, EXAMPLE_TIMES * (cpu - budget.cpu_left())))

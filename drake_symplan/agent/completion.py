@@ -51,13 +51,13 @@ class Completion:
         if not isinstance(step, Step) or str(step) in self.unblocked:
             return
         self.unblocked.add(str(step))
-        met = set_down_meets(Boxes.of(self.scene), self._offsets(step).action) - set(step.args)
+        chosen = self._offsets(step)
+        met = set_down_meets(Boxes.of(self.scene), chosen.action) - set(step.args)
         later = unblocking(step, self.rest[1:], self.believed, self.goal_atoms, met)
         if later is not None:
             self.todo.insert(0, self.todo.pop(later + 1))
-        elif met and self._movable_base(step) and self.repositions < (
-                REPOSITIONS_PER_OBJECT * len(self.scene.names)):
-            room = room_step(self._offsets(step), self.scene)
+        elif met and self._movable_base(step) and self._repositions_left():
+            room = room_step(chosen, self.scene)
             if room is not None:
                 self.todo.insert(0, Planned(room))
                 self.repositions += 1
@@ -70,6 +70,10 @@ class Completion:
         src, tgt = step.action.source, step.action.target
         return bool(self.relations) and pairs is not None and all(
             src in pair for pair in pairs if tgt in pair)
+
+    def _repositions_left(self) -> bool:
+        """Has the solve made fewer repositionings than REPOSITIONS_PER_OBJECT a box?"""
+        return self.repositions < REPOSITIONS_PER_OBJECT * len(self.scene.names)
 
     def _completes(self) -> bool:
         """Does the agent complete the plan as it runs (offsets, repositionings)? For plans
@@ -102,8 +106,7 @@ class Completion:
         a box the arm named in its way (reposition.clearing_step), one the goal leaves
         free: not named by its relations (where a structure stands is theirs), of a
         whole-scene goal not at its goal position already."""
-        if not (self._completes() and obstacles and self.repositions
-                < REPOSITIONS_PER_OBJECT * len(self.scene.names)):
+        if not (self._completes() and obstacles and self._repositions_left()):
             return None
         now, goal = beliefs.positions(self.scene), beliefs.positions(self.goal_scene)
         at_goal = goal_distances(now, {n: p for n, p in goal.items() if n in now})

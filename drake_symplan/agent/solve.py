@@ -46,7 +46,6 @@ from drake_symplan.agent.completion import Completion, Planned
 from drake_symplan.agent.config import DEFAULT_SOLVE, SolveConfig
 from drake_symplan.agent.planning_modes import make_planner
 from drake_symplan.agent.reposition import (
-    REPOSITIONS_PER_OBJECT,
     reposition_step,
 )
 from drake_symplan.agent.result import PhaseClock, SolveResult
@@ -213,8 +212,7 @@ class _Run(Completion):
         where a box the rest of the plan leaves alone is off its goal spot."""
         if self._completes() and self.todo:
             self._unblock()
-        limit = REPOSITIONS_PER_OBJECT * len(self.scene.names)
-        if self._completes() and self.repositions < limit and not self.relations:
+        if self._completes() and self._repositions_left() and not self.relations:
             extra = reposition_step(self.rest, self.scene, self.goal_scene, GOAL_TOLERANCE)
             if extra is not None:
                 self.todo.insert(0, Planned(extra))
