@@ -58,7 +58,29 @@ def test_grounding_past_the_plans_budget_is_a_timeout_and_is_not_kept():
     assert found.status == "timeout" and found.message == "grounding out of time"
     with pytest.raises(grounding.OutOfTime):
         ground([PUT, MARK, THREE], task, out_of_time=lambda: True)
-    assert len(ground([PUT, MARK, THREE], task).actions) == 12  # grounded anew, in full
+    # grounded anew, in full: 12 reachable, less THREE's second way to each p1 (the
+    # same precondition and effect: dominated)
+    assert len(ground([PUT, MARK, THREE], task).actions) == 9
+
+
+def test_a_move_costs_a_carry_per_box_the_preconditions_relate_to_its_source():
+    # a block laid across two supports names the second (related to the target) and
+    # carries nothing; priced as a carry it lost to a place beside each support in turn
+    span = LiftedOperator(3, "right", "right", 3, (("p0", 0), ("r0", 1, 2)),
+                          (("r1", 0, 2),), (), 4)
+    carry = LiftedOperator(4, "center", "center", 3, (("p0", 0), ("r0", 2, 0)),
+                           (("r1", 0, 1),), (), 4)
+    unrelated = LiftedOperator(5, "center", "left", 3, (("p0", 0), ("not_r0", 2, 0)),
+                               (("r2", 0, 1),), (), 4)
+    assert (span.carried, carry.carried, unrelated.carried) == (0, 1, 0)
+    task = Task(("a", "b", "c"), frozenset({Atom("p0", "a"), Atom("r0", "b", "c"),
+                                            Atom("r0", "c", "a"), Atom("not_r0", "c", "a")}),
+                frozenset({Atom("r1", "a", "c")}))
+    costs = {a.name.split()[0]: a.cost for a in ground([span, carry, unrelated], task,
+                                                        carry_cost=5).actions}
+    assert costs == {span.name: span.cost, carry.name: carry.cost + 5,
+                     unrelated.name: unrelated.cost}
+
 
 def test_a_task_grounded_again_is_priced_by_its_own_penalties():
     # The reachable part is kept between calls (a plan's skeletons ground one task twice);
@@ -196,3 +218,17 @@ def test_a_goal_with_choices_is_reached_by_any_of_its_sets():
     held = Task(task.objects, task.init | {Atom("r0", "b", "c")}, task.goal)
     found = fast_downward_task([PUT, MARK, THREE], held)
     assert found.solved and found.plan == []
+
+
+def test_an_action_another_dominates_is_left_out():
+    # the same effects from fewer preconditions at no higher cost: a cost-optimal plan
+    # never needs the other (learned operators with other offsets share effects)
+    from drake_symplan.planning.grounding import GroundAction, undominated
+
+    x, y, z, w = (Atom("p0", n) for n in "xyzw")
+    a = GroundAction("a", frozenset({x}), frozenset({y}), frozenset(), 2)
+    b = GroundAction("b", frozenset({x, z}), frozenset({y}), frozenset(), 3)
+    c = GroundAction("c", frozenset({x, z}), frozenset({y}), frozenset(), 1)
+    d = GroundAction("d", frozenset({x}), frozenset({y}), frozenset(), 2)
+    e = GroundAction("e", frozenset({x}), frozenset({y}), frozenset({w}), 9)
+    assert [act.name for act in undominated([a, b, c, d, e])] == ["a", "c", "e"]

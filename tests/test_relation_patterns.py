@@ -70,7 +70,8 @@ def test_patterns_are_saved_and_loaded_with_a_bundle(tmp_path):
 
 def test_the_symbols_plan_a_tower_of_three_in_two_moves_with_the_patterns():
     # relations30's o4/p000 on models/vicinity, perceived by hand: to the example's bits
-    # the planner put o0 on o1 four times, at three offsets, to read as in the example
+    # alone the planner sets o3 on the tower twice, at two offsets, to read as in the
+    # example (four times o0 on o1 while a move on a tower was priced as a carry)
     from test_relation_order import perceived
 
     from drake_symplan.abstraction.abstraction import Abstraction
@@ -95,7 +96,7 @@ def test_the_symbols_plan_a_tower_of_three_in_two_moves_with_the_patterns():
         ("pick_center_place_center_n112_op4", ("o0", "o1")),
         ("pick_center_place_center_n54_op21", ("o3", "o0", "o1"))]
     abstraction.bundle.patterns = {}  # the example's bits alone
-    assert len(abstraction.plan(now.reading, goal.reading).steps) == 5
+    assert len(abstraction.plan(now.reading, goal.reading).steps) == 3
 
 
 def test_bundle_patterns_reads_them_in_a_data_sets_scenes(tmp_path, capsys):
@@ -131,49 +132,3 @@ def test_bundle_patterns_reads_them_in_a_data_sets_scenes(tmp_path, capsys):
     patterns = rp.load(bundle)
     assert len(patterns["on"]) == 1 and kinds["on"]["read"] == 6
 
-
-class _Put:
-    """A plan step that adds its atoms."""
-
-    def __init__(self, *atoms):
-        self.atoms = frozenset(atoms)
-
-    def applicable(self, state):
-        return True
-
-    def apply(self, state):
-        return frozenset(state) | self.atoms
-
-
-def test_a_stage_read_by_a_pattern_is_planned_again_to_the_examples_reading():
-    # a bridge laid by a place beside reads a kept pattern of "bears" in two moves, as
-    # the spanning operator reads the example's: the example's plan runs where it is no
-    # longer (bridge2: the block moved twice beside its supports, and the arm refused)
-    from drake_symplan.abstraction.abstraction import Plan
-    from drake_symplan.abstraction.goal_plans import plan_stage
-    from drake_symplan.planning.budget import Budget
-    from drake_symplan.symbolic.structs import Goal, Task
-
-    example, pattern = ("r0", "l", "a"), ("r1", "l", "a")
-    plans = {"patterns": [_Put(pattern), _Put()], "example": [_Put(), _Put(example)]}
-
-    class Planner:
-        asked = []
-
-        def plan_focused(self, task, start, goal, planner, budget, focus, penalties):
-            which = "patterns" if task.goal.choices else "example"
-            self.asked.append(which)
-            return Plan("solved", plans[which]) if plans[which] else Plan("timeout")
-
-    task = Task(("l", "a"), frozenset(), Goal((), [(("l", "a"), [{example}, {pattern}])]))
-
-    def planned():
-        Planner.asked = []
-        found = plan_stage(Planner(), task, None, None, "fd", Budget.of_cpu(1.0), True, None)
-        return found.steps, Planner.asked
-
-    assert planned() == (plans["example"], ["patterns", "example"])
-    plans["example"] = [_Put(), _Put(), _Put(example)]  # longer: the patterns' plan
-    assert planned() == (plans["patterns"], ["patterns", "example"])
-    plans["patterns"] = [_Put(example)]  # the first plan reads the example: no second
-    assert planned() == (plans["patterns"], ["patterns"])

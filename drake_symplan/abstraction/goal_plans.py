@@ -3,16 +3,13 @@ lowest pairs first, each stage from the state the plan before it predicts; else,
 the stages do not reach it, at once.
 
 A named pair holds where its bits read the example's pattern or a kept one of its kind
-(relation_goal.pair_choices). A stage is planned to any of them, a pair read by a kept
-pattern costing half a sure move more than one read as the example reads it
-(planning/grounding.py's OTHER_READING_COST); where its plan still ends with a pair read
-by a pattern, the stage is planned again to the example's reading alone, and that plan
-runs where it is no longer. The operators' effects are unreliable: one whose effect reads
-a kept pattern may set a cube 7.5 cm off a block's centre, or lay a bridge's block by a
-place beside (cheaper than the spanning operator, and not what the arm can do), where the
-example's reading takes as many moves. (Planning the whole goal twice, to the example's
-reading first in half the budget and then to the patterns, took 6 of a plan's 10 CPU
-seconds at twelve boxes and left the skeletons of bilevel planning no time.)
+(relation_goal.pair_choices). A stage is planned to any of them in one search, a pair read
+by a kept pattern costing half a sure move more than one read as the example reads it
+(planning/grounding.py's OTHER_READING_COST): of plans of as many sure moves, the
+example's reading is planned. A move is dearer by the boxes it carries (abstraction's
+CARRY_COST, LiftedOperator.carried): a block laid across two supports names the second
+but carries nothing, and priced as a carry it lost to a block set beside one support
+and then the other (a kept pattern of "bears", and not what the arm can do).
 """
 
 from __future__ import annotations
@@ -21,14 +18,7 @@ from dataclasses import replace
 
 from drake_symplan.abstraction.relation_goal import pair_of, stage_keys
 from drake_symplan.planning.budget import Budget
-from drake_symplan.symbolic.structs import Goal, Task, flat, goal_of, reaches
-
-# A stage's plan to the example's reading (plan_stage): at most this share of what is
-# left of the plan's budget, and this many times the CPU time its first search took, at
-# least EXAMPLE_FLOOR CPU seconds
-EXAMPLE_SHARE = 0.5
-EXAMPLE_TIMES = 2.0
-EXAMPLE_FLOOR = 0.25
+from drake_symplan.symbolic.structs import Goal, Task, goal_of
 
 
 def stages(goal, atoms: frozenset) -> list[frozenset]:
@@ -56,29 +46,8 @@ def plan_goal(abstraction, task: Task, start, goal, budget: Budget, planner: str
         staged = plan_stages(abstraction, task, start, goal, *options)
         if staged is not None and not staged.subgoal:
             return staged
-    found = plan_stage(abstraction, task, start, goal, *options)
+    found = abstraction.plan_focused(task, start, goal, *options)
     return staged if staged is not None and not found.solved else found
-
-
-def plan_stage(abstraction, task: Task, start, goal, planner: str, budget: Budget,
-               focus: bool, penalties):
-    """`task` planned to any reading of its pairs; where that plan ends with a pair read
-    by a kept pattern, also to the example's reading alone: that plan where it is no
-    longer (module docstring), searched for at most EXAMPLE_TIMES the first search's CPU
-    time (EXAMPLE_FLOOR at least; EXAMPLE_SHARE of what is left at most): of as many
-    moves, it took as long; of more, four times as long, to no use."""
-    cpu = budget.cpu_left()
-    found = abstraction.plan_focused(task, start, goal, planner, budget, focus, penalties)
-    if not (found.solved and found.steps and goal_of(task.goal).choices):
-        return found
-    example = Goal(flat(task.goal))
-    if reaches(found.steps, task.init, example):
-        return found
-    cap = min(EXAMPLE_SHARE * budget.cpu_left(),
-              max(EXAMPLE_FLOOR, EXAMPLE_TIMES * (cpu - budget.cpu_left())))
-    own = abstraction.plan_focused(replace(task, goal=example), start, goal, planner,
-                                   Budget.of_cpu(cap), focus, penalties)
-    return own if own.solved and len(own.steps) <= len(found.steps) else found
 
 
 def plan_stages(abstraction, task: Task, start, goal, planner: str, budget: Budget,
@@ -93,8 +62,8 @@ def plan_stages(abstraction, task: Task, start, goal, planner: str, budget: Budg
         return None
     state, steps = task.init, []
     for atoms in parts:
-        found = plan_stage(abstraction, replace(task, init=state, goal=atoms), start, goal,
-                           planner, budget, focus, penalties)
+        found = abstraction.plan_focused(replace(task, init=state, goal=atoms), start, goal,
+                                         planner, budget, focus, penalties)
         if not found.solved:
             return replace(found, status="solved", steps=steps, level="staged") \
                 if steps else None

@@ -103,6 +103,11 @@ class OutOfTime(Exception):
 
 _REACHED: dict[tuple, tuple[dict, frozenset]] = {}  # the last CACHED tasks' reachability
 CACHED = 8
+# (operator, args) -> its ground (pre, add, delete): the same whatever the state, and
+# building them was half of grounding; the stages and replans of a goal ground the same
+# boxes again and again. Emptied at ATOMS_KEPT entries (sixteen boxes: 170,000 actions).
+_ATOMS: dict[tuple, tuple[frozenset, frozenset, frozenset]] = {}
+ATOMS_KEPT = 400_000
 # Operators grounded between two asks of the budget: a CPU clock read costs 0.2 ms on a
 # busy host, and asked per operator it took 8 % of the plans of eight boxes
 TIME_CHECKS = 16
@@ -118,6 +123,8 @@ def _reachable(operators: tuple[LiftedOperator, ...], objects: tuple[str, ...],
     key = (operators, objects, init)
     if key in _REACHED:
         return _REACHED[key]
+    if len(_ATOMS) > ATOMS_KEPT:
+        _ATOMS.clear()
     ops = [(op, _slot_order(op), _grounder(op.pre), _grounder(op.add), _grounder(op.delete))
            for op in operators if op.n_params <= len(objects)]
     facts = set(init)
@@ -131,10 +138,13 @@ def _reachable(operators: tuple[LiftedOperator, ...], objects: tuple[str, ...],
             for args in list(_bindings(op.n_params, by_slot, objects, facts)):
                 if (op, args) in found:
                     continue
-                adds = add(args)
-                found[op, args] = (pre(args), adds, delete(args) - adds)
-                grown |= not adds <= facts
-                facts |= adds
+                atoms = _ATOMS.get((op, args))
+                if atoms is None:
+                    adds = add(args)
+                    atoms = _ATOMS[op, args] = (pre(args), adds, delete(args) - adds)
+                found[op, args] = atoms
+                grown |= not atoms[1] <= facts
+                facts |= atoms[1]
     if len(_REACHED) >= CACHED:
         del _REACHED[next(iter(_REACHED))]
     _REACHED[key] = found, frozenset(facts)
@@ -158,11 +168,12 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
     for (op, args), (pre, add, delete) in found.items():
         act = GroundAction(f"{op.name} {' '.join(args)}", pre & changing, add - pre,
                            delete & changing,
-                           op.cost + carry_cost * max(0, len(args) - 2)
+                           op.cost + carry_cost * op.carried
                            + sum(penalties.get(args[:n], 0) for n in lengths
                                  if n <= len(args)))
         if act.add or act.delete:
             kept.append(act)
+    kept = undominated(kept)
     goal = goal_of(task.goal)
     choices = [[(a & changing, 0 if k == 0 else OTHER_READING_COST)
                 for k, a in enumerate(alternatives) if a <= facts]
@@ -173,6 +184,22 @@ def ground(operators: Sequence[LiftedOperator], task: Task,
             unreachable |= alternatives[0] - facts if alternatives else frozenset()
     return GroundTask(sorted(changing), kept, frozenset(task.init) & changing,
                       frozenset(goal) & changing, unreachable, choices)
+
+
+def undominated(actions: Sequence[GroundAction]) -> list[GroundAction]:
+    """`actions` without those another dominates: the same effects (adds and deletes),
+    preconditions it holds a subset of, a cost no higher (the first of equals stays). A
+    plan with a dominated action is no cheaper with it, so a cost-optimal search finds
+    a plan as cheap without; operators learned with their offsets share effects (half of
+    a bridge stage's 4,100 actions at eight boxes), and the search's heuristic costs
+    grow with the actions."""
+    groups: dict[tuple[frozenset, frozenset], list[GroundAction]] = {}
+    for act in sorted(actions, key=lambda a: (a.cost, len(a.pre))):
+        kept = groups.setdefault((act.add, act.delete), [])
+        if not any(k.pre <= act.pre for k in kept):
+            kept.append(act)
+    stays = {id(a) for kept in groups.values() for a in kept}
+    return [a for a in actions if id(a) in stays]
 
 
 CHOICE = "goal-choice"  # the plan steps that pick a choice's set (no operator's name)

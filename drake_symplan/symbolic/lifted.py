@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 
 class Atom(tuple):
@@ -124,6 +125,15 @@ class LiftedOperator:
     @property
     def name(self) -> str:
         return operator_name(self.grasp, self.release, self.count, self.index)
+
+    @cached_property
+    def carried(self) -> int:
+        """The parameters past the target that the preconditions relate to the source (a
+        relation atom between them holds): the boxes the move may carry along. One related
+        to the target alone (a bridge's second support, the box under a tower's top) is
+        not carried."""
+        return sum(any(len(a) == 3 and not a[0].startswith("not_") and {a[1], a[2]} == {0, k}
+                       for a in self.pre) for k in range(2, self.n_params))
 
     @property
     def params(self) -> tuple[str, ...]:
