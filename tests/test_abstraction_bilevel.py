@@ -113,19 +113,6 @@ def test_with_nothing_verified_the_first_skeleton_runs_on_its_symbols():
     assert (found.status, found.steps) == ("timeout", [])
 
 
-def test_a_plan_of_first_stages_is_no_skeleton_but_runs_where_nothing_is_found():
-    # sixteen boxes, a bridge on two towers: the symbols plan the towers (level "staged",
-    # the agent plans on from what it sees) where the search found nothing in its share
-    goal = boxes(a=(0.7, 0.0, 0.075), b=(0.5, -0.2, 0.025), c=(0.7, 0.0, 0.025))
-    staged = Plan("solved", [Step(STACK["center"], ("a", "b"))], level="staged")
-    refiner = Refiner(list(STACK.values()), Stacking(), extra_moves=0, max_depth=0)
-    found = plan_bilevel(Skeletons(staged), refiner, observed(START), observed(goal),
-                         Budget(10.0, 30.0))
-    assert found.solved and found.level == "staged" and found.steps == staged.steps
-    assert found.candidates[0].why == "the plan of its first stages"
-    assert not found.candidates[0].errors_cm  # not refined
-
-
 class Unsure(Stacking):
     """Stacking, but unsure by 5 cm where a box released on the left lands."""
 

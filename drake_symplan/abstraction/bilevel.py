@@ -186,7 +186,7 @@ def _after_search(refined: Refined | None, nearest: Refined, unverified: Plan | 
         # has its chance, completed and monitored as a symbolic plan is; not where the arm
         # refuses its first step (a skeleton with no other way found it again and again).
         return found(unverified.steps, f"{missed}; the first skeleton runs on its symbols",
-                     unverified.level)
+                     "symbolic")
     if nearer(nearest, start, target):
         # Nothing reaches the goal, but these steps are predicted to bring the boxes
         # nearer it; the monitor replans from what is perceived at their end.
@@ -220,10 +220,6 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
             looked_at(Candidate(f"skeleton {i}", [], False, f"planner: {found.status}"))
             continue
         unverified = unverified or found
-        if found.subgoal:  # its first stages: refined to the goal, a skeleton is none
-            looked_at(Candidate(f"skeleton {i}", [str(s) for s in found.steps], False,
-                                "the plan of its first stages"))
-            continue
         horizon = search.horizon if search.horizon is not None \
             and len(found.steps) > search.horizon else None
         refined = refiner.refine(found.steps, start.boxes, believed, goal_atoms, target,
@@ -273,7 +269,10 @@ def skeletons(abstraction, start, goal, planner: str, budget: Budget,
 
     def call(**options):
         options.setdefault("penalties", base or None)
-        return abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE), **options)
+        found = abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE), **options)
+        if found.subgoal:  # a skeleton is refined to the goal: a plan of first stages is none
+            return replace(found, status="unsolvable", steps=[])
+        return found
 
     first = call()
     yield first
