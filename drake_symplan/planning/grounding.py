@@ -190,9 +190,9 @@ def undominated(actions: Sequence[GroundAction]) -> list[GroundAction]:
     """`actions` without those another dominates: the same effects (adds and deletes),
     preconditions it holds a subset of, a cost no higher (the first of equals stays). A
     plan with a dominated action is no cheaper with it, so a cost-optimal search finds
-    a plan as cheap without; operators learned with their offsets share effects (half of
-    a bridge stage's 4,100 actions at eight boxes), and the search's heuristic costs
-    grow with the actions."""
+    a plan as cheap without; operators learned with their offsets share effects (a
+    quarter of a bridge stage's 4,100 actions at eight boxes go), and the search's
+    heuristic costs grow with the actions."""
     groups: dict[tuple[frozenset, frozenset], list[GroundAction]] = {}
     for act in sorted(actions, key=lambda a: (a.cost, len(a.pre))):
         kept = groups.setdefault((act.add, act.delete), [])
