@@ -228,6 +228,18 @@ def unmet_one(relation: Relation, objects: Mapping[str, ObjectState]) -> str | N
     return None
 
 
+def holding(relations: Iterable[Relation], objects: Mapping[str, ObjectState]) -> set[str]:
+    """The boxes of the relations' pairs that `objects` hold already: where a part of the
+    goal stands. A box named only in pairs that do not hold yet may stand anywhere."""
+    out = set()
+    for r in relations:
+        for first, second in r.pairs():
+            if first in objects and second in objects and pair_unmet(
+                    PAIR_KIND[r.word], objects[first], objects[second]) is None:
+                out |= {first, second}
+    return out
+
+
 def unmet(relations: Iterable[Relation], objects: Mapping[str, ObjectState]) -> list[str]:
     """What of `relations` the boxes `objects` (by name) do not hold, one line each; empty:
     the goal holds."""

@@ -165,6 +165,21 @@ def test_a_step_after_which_nothing_moved_is_missed_though_its_symbols_hold():
     assert planner.refiner.missed == {step.action: 1, move.action: 1}
 
 
+def test_a_symbolic_plans_refusal_stands_until_a_box_near_its_source_moves():
+    planner = SymbolicMode(SymbolsHold(), SolveConfig(planning="symbolic"))
+    step = Step(STACK["center"], ("a", "c"))
+    planner.refused(step)
+    assert planner.refusals == {("a", "c"): PENALTY} and not planner.penalties
+    before = observe(Seen(START))  # a at (0.5, 0.2), b at (0.5, -0.2), 40 cm from a
+    b_moved = boxes(a=(0.5, 0.2, 0.025), b=(0.5, -0.3, 0.025), c=(0.7, 0.0, 0.025))
+    other = Step(STACK["center"], ("b", "c"))
+    planner.observed(other, None, before, observe(Seen(b_moved)))
+    assert planner.refusals == {("a", "c"): PENALTY}  # b stood beyond NEAR of a
+    c_moved = boxes(a=(0.5, 0.2, 0.025), b=(0.5, -0.2, 0.025), c=(0.7, 0.1, 0.025))
+    planner.observed(other, None, before, observe(Seen(c_moved)))
+    assert not planner.refusals and not planner.penalties  # c, 28 cm from a, moved
+
+
 @pytest.mark.slow
 def test_a_move_the_arm_missed_is_taken_another_way_in_later_searches():
     planner = bilevel_mode(defer=None)  # the monitor's side alone

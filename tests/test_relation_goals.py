@@ -65,7 +65,7 @@ def test_a_relation_goal_names_its_pairs_upper_first_with_the_lower_boxs_layer()
     reading = Reading(SymbolicState(tower.names, np.zeros((4, 1)), np.zeros((3, 4, 4))),
                       np.zeros((4, 1), bool), np.zeros((3, 4, 4), bool))
     goal = relation_goal(Observation(None, reading, tower), parse(["tower a b c"]))
-    assert goal.reading.pairs == {("b", "c"): (0, 0), ("a", "b"): (1, 0)}
+    assert goal.reading.pairs == {("b", "c"): (0, 0, 0), ("a", "b"): (1, 0, 0)}
 
 
 def test_a_goal_of_relations_is_planned_in_stages_from_the_lowest_pairs():
@@ -76,6 +76,18 @@ def test_a_goal_of_relations_is_planned_in_stages_from_the_lowest_pairs():
     bottom = frozenset({("r0", "b", "c"), ("not_r2", "b", "c")})
     assert stages(goal, atoms) == [
         bottom, bottom | {("r0", "d", "e")}, atoms]
+
+
+def test_a_rows_pairs_are_staged_one_by_one_from_its_first_box():
+    # row a b c on the table: b beside a first, then c beside b (planned at once, c was
+    # laid beside b and b then moved beside a, leaving c behind)
+    pairs, _ = relation_pairs(parse(["row a b c"]), Scene([
+        ObjectSpec("a", "cube", [0.6, 0.0, 0.025]), ObjectSpec("b", "cube", [0.6, 0.07, 0.025]),
+        ObjectSpec("c", "cube", [0.6, 0.14, 0.025])]).object_states())
+    assert pairs == {("a", "b"): (0, 0, 0), ("b", "c"): (0, 0, 1)}
+    first, second = {("r1", "a", "b")}, {("r1", "b", "c")}
+    assert stages(SimpleNamespace(pairs=pairs), frozenset(first | second)) == [
+        first, first | second]
 
 
 class UnaryOnly:
@@ -150,14 +162,14 @@ def test_a_bridge_on_towers_names_its_towers_bottoms_first_and_one_on_the_table_
                    ObjectSpec("d", "cube", [0.6, 0.175, 0.025]),
                    ObjectSpec("l", "long", [0.6, 0.14, 0.125])]).object_states()
     pairs, kinds = relation_pairs(parse(["tower a c", "tower b d", "bridge l a b"]), built)
-    assert pairs == {("a", "c"): (0, 0), ("b", "d"): (0, 1), ("l", "a"): (1, 2),
-                     ("l", "b"): (1, 2), ("c", "d"): (0, BASES)}
+    assert pairs == {("a", "c"): (0, 0, 0), ("b", "d"): (0, 1, 0), ("l", "a"): (1, 2, 0),
+                     ("l", "b"): (1, 2, 0), ("c", "d"): (0, BASES, 0)}
     assert ("c", "d") not in kinds and kinds[("l", "a")] == "bears"
     on_table = Scene([ObjectSpec("c", "cube", [0.6, 0.1, 0.025]),
                       ObjectSpec("d", "cube", [0.6, 0.175, 0.025]),
                       ObjectSpec("l", "long", [0.6, 0.14, 0.075])]).object_states()
     pairs, _ = relation_pairs(parse(["bridge l c d"]), on_table)
-    assert pairs == {("l", "c"): (0, 0), ("l", "d"): (0, 0)}
+    assert pairs == {("l", "c"): (0, 0, 0), ("l", "d"): (0, 0, 0)}
 
 
 def test_a_bears_pair_may_also_read_what_its_example_and_patterns_share_an_on_pair_not():

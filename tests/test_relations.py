@@ -10,6 +10,7 @@ from drake_symplan.datasets import ObjectState
 from drake_symplan.relations import (
     Relation,
     SpecError,
+    holding,
     parse,
     rests_on,
     riders,
@@ -54,6 +55,15 @@ def test_on_and_tower_hold_wherever_they_stand_and_miss_by_a_little():
     tipped = {**TOWER, "a": box("a", "cube", 0.7, 0.0, 0.125, tilt=0.3)}
     assert unmet(parse(["on a b"]), tipped) == ["'on a b': a is not on b"]
     assert unmet(parse(["on a x"]), TOWER) == ["'on a x': x not seen"]
+
+
+def test_holding_names_the_boxes_of_the_pairs_that_hold_already():
+    lone = box("d", "cube", 0.5, 0.3, 0.025)  # named, in no pair that holds
+    assert holding(parse(["tower a b c", "tower d a"]), {**TOWER, "d": lone}) == {"a", "b", "c"}
+    # a tower of three with its top lifted off: only the lower pair holds
+    lifted = {**TOWER, "a": box("a", "cube", 0.7, 0.0, 0.145)}
+    assert holding(parse(["tower a b c"]), lifted) == {"b", "c"}
+    assert holding(parse(["on d c", "tower a x"]), {**TOWER, "d": lone}) == set()
 
 
 def test_a_bridge_bears_on_both_supports():

@@ -23,10 +23,11 @@ from drake_symplan.symbolic.structs import Goal, Task, goal_of
 
 def stages(goal, atoms: frozenset) -> list[frozenset]:
     """A goal of relations' atoms in growing stages, by Reading.pairs' values (layer,
-    relation): those of the first relation's pairs whose lower box stands in the lowest
-    layer of the example, then the next relation's in that layer with them, and so on
-    up: structures planned from the bottom up, as a person builds them, one at a time,
-    with no move that carries a built part."""
+    relation, place in a row): those of the first relation's pairs whose lower box stands
+    in the lowest layer of the example (a row's first pair alone, then its next), then
+    the next relation's in that layer with them, and so on up: structures planned from
+    the bottom up, as a person builds them, one at a time, with no move that carries a
+    built part."""
     if any(len(a) != 3 for a in atoms):  # a model without relations: one stage
         return [atoms]
     choices = goal_of(atoms).choices

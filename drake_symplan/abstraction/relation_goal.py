@@ -33,19 +33,23 @@ def base_of(name: str, states: dict) -> str:
 
 
 def relation_pairs(relations, states: dict) -> tuple[dict, dict]:
-    """({(upper, lower): (layer of the lower box, relation index)}, {pair: kind}) of the
-    pairs the relations name in the example `states`; a bridge whose supports stand on
-    others adds its bases' pair (BASES, no kind: its atoms wanted as the example has them)."""
+    """({(upper, lower): (layer of the lower box, relation index, place in a row)},
+    {pair: kind}) of the pairs the relations name in the example `states`; a bridge whose
+    supports stand on others adds its bases' pair (BASES, no kind: its atoms wanted as the
+    example has them). A row's pairs are staged one by one from its first box: a learned
+    move names its source and target alone, so no operator says that moving a row's
+    middle box leaves the next one behind, and planned at once a row was laid from its
+    end."""
     pairs, kinds = {}, {}
     for index, r in enumerate(relations):
-        for upper, lower in r.pairs():
+        for place, (upper, lower) in enumerate(r.pairs()):
             layer = max(0, int(round(bottom(states[lower]) / SIDE))) if lower in states else 0
-            pairs[(upper, lower)] = (layer, index)
+            pairs[(upper, lower)] = (layer, index, place if r.word == "row" else 0)
             kinds[(upper, lower)] = PAIR_KIND[r.word]
         if r.word == "bridge" and set(r.objects[1:]) <= set(states):
             bases = tuple(base_of(n, states) for n in r.objects[1:])
             if bases != r.objects[1:]:
-                pairs.setdefault(bases, (0, BASES))
+                pairs.setdefault(bases, (0, BASES, 0))
     return pairs, kinds
 
 
@@ -77,7 +81,7 @@ def pair_of(pairs: dict, atom, both: bool = True) -> tuple | None:
 
 def stage_keys(goal) -> list[tuple]:
     """The stages of a goal of relations (goal_plans.stages), in order: the (layer,
-    relation index) values of its Reading.pairs."""
+    relation index, place in a row) values of its Reading.pairs."""
     return sorted(set(goal.pairs.values()))
 
 

@@ -21,7 +21,7 @@ from drake_symplan.agent.reposition import (
     unblocking,
 )
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_distances, neighbour_pairs
-from drake_symplan.relations import named
+from drake_symplan.relations import holding
 from drake_symplan.skills.geometry import grasp_refused, set_down_struck
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
@@ -104,13 +104,14 @@ class Completion:
     def _clearing(self, step: PlanStep, obstacles) -> Reposition | None:
         """Completing a plan on symbols, with repositionings left: a step that sets aside
         a box the arm named in its way (reposition.clearing_step), one the goal leaves
-        free: not named by its relations (where a structure stands is theirs), of a
-        whole-scene goal not at its goal position already."""
+        free: in no pair of its relations that holds already (where a structure stands
+        is its own; a box of one not begun may stand anywhere), of a whole-scene goal not
+        at its goal position already."""
         if not (self._completes() and obstacles and self._repositions_left()):
             return None
         now, goal = beliefs.positions(self.scene), beliefs.positions(self.goal_scene)
         at_goal = goal_distances(now, {n: p for n, p in goal.items() if n in now})
-        keep = set(named(self.relations)) if self.relations else {
+        keep = holding(self.relations, self.scene.object_states()) if self.relations else {
             n for n, d in at_goal.items() if d <= GOAL_TOLERANCE}
         clear = clearing_step(obstacles, step, self.scene, keep)
         self.repositions += clear is not None

@@ -71,11 +71,6 @@ def moved(before: Observation, seen: Observation) -> set[str]:
             if n in then and np.linalg.norm(p - then[n]) > STILL}
 
 
-def nothing_moved(before: Observation, seen: Observation) -> bool:
-    """Was every box seen within STILL of where it was seen before the step?"""
-    return not moved(before, seen)
-
-
 def off_prediction(predicted: Boxes, seen: Observation) -> bool:
     """Is a box seen off its predicted position by more than DEVIATION beyond the
     prediction's spread?"""
@@ -175,29 +170,38 @@ class SymbolicMode(PlanningMode):
     def __init__(self, abstraction: Abstraction, config: SolveConfig,
                  given: list[Action] | None = None):
         super().__init__(abstraction, config, given)
-        # costs added to the moves of (source, target, ...) the arm refused or missed in
-        # this solve, so that the planner tries another way while one is left
+        # costs added to the moves of (source, target, ...) the arm missed in this solve,
+        # and to those it refused in the scene as it stands, so that the planner tries
+        # another way while one is left
         self.penalties: Counter = Counter()
+        self.refusals: Counter = Counter()
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
         return self.abs.plan(now.reading, goal.reading, self.config.planner, self.budget(),
-                             penalties=dict(self.penalties))
+                             penalties=dict(self.penalties + self.refusals))
 
     def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None,
                 at: str = "") -> None:
-        """A step the arm would not run costs more in the plans after it."""
+        """A step the arm would not run costs more in the plans after it, until a box
+        within NEAR of its source has moved (as in bilevel planning)."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
         if isinstance(step, Step):
-            self.penalties[tuple(step.args)] += PENALTY
+            self.refusals[tuple(step.args)] += PENALTY
 
     def observed(self, step: PlanStep, predicted: Boxes | None, before: Observation,
                  seen: Observation) -> None:
         """A step after which nothing moved (the arm achieved nothing: the same step on
-        the same scene would do the same) costs more in the plans after it."""
+        the same scene would do the same) costs more in the plans after it; a refusal
+        near a box that moved is forgotten (the arm may run its step now: a row's box
+        refused beside the next one before that one moved was later laid elsewhere)."""
         from drake_symplan.abstraction.bilevel import PENALTY
 
-        if isinstance(step, Step) and nothing_moved(before, seen):
+        then, shifted = before.boxes.where(), moved(before, seen)
+        for key in [k for k in self.refusals if k[0] in then and any(
+                np.linalg.norm((then[m] - then[k[0]])[:2]) <= NEAR for m in shifted)]:
+            del self.refusals[key]
+        if isinstance(step, Step) and not shifted:
             self.penalties[tuple(step.args)] += PENALTY
 
     def goal_seen(self, seen: Observation, goal_atoms, goal: Observation) -> bool:
