@@ -21,6 +21,8 @@ from drake_symplan.abstraction.relation_goal import (
     pair_choices,
     relation_goal,
     relation_pairs,
+    unheld,
+    unheld_readings,
 )
 from drake_symplan.boxes import CONTACT_TOLERANCE, VICINITY
 from drake_symplan.planning.budget import Budget
@@ -88,6 +90,26 @@ def test_a_rows_pairs_are_staged_one_by_one_from_its_first_box():
     first, second = {("r1", "a", "b")}, {("r1", "b", "c")}
     assert stages(SimpleNamespace(pairs=pairs), frozenset(first | second)) == [
         first, first | second]
+
+
+def test_a_reading_the_start_holds_where_the_relation_does_not_is_no_goal():
+    # b on c, read by the example as c and b apart (r1 both ways); the start has them
+    # apart and reads the same: that reading is dropped, the pattern stays
+    apart = frozenset({("r1", "b", "c"), ("r1", "c", "b")})
+    on = frozenset({("r0", "b", "c"), ("r1", "c", "b")})
+    goal = Goal({("r0", "a", "b")}, [(("b", "c"), [apart, on])])
+    start = apart | {("r0", "a", "b")}
+    kept = unheld_readings(goal, start, frozenset({("b", "c")}))
+    assert kept.choices == ((("b", "c"), (on,)),) and set(kept) == {("r0", "a", "b")}
+    assert unheld_readings(goal, start, frozenset()).choices == goal.choices  # it holds
+    assert unheld_readings(goal, start | on, frozenset({("b", "c")})).choices == goal.choices
+    objects = Scene([ObjectSpec("b", "cube", [0.6, 0.2, 0.025]),
+                     ObjectSpec("c", "cube", [0.6, 0.0, 0.025])]).object_states()
+    reading = SimpleNamespace(kinds={("b", "c"): "on"})
+    assert unheld(reading, objects) == {("b", "c")}
+    stacked = {**objects, "b": Scene([ObjectSpec("b", "cube", [0.6, 0.0, 0.075])]
+                                     ).object_states()["b"]}
+    assert unheld(reading, stacked) == set()
 
 
 class UnaryOnly:

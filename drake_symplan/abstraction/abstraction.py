@@ -21,7 +21,7 @@ import numpy as np
 
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.abstraction.goal_plans import plan_goal
-from drake_symplan.abstraction.relation_goal import pair_choices, pair_of
+from drake_symplan.abstraction.relation_goal import pair_choices, pair_of, unheld_readings
 from drake_symplan.boxes import CONTACT_TOLERANCE, neighbour_pairs
 from drake_symplan.learning.readout import read_symbols
 from drake_symplan.planning.budget import Budget
@@ -59,7 +59,8 @@ class Reading:
     contacts: set = field(default_factory=set)  # {(a, b)} related: the relevance graph
     # A goal of relations (relations.py): the (upper, lower) pairs they name, each
     # with (the layer its lower box stands in in the example, 0 on the table; the index of
-    # its relation); its goal atoms are those pairs' relation atoms alone (goal_atoms, stages).
+    # its relation; its place in a row); its goal atoms are those pairs' relation atoms
+    # alone (goal_atoms, stages).
     # None: a whole-scene goal.
     pairs: dict | None = None
     # The pairs in contact, which the degree atoms count, where the relevance graph is
@@ -265,11 +266,18 @@ class Abstraction:
 
     # --- tasks and plans --------------------------------------------------------------
 
-    def task(self, start: Reading, goal: Reading, name: str = "goal") -> Task:
+    def task(self, start: Reading, goal: Reading, name: str = "goal",
+             unheld: frozenset = frozenset()) -> Task:
+        """The planning task from `start` to `goal`; `unheld`: a goal of relations' pairs
+        whose relation the perceived start does not hold (relation_goal.unheld), whose
+        readings the start's atoms hold already are no goal (unheld_readings)."""
         if set(start.objects) != set(goal.objects):
             raise ValueError(f"start and goal name different objects: {sorted(start.objects)} "
                              f"vs {sorted(goal.objects)}")
-        return Task(start.objects, self.believed(start), self.goal_atoms(goal), name)
+        init, atoms = self.believed(start), self.goal_atoms(goal)
+        if unheld and isinstance(atoms, Goal):
+            atoms = unheld_readings(atoms, init, unheld)
+        return Task(start.objects, init, atoms, name)
 
     def focus(self, task: Task, start: Reading, goal: Reading,
               touching: bool = False) -> tuple[str, ...]:
@@ -290,17 +298,18 @@ class Abstraction:
 
     def plan(self, start: Reading, goal: Reading, planner: str = "fd",
              budget: Budget | None = None, focus: bool = True,
-             penalties: Mapping[tuple[str, ...], int] | None = None) -> Plan:
+             penalties: Mapping[tuple[str, ...], int] | None = None,
+             unheld: frozenset = frozenset()) -> Plan:
         """Plans from start to goal within `budget` (planning.budget.Budget, from now;
         default DEFAULT_TIMEOUT CPU seconds): a goal of relations stage by stage, else
         at once (abstraction/goal_plans.py); each planner call on the `focus` objects
         first, all of them where that proves unsolvable (`plan_focused`; `focus=False`:
         all of them). The empty plan, without a planner call, when the goal's atoms hold
-        already. `penalties`: see `plan_task`."""
+        already. `penalties`: see `plan_task`; `unheld`: see `task`."""
         t0 = time.perf_counter()
         budget = budget or Budget.of_cpu(DEFAULT_TIMEOUT)
-        found = plan_goal(self, self.task(start, goal), start, goal, budget, planner, focus,
-                          penalties)
+        found = plan_goal(self, self.task(start, goal, unheld=unheld), start, goal, budget,
+                          planner, focus, penalties)
         found.seconds = time.perf_counter() - t0
         return found
 

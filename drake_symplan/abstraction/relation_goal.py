@@ -15,7 +15,7 @@ from dataclasses import replace
 
 from drake_symplan.abstraction.continuous import Boxes
 from drake_symplan.boxes import SIDE
-from drake_symplan.relations import PAIR_KIND, bottom, named, rests_on
+from drake_symplan.relations import PAIR_KIND, bottom, named, pair_unmet, rests_on
 from drake_symplan.symbolic.relation_patterns import ground as ground_pattern
 from drake_symplan.symbolic.structs import Goal
 
@@ -102,3 +102,23 @@ def pair_choices(kinds: dict, atoms: frozenset, patterns: dict) -> Goal:
             readings.append(core)
         choices.append((pair, list(dict.fromkeys(readings))))
     return Goal(wanted, choices)
+
+
+def unheld(goal, objects: dict) -> frozenset:
+    """The named pairs of the goal of relations `goal` (a Reading with `kinds`) whose
+    relation the boxes `objects` (perceived, by name) do not hold."""
+    return frozenset(pair for pair, kind in (goal.kinds or {}).items()
+                     if set(pair) <= set(objects)
+                     and pair_unmet(kind, objects[pair[0]], objects[pair[1]]) is not None)
+
+
+def unheld_readings(goal: Goal, start: frozenset, pairs: frozenset) -> Goal:
+    """`goal` without the readings of a pair of `pairs` (whose relation the start does
+    not hold) that the `start` atoms already hold: such a reading does not say the
+    relation (the middle cube of a tower of three read as two cubes apart), and planned
+    to, it let a tower stand unbuilt. A pair all of whose readings hold keeps them."""
+    choices = []
+    for key, alternatives in goal.choices:
+        kept = [a for a in alternatives if not a <= start] if key in pairs else []
+        choices.append((key, kept or alternatives))
+    return Goal(goal, choices)

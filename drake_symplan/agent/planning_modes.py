@@ -177,8 +177,11 @@ class SymbolicMode(PlanningMode):
         self.refusals: Counter = Counter()
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
+        from drake_symplan.abstraction.relation_goal import unheld
+
         return self.abs.plan(now.reading, goal.reading, self.config.planner, self.budget(),
-                             penalties=dict(self.penalties + self.refusals))
+                             penalties=dict(self.penalties + self.refusals),
+                             unheld=unheld(goal.reading, now.boxes.object_states()))
 
     def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None,
                 at: str = "") -> None:
