@@ -47,7 +47,7 @@ class Skeletons:
     def __init__(self, *plans):
         self.plans = list(plans)
 
-    def plan(self, start, goal, planner, budget, focus=True, penalties=None):
+    def plan(self, start, goal, planner, budget, focus=True, penalties=None, unheld=frozenset()):
         return self.plans.pop(0) if self.plans else Plan("unsolvable")
 
     def believed(self, reading):
@@ -80,7 +80,7 @@ class Penalized(Skeletons):
         super().__init__()
         self.asked = []
 
-    def plan(self, start, goal, planner, budget, focus=True, penalties=None):
+    def plan(self, start, goal, planner, budget, focus=True, penalties=None, unheld=frozenset()):
         self.asked.append(dict(penalties or {}))
         target = "c" if ("a", "b") in (penalties or {}) else "b"
         return Plan("solved", [Step(STACK["center"], ("a", target))])

@@ -158,7 +158,8 @@ class OracleAbstraction(Abstraction):
         pairs = {p for a, b in goal.contacts for p in ((a, b), (b, a))}
         return frozenset(a for a in self._atoms(goal, pairs) if a[0] == "on")
 
-    def plan(self, start, goal, planner="fd", budget=None, focus=True, penalties=None):
+    def plan(self, start, goal, planner="fd", budget=None, focus=True, penalties=None,
+             unheld=frozenset()):
         self.plans += 1
         if self.fail_replans and self.plans > 1:
             return Plan("error", message="forced")
