@@ -95,8 +95,8 @@ def diagnose(abstraction, start, goal, planner: str = "fd",
 
 def _relations(goal, key: tuple) -> list[str]:
     """The text of the relation whose pairs make the stage `key` (layer, relation index,
-    place in a row);
-    the bridges' towers' bottoms (relation_goal.BASES): "bases of" each bridge."""
+    place in a row); the bridges' towers' bottoms (relation_goal.BASES): "bases of" each
+    bridge."""
     if key[1] == BASES:
         return [f"bases of {r.text()}" for r in goal.relations if r.word == "bridge"]
     return [goal.relations[key[1]].text()] if key[1] < len(goal.relations) else []
