@@ -71,6 +71,12 @@ def moved(before: Observation, seen: Observation) -> set[str]:
             if n in then and np.linalg.norm(p - then[n]) > STILL}
 
 
+def near_moved(box: str, then: dict[str, np.ndarray], shifted: set[str]) -> bool:
+    """Has a box within NEAR (xy) of `box` moved (`shifted`), by where they were seen
+    before the step (`then`, which has `box`)? A refusal then no longer stands."""
+    return any(np.linalg.norm((then[m] - then[box])[:2]) <= NEAR for m in shifted)
+
+
 def off_prediction(predicted: Boxes, seen: Observation) -> bool:
     """Is a box seen off its predicted position by more than DEVIATION beyond the
     prediction's spread?"""
@@ -201,8 +207,8 @@ class SymbolicMode(PlanningMode):
         from drake_symplan.abstraction.bilevel import PENALTY
 
         then, shifted = before.boxes.where(), moved(before, seen)
-        for key in [k for k in self.refusals if k[0] in then and any(
-                np.linalg.norm((then[m] - then[k[0]])[:2]) <= NEAR for m in shifted)]:
+        for key in [k for k in self.refusals if k[0] in then
+                    and near_moved(k[0], then, shifted)]:
             del self.refusals[key]
         if isinstance(step, Step) and not shifted:
             self.penalties[tuple(step.args)] += PENALTY
@@ -249,8 +255,7 @@ class _ContinuousModelMode(PlanningMode):
         then, shifted = before.boxes.where(), moved(before, seen)
         self.refiner.refusals.keep({  # what was refused stands while nothing near it moved
             (side, box, offset) for side, box, offset in self.refiner.refusals.keys
-            if box in then and all(np.linalg.norm((then[m] - then[box])[:2]) > NEAR
-                                   for m in shifted)})
+            if box in then and not near_moved(box, then, shifted)})
         still = not shifted
         if isinstance(step, Step):
             if still or (off_prediction(predicted, seen) if predicted is not None
