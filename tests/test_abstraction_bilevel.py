@@ -193,3 +193,25 @@ def test_a_long_skeleton_is_refined_to_its_subgoal_one_step_at_a_time():
                  boxes(a=(0.5, 0.2, 0.025), b=(0.5, 0.2, 0.075), c=(0.7, 0.0, 0.025)),
                  horizon=1)
     assert last.level == "bilevel" and len(last.steps) == 1
+
+
+def test_skeletons_are_planned_knowing_which_named_pairs_the_start_does_not_hold():
+    from types import SimpleNamespace
+
+    from drake_symplan.abstraction.abstraction import Observation
+    from drake_symplan.relations import parse
+
+    class Asked(Skeletons):
+        def plan(self, start, goal, planner, budget, focus=True, penalties=None,
+                 unheld=frozenset()):
+            self.unheld = unheld
+            return Plan("unsolvable")
+
+    # the start: a, b and c apart; the goal: a on b on c, of which b on c already holds
+    start = boxes(a=(0.5, 0.2, 0.025), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
+    reading = SimpleNamespace(kinds={("a", "b"): "on", ("b", "c"): "on"})
+    goal = Observation(None, reading, TOWER, tuple(parse(["tower a b c"])))
+    asked = Asked()
+    plan_bilevel(asked, Refiner(list(STACK.values()), Stacking()), observed(start), goal,
+                 Budget(2.0, 6.0))
+    assert asked.unheld == {("a", "b")}

@@ -35,6 +35,7 @@ from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
 from drake_symplan.abstraction.refiner import Refined, Refiner, nearer
 from drake_symplan.abstraction.refusals import allows
+from drake_symplan.abstraction.relation_goal import unheld
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import Step
 
@@ -213,9 +214,11 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
     target = goal.boxes.where()
     symbolic = budget.share(share)
     unverified = None
+    unheld_pairs = unheld(goal.reading, start.boxes.object_states()) \
+        if goal.relations and goal.reading is not None else frozenset()
     for i, found in enumerate(skeletons(abstraction, start.reading, goal.reading,
                                         search.planner, symbolic, search.alternatives,
-                                        penalties), 1):
+                                        penalties, unheld_pairs), 1):
         if not found.solved:
             looked_at(Candidate(f"skeleton {i}", [], False, f"planner: {found.status}"))
             continue
@@ -256,20 +259,23 @@ def _shorter(refiner: Refiner, refined: Refined, start: Boxes, goal: dict[str, n
 
 
 def skeletons(abstraction, start, goal, planner: str, budget: Budget,
-              alternatives: int = 0, given: dict[tuple[str, ...], int] | None = None):
+              alternatives: int = 0, given: dict[tuple[str, ...], int] | None = None,
+              unheld_pairs: frozenset = frozenset()):
     """The symbolic planner's plans: the focus objects' first, then over every object
     when that gives another, then up to `alternatives` more over every object, each with
     the moves of the plans so far made dearer by PENALTY per plan (diverse planning by
     penalties: the next plan moves other boxes, or onto others, where the domain allows;
     the refiner already tries other offsets of the same moves). Each call has
     SKELETON_SHARE of the budget left; no further call after a timeout, an unsolved call
-    or a plan seen before. `given`: penalties every call starts from."""
+    or a plan seen before. `given`: penalties every call starts from; `unheld_pairs`: a
+    goal of relations' pairs the perceived start does not hold (Abstraction.task)."""
     base = dict(given or {})
     penalties: Counter = Counter(base)
 
     def call(**options):
         options.setdefault("penalties", base or None)
-        found = abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE), **options)
+        found = abstraction.plan(start, goal, planner, budget.share(SKELETON_SHARE),
+                                 unheld=unheld_pairs, **options)
         if found.subgoal:  # a skeleton is refined to the goal: a plan of first stages is none
             return replace(found, status="unsolvable", steps=[])
         return found
