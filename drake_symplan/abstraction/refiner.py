@@ -164,10 +164,10 @@ class Refiner:
 
     def unsafe(self, before: Boxes, after: Boxes, action: Action) -> bool:
         """Does the step topple a box, where the model predicts it (topples) or where the
-        action sets its source down (set_down_tips), or drive its source into a box at the
-        release (Refusals.sets_down_into, which the arm refuses)?"""
+        action sets its source down (set_down_tips), or release it where the arm or the
+        agent refuses (Refusals.release_refused: driven into a box, out of view)?"""
         return self.topples(before, after) or set_down_tips(before, action) \
-            or self.refusals.sets_down_into(before, action)
+            or self.refusals.release_refused(before, action)
 
     def _allowed(self, boxes: Boxes, options: list[Reposition]) -> list[Reposition]:
         """The `options` no refusal bars in `boxes`, the arm's rules asked of their

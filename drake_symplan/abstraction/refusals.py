@@ -107,13 +107,15 @@ class Refusals:
         objects = boxes.object_states()
         return {n for s in sources for n in palm_reach(s, objects)} - set(sources)
 
-    def sets_down_into(self, boxes: Boxes, action: Action) -> bool:
-        """Would `action`'s source be driven into a box at its release in `boxes`, which
-        the arm refuses (skills/geometry.set_down_struck: a block set on a cube beside a
-        taller tower)?"""
-        from drake_symplan.skills.geometry import set_down_struck
+    def release_refused(self, boxes: Boxes, action: Action) -> bool:
+        """Would `action`'s release in `boxes` be refused: its source driven into a box,
+        which the arm refuses (skills/geometry.set_down_struck: a block set on a cube
+        beside a taller tower), or set down out of the cameras' view, which the agent
+        refuses (set_down_unseen)?"""
+        from drake_symplan.skills.geometry import set_down_struck, set_down_unseen
 
-        return bool(set_down_struck(action, boxes.object_states()))
+        objects = boxes.object_states()
+        return set_down_unseen(action, objects) or bool(set_down_struck(action, objects))
 
     def _refused(self, key, action: Action, objects, grasp_refused) -> bool:
         if key not in self._grasps:

@@ -26,7 +26,7 @@ from drake_symplan.abstraction.refiner import moves
 from drake_symplan.abstraction.set_down import set_down, set_down_meets
 from drake_symplan.actions import release_centre
 from drake_symplan.boxes import HALF_EXTENTS
-from drake_symplan.skills.geometry import grasp_refused
+from drake_symplan.skills.geometry import grasp_refused, set_down_unseen
 from drake_symplan.symbolic.structs import PlanStep, Reposition, reaches
 
 LAND_TOLERANCE = 0.03  # m: a repositioned box must be predicted this near its goal (5 cm check)
@@ -86,10 +86,12 @@ def reposition_step(rest: list[PlanStep], now, goal, tolerance: float) -> Reposi
 
 def _landings(src: str, boxes: dict, objects: dict):
     """(move, where it sets `src` down, xy) of each move of `src` beside or onto another
-    box by a grasp the arm does not refuse (skills/geometry.grasp_refused)."""
+    box by a grasp the arm does not refuse (skills/geometry.grasp_refused), in the
+    cameras' view (set_down_unseen)."""
     length = footprint(boxes[src])[1]
     for move in moves(list(boxes), {src}, lambda _: length):
-        if not grasp_refused(move.action, objects):  # traced: asked sixteen times
+        if not grasp_refused(move.action, objects) \
+                and not set_down_unseen(move.action, objects):
             yield move, release_centre(boxes[move.action.target].position[:2], move.action)
 
 

@@ -52,7 +52,8 @@ from drake_symplan.agent.result import PhaseClock, SolveResult
 from drake_symplan.agent.verdict import verdict
 from drake_symplan.boxes import GOAL_TOLERANCE
 from drake_symplan.relations import riders
-from drake_symplan.robot.backends import Backend, PerceptionFailure, make_backend
+from drake_symplan.robot.backends import Backend, Execution, PerceptionFailure, make_backend
+from drake_symplan.skills.geometry import set_down_unseen
 from drake_symplan.symbolic.structs import PlanStep
 from drake_symplan.world.visualization import StartMeshcat
 
@@ -220,11 +221,17 @@ class _Run(Completion):
         return bool(self.todo)
 
     def _execute(self, planned: Planned) -> None:
-        """Runs a step with the robot (its offsets chosen first), perceives the result."""
+        """Runs a step with the robot (its offsets chosen first), perceives the result. A
+        step that would set its source down out of the cameras' view is refused as the arm
+        refuses one (skills/geometry.set_down_unseen): the box would be lost from view."""
         step = self._offsets(planned.step)
         load = riders(step.action.source, self.scene.object_states())
-        with self.clock("execute"):
-            execution = self.agent.robot.execute(step.action, self.scene, lift=False)
+        if set_down_unseen(step.action, self.scene.object_states()):
+            execution = Execution("infeasible", message=f"{step.action.source} would be set "
+                                  "down out of the cameras' view", at="release")
+        else:
+            with self.clock("execute"):
+                execution = self.agent.robot.execute(step.action, self.scene, lift=False)
         if execution.status == "infeasible":
             self.refused.add(step.action)
             self._refused(step, f"{step}: {execution.message}", execution.obstacles,

@@ -14,6 +14,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from drake_symplan.actions import Action, grasp_point, release_point
 from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.datasets import ObjectState
+from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.relations import riders, top
 from drake_symplan.skills.carry import (
     STRIKE_DEPTH,
@@ -39,6 +40,8 @@ PALM_REACH = 0.31
 # m between a release point and a box a source set down there can strike: a long box's
 # half diagonal twice and a grasp offset
 SET_DOWN_REACH = 0.33
+# m: a source is set down no nearer the edge of what the cameras keep (perception's crop)
+VIEW_MARGIN = 0.02
 LOWER_STEP = 0.005  # m: the heights tried, from the landing up, for a release beside the target
 
 
@@ -220,6 +223,22 @@ def set_down_at(action: Action, objects: dict[str, ObjectState]) -> np.ndarray:
     src = objects[action.source]
     return np.array([*landing(src, grasp, release, turn),
                      release[2] - (grasp[2] - src.position[2])])
+
+
+def set_down_unseen(action: Action, objects: dict[str, ObjectState]) -> bool:
+    """Would `action` set its source down where the cameras do not see it whole: any of
+    its footprint (turned as the release turns it) within VIEW_MARGIN of the edge of the
+    workspace perception keeps (perception/segmentation.py's crop)? The agent would lose
+    it from view, and every name after it."""
+    src = objects[action.source]
+    _, _, turn = nominal_points(action, objects)
+    yaw = src.yaw + turn
+    hx, hy, _ = HALF_EXTENTS[src.type]
+    reach = np.array([abs(hx * np.cos(yaw)) + abs(hy * np.sin(yaw)),
+                      abs(hx * np.sin(yaw)) + abs(hy * np.cos(yaw))]) + VIEW_MARGIN
+    x, y = set_down_at(action, objects)[:2]
+    return not (CROP_X[0] + reach[0] < x < CROP_X[1] - reach[0]
+                and CROP_Y[0] + reach[1] < y < CROP_Y[1] - reach[1])
 
 
 def set_down_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
