@@ -46,11 +46,11 @@ SEARCH_SHARE = 0.5
 PENALTY = 1000  # cost added to a move for each skeleton before that made it and did not refine
 SEARCH = "continuous"  # the Candidate.source of the continuous search
 # Goals more moves away than this (the goal's order, goal_order.py) are searched before any
-# skeleton: beyond it none of 31 six-box first plans refined a skeleton (docs/goals.md).
+# skeleton: beyond it none of 31 six-box first plans refined a skeleton.
 LONG_GOAL = 4
 # The share of a long goal's budget the search has before the skeletons: on the towers
 # sets no skeleton's plan was the one run, and with 60 % the search missed plans it
-# finds with the whole budget (docs/goals.md)
+# finds with the whole budget
 SEARCH_FIRST = 0.9
 
 

@@ -248,8 +248,7 @@ class ContinuousModel:
         with the hand (traced, eight boxes), which no hand does. A carried box comes down
         where the hand releases it unless the model has it land `snap` or more from there
         (it falls off): the arm sets a box down 2 mm from its release (median, 256 six-box
-        steps), where the model's own guess is 6 mm off, and up to 8 cm for a long block
-        (docs/goals.md, "What the model predicts of the designed plans")."""
+        steps), where the model's own guess is 6 mm off, and up to 8 cm for a long block."""
         where = boxes.where()
         land = release_centre(where[action.target][:2], action)
         carry = np.array([*(land - where[action.source][:2]), 0.0])

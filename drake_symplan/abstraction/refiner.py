@@ -35,7 +35,7 @@ MARGIN = 0.01  # m: accepted plans put every box this far inside the tolerance
 # m of summed distance to the goal the search's heuristic counts as one move: the goal's
 # order counts the moves, the distance ranks scenes as many moves away (at 0.15 m, how far
 # one action moves a box, the distance outweighed the count and the search found 20 of 30
-# eight-box plans in 6 CPU s; at 1 m, 25: docs/goals.md)
+# eight-box plans in 6 CPU s; at 1 m, 25)
 STEP_SCALE = 1.0
 MOVE_LEFT = 1.0  # the search's heuristic per move the goal's order asks for (goal_order.py)
 DEFER = 3.0  # the search's f added to the moves the goal's order does not ask for next

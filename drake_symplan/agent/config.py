@@ -29,7 +29,7 @@ class SolveConfig:
     planner: str = "fd"
     cpu_seconds: float = DEFAULT_TIMEOUT
     monitor: bool = True
-    # 4: on 162 reproducible arm problems 4 more solves than 2 and none fewer (docs/planning.md)
+    # 4: on 162 reproducible arm problems 4 more solves than 2 and none fewer
     max_replans: int = 4
     refine: bool = True
     planning: str = "bilevel"

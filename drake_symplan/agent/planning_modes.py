@@ -321,7 +321,7 @@ class RecedingMode(_ContinuousModelMode):
             "subgoal, then a new plan from what is seen")
     skeletons = True
     horizon = HORIZON
-    # Not better than bilevel on the reproducible sets (docs/planning.md); its row would add
+    # Not better than bilevel on the reproducible sets; its row would add
     # a fifth to the reproduction's time.
     reproduced = False
 

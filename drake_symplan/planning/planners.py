@@ -27,7 +27,7 @@ length. Fast Downward's search binary (not the driver alone) gives the optimal s
 OPTIMAL_SHARE of the budget and, when it runs out there, a weighted A* with the FF
 heuristic (FD_FALLBACK) the rest: on a long goal (two towers of three from six boxes)
 A* with LM-cut takes more than 10 s where the weighted search plans in under one,
-and on the short goals it finishes first anyway (docs/planning.md).
+and on the short goals it finishes first anyway.
 """
 
 from __future__ import annotations
