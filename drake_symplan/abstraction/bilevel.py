@@ -35,7 +35,7 @@ from drake_symplan.abstraction.abstraction import Observation, Plan
 from drake_symplan.abstraction.continuous import Boxes, goal_errors
 from drake_symplan.abstraction.refiner import Refined, Refiner, nearer
 from drake_symplan.abstraction.refusals import allows
-from drake_symplan.abstraction.relation_goal import unheld
+from drake_symplan.abstraction.relation_goal import unheld_in
 from drake_symplan.planning.budget import Budget
 from drake_symplan.symbolic.structs import Step
 
@@ -214,11 +214,9 @@ def _refine_skeletons(abstraction, refiner: Refiner, start: Observation, goal: O
     target = goal.boxes.where()
     symbolic = budget.share(share)
     unverified = None
-    unheld_pairs = unheld(goal.reading, start.boxes.object_states()) \
-        if goal.relations and goal.reading is not None else frozenset()
     for i, found in enumerate(skeletons(abstraction, start.reading, goal.reading,
                                         search.planner, symbolic, search.alternatives,
-                                        penalties, unheld_pairs), 1):
+                                        penalties, unheld_in(start, goal)), 1):
         if not found.solved:
             looked_at(Candidate(f"skeleton {i}", [], False, f"planner: {found.status}"))
             continue

@@ -112,10 +112,9 @@ class Refusals:
         which the arm refuses (skills/geometry.set_down_struck: a block set on a cube
         beside a taller tower), or set down out of the cameras' view, which the agent
         refuses (set_down_unseen)?"""
-        from drake_symplan.skills.geometry import set_down_struck, set_down_unseen
+        from drake_symplan.skills.geometry import release_refused
 
-        objects = boxes.object_states()
-        return set_down_unseen(action, objects) or bool(set_down_struck(action, objects))
+        return release_refused(action, boxes.object_states())
 
     def _refused(self, key, action: Action, objects, grasp_refused) -> bool:
         if key not in self._grasps:

@@ -112,6 +112,13 @@ def unheld(goal, objects: dict) -> frozenset:
                      and pair_unmet(kind, objects[pair[0]], objects[pair[1]]) is not None)
 
 
+def unheld_in(start, goal) -> frozenset:
+    """`unheld` for a plan from the perceived `start` to `goal` (abstraction.Observation):
+    none for a goal without a reading."""
+    return frozenset() if goal.reading is None \
+        else unheld(goal.reading, start.boxes.object_states())
+
+
 def unheld_readings(goal: Goal, start: frozenset, pairs: frozenset) -> Goal:
     """`goal` without the readings of a pair of `pairs` (whose relation the start does
     not hold) that the `start` atoms already hold: such a reading does not say the

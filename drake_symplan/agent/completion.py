@@ -22,7 +22,7 @@ from drake_symplan.agent.reposition import (
 )
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_distances, neighbour_pairs
 from drake_symplan.relations import holding
-from drake_symplan.skills.geometry import grasp_refused, set_down_struck, set_down_unseen
+from drake_symplan.skills.geometry import grasp_refused, release_refused
 from drake_symplan.symbolic.structs import PlanStep, Reposition, Step
 
 
@@ -86,8 +86,9 @@ class Completion:
         symbols (abstraction/offsets.py), else as planned: the best that does not set its
         source down to topple (set_down.set_down_tips) nor asks what the arm's own rules
         refuse on the perceived boxes (a palm that would strike a box, a grasp under a
-        stack, a source driven into a box, one set down out of the cameras' view:
-        skills/geometry.py, as the refiner's search asks them), where one does not, held nearest its centre (offsets.central)."""
+        stack, a source driven into a box or set down out of the cameras' view:
+        skills/geometry.py, as the refiner's search asks them), where one does not, held
+        nearest its centre (offsets.central)."""
         if not (self._completes() and isinstance(step, Step)):
             return step
         with self.clock("symbols"):
@@ -98,8 +99,7 @@ class Completion:
             return choose(self.abs.bundle.planning, step, self.rest, self.believed,
                           self.goal_atoms, scorer,
                           lambda a: a in self.refused or set_down_tips(boxes, a)
-                          or grasp_refused(a, objects) or bool(set_down_struck(a, objects))
-                          or set_down_unseen(a, objects),
+                          or grasp_refused(a, objects) or release_refused(a, objects),
                           boxes.riding)
 
     def _clearing(self, step: PlanStep, obstacles) -> Reposition | None:

@@ -183,11 +183,11 @@ class SymbolicMode(PlanningMode):
         self.refusals: Counter = Counter()
 
     def _plan(self, now: Observation, goal: Observation) -> Plan:
-        from drake_symplan.abstraction.relation_goal import unheld
+        from drake_symplan.abstraction.relation_goal import unheld_in
 
         return self.abs.plan(now.reading, goal.reading, self.config.planner, self.budget(),
                              penalties=dict(self.penalties + self.refusals),
-                             unheld=unheld(goal.reading, now.boxes.object_states()))
+                             unheld=unheld_in(now, goal))
 
     def refused(self, step: PlanStep, obstacles: dict[str, np.ndarray] | None = None,
                 at: str = "") -> None:

@@ -225,8 +225,9 @@ class _Run(Completion):
         step that would set its source down out of the cameras' view is refused as the arm
         refuses one (skills/geometry.set_down_unseen): the box would be lost from view."""
         step = self._offsets(planned.step)
-        load = riders(step.action.source, self.scene.object_states())
-        if set_down_unseen(step.action, self.scene.object_states()):
+        objects = self.scene.object_states()
+        load = riders(step.action.source, objects)
+        if set_down_unseen(step.action, objects):
             execution = Execution("infeasible", message=f"{step.action.source} would be set "
                                   "down out of the cameras' view", at="release")
         else:

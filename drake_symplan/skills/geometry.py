@@ -235,6 +235,13 @@ def set_down_unseen(action: Action, objects: dict[str, ObjectState]) -> bool:
                 and CROP_Y[0] + VIEW_MARGIN < y < CROP_Y[1] - VIEW_MARGIN)
 
 
+def release_refused(action: Action, objects: dict[str, ObjectState]) -> bool:
+    """Is `action`'s release refused on the believed `objects`: its source set down where
+    the cameras lose it (set_down_unseen, the agent's rule) or driven into a box
+    (set_down_struck, the arm's)? What the planner and the offset chooser read."""
+    return set_down_unseen(action, objects) or bool(set_down_struck(action, objects))
+
+
 def set_down_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
     """The boxes the source would be driven into at `action`'s release by its nominal
     points (refuse_strikes tests the arm's own); [] at once where no box near the
