@@ -101,7 +101,7 @@ def test_no_plan_lifts_a_cube_from_under_a_stack_of_two_as_the_arm_would_not():
 def test_no_plan_grasps_a_cube_under_the_end_of_a_block_as_the_palm_would_strike_it():
     # traced (eight boxes): a block on two cubes, its end over a third cube (c) it does not
     # touch; the palm coming down to c struck the block and a tower of three fell. The
-    # planner reads the skill's rule (skills/geometry.palm_struck) and moves the block off
+    # planner reads the skill's rule (skills/geometry.grasp_struck) and moves the block off
     # first; the cube under the block's centre (a) carries it as a rider.
     features = np.stack([object_features("cube", np.array([0.816, y, 0.025]), np.eye(3))
                          for y in (0.036, 0.111, 0.182)]

@@ -78,3 +78,53 @@ def test_a_block_set_down_into_a_taller_tower_beside_its_target_is_refused(plann
     assert (refused.value.obstacles, refused.value.at) == (("t1", "t2"), "release")
     planner.plan(Action("b", "center", "d", "center"), scene)  # clear of the tower
     planner.plan(Action("c", "center", "d", "center"), scene)  # a cube fits beside it
+
+
+def _cube_beside_a_tower(levels: int, dx: float, dy: float) -> dict[str, ObjectState]:
+    """A cube at (0.7, 0) on the table, a tower of `levels` cubes (dx, dy) from it and a
+    free target; the robot's base stands at the origin, on the -x side."""
+    tower = {f"t{i}": ObjectState(f"t{i}", "cube", np.array([0.7 + dx, dy, 0.025 + 0.05 * i]))
+             for i in range(levels)}
+    return {"s": ObjectState("s", "cube", np.array([0.7, 0.0, 0.025])), **tower,
+            "c": ObjectState("c", "cube", np.array([0.8, -0.35, 0.025]))}
+
+
+def test_the_planners_rule_names_the_boxes_the_wrist_would_strike_as_the_arm_does(planner):
+    from drake_symplan.skills.geometry import grasp_refused, grasp_struck
+
+    grasp = Action("s", "center", "c", "center")
+    # a tower of three touching the cube: wrist_3, about the tool axis, strikes its top at
+    # every turn of the gripper
+    with pytest.raises(InfeasibleAction, match="wrist_3 would strike t2"):
+        planner.plan(grasp, _cube_beside_a_tower(3, 0.0, 0.052))
+    assert grasp_struck(grasp, _cube_beside_a_tower(3, 0.0, 0.052)) == ["t2"]
+    assert not grasp_refused(grasp, _cube_beside_a_tower(2, 0.0, 0.052))  # below the wrist
+    # a tower of four 10 cm towards the base meets wrist_1, which stands out that way; the
+    # same tower 10 cm away from the base is clear
+    with pytest.raises(InfeasibleAction, match="wrist_1 would strike t3"):
+        planner.plan(grasp, _cube_beside_a_tower(4, -0.1, 0.0))
+    assert grasp_struck(grasp, _cube_beside_a_tower(4, -0.1, 0.0)) == ["t3"]
+    planner.plan(grasp, _cube_beside_a_tower(4, 0.1, 0.0))
+    assert grasp_struck(grasp, _cube_beside_a_tower(4, 0.1, 0.0)) == []
+    # the traced block beside a tower of four: its near end refused, its far end clear
+    assert grasp_struck(Action("b", "left", "c", "center"), _tower_beside_a_block(4)) == ["t3"]
+    assert grasp_struck(Action("b", "right", "c", "center"), _tower_beside_a_block(4)) == []
+
+
+def test_a_refusal_names_the_box_in_the_way_where_another_turn_is_out_of_reach(monkeypatch):
+    # traced (twelve boxes): the gripper's quarter turn was out of reach, the turn half a
+    # turn round struck a tower's top; told only "unreachable", the planner did not know
+    # that moving the tower would let the arm grasp the cube
+    from drake_symplan.skills.pick_place import PickPlaceMotions
+
+    tries = iter([InfeasibleAction("unreachable pose: pre-grasp"),
+                  InfeasibleAction("the arm's wrist_3 would strike t2", ("t2",))])
+
+    def refuse(*args, **kwargs):
+        raise next(tries, InfeasibleAction("the palm would strike t1", ("t1",)))
+
+    motions = PickPlaceMotions.__new__(PickPlaceMotions)
+    monkeypatch.setattr(motions, "_motion", refuse)
+    with pytest.raises(InfeasibleAction, match="wrist_3 would strike t2") as refused:
+        motions.plan(Action("s", "center", "c", "center"), _cube_beside_a_tower(3, 0.0, 0.07))
+    assert refused.value.obstacles == ("t2",)

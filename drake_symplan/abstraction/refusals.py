@@ -74,7 +74,7 @@ class Refusals:
         """The keys no step from `boxes` takes (`allows`): the refusals standing there, and
         the grasps the arm would refuse there by its own rules, under a stack it will not
         lift (skills/carry.unpinchable, with the skill's own riders and tolerances) or
-        where its palm would strike a box (skills/geometry.palm_struck); the grasps of
+        where its palm or wrist would strike a box (skills/geometry.grasp_struck); the grasps of
         `sources` only where given (the rules take 40 % of a search that asks all)."""
         # The skill's rules on beliefs, imported here: importing the planner loads no skill.
         from drake_symplan.skills.geometry import grasp_refused, palm_reach

@@ -1,6 +1,6 @@
 """Where the gripper goes for an action by the believed boxes, and what the arm's own rules
-refuse there: a grasp under a stack, a palm that would strike a box, a source driven into
-one at the release. Shared by the arm (skills/pick_place.py), the simulated hand
+refuse there: a grasp under a stack, a palm or wrist that would strike a box, a source
+driven into one at the release. Shared by the arm (skills/pick_place.py), the simulated hand
 (skills/hand_place.py) and the planner's checks (abstraction/refusals.py); no simulator.
 """
 
@@ -25,7 +25,13 @@ from drake_symplan.skills.carry import (
     release_strikes,
     unpinchable,
 )
-from drake_symplan.world.hand import PALM_ABOVE_TCP, finger_strikes, palm_strikes
+from drake_symplan.world.hand import (
+    PALM_ABOVE_TCP,
+    WRIST_ZONES,
+    finger_strikes,
+    palm_strikes,
+    wrist_strikes,
+)
 
 MIN_CARRY_HEIGHT = 0.20  # m, TCP height while carrying
 CARRY_CLEARANCE = 0.10  # m above the highest object top while carrying
@@ -181,14 +187,32 @@ def palm_reach(source: str, objects: dict[str, ObjectState]) -> list[str]:
             and np.linalg.norm(o.position[:2] - src.position[:2]) < PALM_REACH]
 
 
-def palm_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
-    """The boxes the palm would strike coming down to `action`'s grasp by the arm's
-    geometry (arm_geometry, as refuse_strikes tests it); [] at once where palm_reach
-    finds none."""
+def grasp_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
+    """The boxes the palm or the wrist would strike coming down to `action`'s grasp by the
+    arm's geometry (arm_geometry, as refuse_strikes tests the palm;
+    skills/arm_clearance.py tests the links on the arm's own motion); [] at once where
+    palm_reach finds none."""
     if not palm_reach(action.source, objects):
         return []
     g, _ = arm_geometry(action, objects)
-    return _palm_strikes(objects, g, {action.source, *riders(action.source, objects)})
+    load = {action.source, *riders(action.source, objects)}
+    struck = _palm_strikes(objects, g, load)
+    return struck + [n for n in _wrist_strikes(objects, g.grasp, load) if n not in struck]
+
+
+def _wrist_strikes(objects: dict[str, ObjectState], tcp: np.ndarray,
+                   load: set[str]) -> list[str]:
+    """The boxes (not in the `load`) the wrist would strike coming down to the TCP point
+    `tcp`: about the tool axis, wrist_3's cylinder, at every turn of the gripper the same
+    (a tower of three beside a cube on the table); higher up, wrist_1 and wrist_2, which
+    stand out towards the robot's base (at the world's origin), on that side only. The
+    links' own radii, no margin: the arm's test passes a tower of three 2 cm beside."""
+    others = {n: o for n, o in objects.items() if n not in load}
+    inward = {n: o for n, o in others.items()
+              if float((o.position[:2] - tcp[:2]) @ -tcp[:2]) > 0.0}
+    struck = wrist_strikes(*_boxes(others), tcp, WRIST_ZONES[:1], margin=0.0)
+    return struck + [n for n in wrist_strikes(*_boxes(inward), tcp, WRIST_ZONES[1:],
+                                              margin=0.0) if n not in struck]
 
 
 def _palm_strikes(objects: dict[str, ObjectState], g: ActionGeometry,
@@ -213,8 +237,9 @@ def nominal_points(action: Action, objects: dict[str, ObjectState]
 def grasp_refused(action: Action, objects: dict[str, ObjectState]) -> bool:
     """Does the arm refuse `action`'s grasp by its own rules on the believed `objects`:
     under a stack it will not lift (carry.unpinchable), or where its palm would strike a
-    box (palm_struck)? What the planner and the agent's repositioning read."""
-    return bool(unpinchable(action, objects) or palm_struck(action, objects))
+    box, or its wrist one about the tool axis (grasp_struck)? What the planner and the
+    agent's repositioning read."""
+    return bool(unpinchable(action, objects) or grasp_struck(action, objects))
 
 
 def set_down_at(action: Action, objects: dict[str, ObjectState]) -> np.ndarray:

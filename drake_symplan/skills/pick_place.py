@@ -112,7 +112,7 @@ class PickPlaceMotions:
         # A cube's quarter turn clear of its neighbours (action_geometry) that the arm
         # cannot reach either way is done unturned.
         g, carry = arm_geometry(action, objects)
-        first = None
+        refusals = []
         for turned in (True, False):
             if not turned:
                 plain, _ = arm_geometry(action, objects, turn=False)
@@ -124,8 +124,10 @@ class PickPlaceMotions:
                 try:
                     return self._motion(geometry, carry, q_start, lift_hold, action, objects)
                 except InfeasibleAction as e:
-                    first = first or e
-        raise first
+                    refusals.append(e)
+        # A turn whose pose is out of reach says nothing of what stands in the way; a
+        # strike at another names the box with which moved the arm would run it
+        raise next((e for e in refusals if e.obstacles), refusals[0])
 
     def _clear(self, waypoints: list[np.ndarray], objects: dict[str, ObjectState],
                skip: set[str], where: str, at: str) -> None:

@@ -86,17 +86,20 @@ def wrist_strikes(
     poses: dict[str, RigidTransform],
     half_extents: dict[str, np.ndarray],
     tcp: np.ndarray,
+    zones: tuple[tuple[float, float], ...] = WRIST_ZONES,
+    margin: float = WRIST_MARGIN,
 ) -> list[str]:
     """The boxes that the arm's wrist, coming straight down to the TCP point `tcp`, would
-    strike: those reaching above a zone's height within its radius of the tool axis."""
+    strike: those reaching above a zone's height within its radius (grown by `margin`) of
+    the tool axis (`zones`: WRIST_ZONES, or some of them)."""
     struck = []
     for name, X in poses.items():
         h = np.asarray(half_extents[name], float)
         local = X.inverse().multiply(np.array([tcp[0], tcp[1], X.translation()[2]]))
         reach = float(np.linalg.norm(np.maximum(np.abs(local[:2]) - h[:2], 0.0)))
         top = _top(X, h)
-        if any(top > tcp[2] + above and reach < radius + WRIST_MARGIN
-               for above, radius in WRIST_ZONES):
+        if any(top > tcp[2] + above and reach < radius + margin
+               for above, radius in zones):
             struck.append(name)
     return struck
 
