@@ -236,9 +236,8 @@ def nominal_points(action: Action, objects: dict[str, ObjectState]
 
 def grasp_refused(action: Action, objects: dict[str, ObjectState]) -> bool:
     """Does the arm refuse `action`'s grasp by its own rules on the believed `objects`:
-    under a stack it will not lift (carry.unpinchable), or where its palm would strike a
-    box, or its wrist one about the tool axis (grasp_struck)? What the planner and the
-    agent's repositioning read."""
+    under a stack it will not lift (carry.unpinchable), or where its palm or wrist would
+    strike a box (grasp_struck)? What the planner and the agent's repositioning read."""
     return bool(unpinchable(action, objects) or grasp_struck(action, objects))
 
 

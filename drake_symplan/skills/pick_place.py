@@ -126,7 +126,7 @@ class PickPlaceMotions:
                 except InfeasibleAction as e:
                     refusals.append(e)
         # A turn whose pose is out of reach says nothing of what stands in the way; a
-        # strike at another names the box with which moved the arm would run it
+        # strike at another turn names the box that, moved, would let the arm run it
         raise next((e for e in refusals if e.obstacles), refusals[0])
 
     def _clear(self, waypoints: list[np.ndarray], objects: dict[str, ObjectState],
