@@ -196,23 +196,23 @@ def grasp_struck(action: Action, objects: dict[str, ObjectState]) -> list[str]:
         return []
     g, _ = arm_geometry(action, objects)
     load = {action.source, *riders(action.source, objects)}
-    struck = _palm_strikes(objects, g, load)
-    return struck + [n for n in _wrist_strikes(objects, g.grasp, load) if n not in struck]
+    poses, half = _boxes({n: o for n, o in objects.items() if n not in load})
+    struck = palm_strikes(poses, half, g.grasp, g.yaw_grasp, margin=-PALM_BRUSH)
+    return struck + [n for n in _wrist_strikes(poses, half, g.grasp) if n not in struck]
 
 
-def _wrist_strikes(objects: dict[str, ObjectState], tcp: np.ndarray,
-                   load: set[str]) -> list[str]:
-    """The boxes (not in the `load`) the wrist would strike coming down to the TCP point
-    `tcp`: about the tool axis, wrist_3's cylinder, at every turn of the gripper the same
-    (a tower of three beside a cube on the table); higher up, wrist_1 and wrist_2, which
-    stand out towards the robot's base (at the world's origin), on that side only. The
-    links' own radii, no margin: the arm's test passes a tower of three 2 cm beside."""
-    others = {n: o for n, o in objects.items() if n not in load}
-    inward = {n: o for n, o in others.items()
-              if float((o.position[:2] - tcp[:2]) @ -tcp[:2]) > 0.0}
-    struck = wrist_strikes(*_boxes(others), tcp, WRIST_ZONES[:1], margin=0.0)
-    return struck + [n for n in wrist_strikes(*_boxes(inward), tcp, WRIST_ZONES[1:],
-                                              margin=0.0) if n not in struck]
+def _wrist_strikes(poses: dict, half: dict, tcp: np.ndarray) -> list[str]:
+    """The boxes (`poses`, `half` extents: _boxes) the wrist would strike coming down to
+    the TCP point `tcp`: about the tool axis, wrist_3's cylinder, at every turn of the
+    gripper the same (a tower of three beside a cube on the table); higher up, wrist_1 and
+    wrist_2, which stand out towards the robot's base (at the world's origin), on that
+    side only. The links' own radii, no margin: the arm's test passes a tower of three 2 cm
+    beside."""
+    inward = {n: X for n, X in poses.items()
+              if float((X.translation()[:2] - tcp[:2]) @ -tcp[:2]) > 0.0}
+    struck = wrist_strikes(poses, half, tcp, WRIST_ZONES[:1], margin=0.0)
+    return struck + [n for n in wrist_strikes(inward, half, tcp, WRIST_ZONES[1:], margin=0.0)
+                     if n not in struck]
 
 
 def _palm_strikes(objects: dict[str, ObjectState], g: ActionGeometry,
