@@ -22,14 +22,14 @@ from drake_symplan.evaluation.report import (
 REPO = Path(__file__).resolve().parents[1]
 
 
-def solve(problem, status, k=3, plan=0.5, n=6):
+def solve(problem, status, k=3, plan=0.5, n=6, cause=None):
     return {"problem": problem, "status": status, "success_true": status == "success",
-            "n_objects": n, "k": k, "seconds": {"plan": plan}}
+            "n_objects": n, "k": k, "seconds": {"plan": plan}, "failure_cause": cause}
 
 
 SETTINGS = {"problems_dir": "out/w", "planning": "symbolic"}
 RECORDS = [solve("out/w/row4/o6/p000", "success", plan=0.2),
-           solve("out/w/row4/o8/p000", "failure", k=4, plan=0.6, n=8),
+           solve("out/w/row4/o8/p000", "failure", k=4, plan=0.6, n=8, cause="execution"),
            solve("out/w/tower4/o6/p000", "success", plan=0.4)]
 
 
@@ -38,9 +38,10 @@ def test_a_record_counts_each_set_and_a_table_renders_it():
                   rows="kind")
     assert record["sets"] == {
         "row4": {"problems": 2, "success": 1, "success_true": 1, "objects": [6, 8],
-                 "actions": [3, 4], "plan_seconds_median": 0.4},
+                 "actions": [3, 4], "plan_seconds_median": 0.4,
+                 "failures": {"execution": 1}},
         "tower4": {"problems": 1, "success": 1, "success_true": 1, "objects": [6],
-                   "actions": [3, 3], "plan_seconds_median": 0.4}}
+                   "actions": [3, 3], "plan_seconds_median": 0.4, "failures": {}}}
     record.update(measured="2026-12-04", commit="abc1234", host={"cpus": 2})
     assert render([record], "w") == (
         "| set | boxes | actions | symbols alone |\n|---|---|---|---|\n"
@@ -48,6 +49,28 @@ def test_a_record_counts_each_set_and_a_table_renders_it():
         "Measured 2026-12-04 at commit abc1234 on 2 CPU cores; each cell: solved on the "
         "perceived verdict (on the simulator's), median plan seconds. Records: "
         "`results/w-symbolic.json`.\n")
+
+
+def test_a_table_of_failures_counts_how_each_sets_failed_solves_ended():
+    records = [*RECORDS, solve("out/w/row4/o8/p001", "infeasible", n=8, cause="infeasible"),
+               solve("out/w/row4/o8/p002", "timeout", n=8, cause="timeout"),
+               solve("out/w/row4/o8/p003", "failure", n=8, cause="execution")]
+    record = keep(records, SETTINGS, "w-symbolic", "w", "symbols alone", "symplan ...",
+                  rows="kind")
+    assert record["sets"]["row4"]["failures"] == {"execution": 2, "infeasible": 1,
+                                                  "timeout": 1}
+    record.update(measured="2026-12-06", commit="abc1234", host={"cpus": 2})
+    old = {**copy.deepcopy(record), "name": "w-old", "column": "before"}
+    for s in old["sets"].values():  # a record made before keep counted failures
+        del s["failures"]
+    assert render([record, old], "w-failures") == (
+        "| set | symbols alone |\n|---|---|\n"
+        "| row4 | unmet 2, refused 1, timed out 1 |\n| tower4 | none |\n\n"
+        "Measured 2026-12-06 at commit abc1234 on 2 CPU cores; each cell: the solves "
+        "failed on the perceived verdict, by how they ended. Records: "
+        "`results/w-symbolic.json`.\n")
+    with pytest.raises(ValueError, match="keeps its failures"):
+        render([old], "w-failures")
 
 
 def test_structure_rows_split_each_set_by_whether_its_goal_names_a_bridge(tmp_path):

@@ -1,15 +1,17 @@
 """Results as records kept in the repo, and the tables rendered from them.
 
 `keep` turns one `eval planning --records` file into a small record (results/NAME.json):
-per problem set its successes, the simulator's verdict beside them and the median plan
-time, with the settings, the command, the code's commit, the date and the host's cores.
+per problem set its successes, the simulator's verdict beside them, the median plan
+time and the failures by how their solves ended, with the settings, the command, the
+code's commit, the date and the host's cores.
 One record answers one question: a rerun replaces it, the old one stays in git. `render`
 writes each table (a record's "table") as markdown, one column per record, one row per
 problem set, with when and on what it was measured; `replace_blocks` puts the tables
 between `<!-- report:NAME -->` and `<!-- /report -->` in a page, so that the README's
 numbers are the records' (tests/test_report.py fails on a changed digit). `plot` draws a
 table's success rate against the number of objects, a line per column
-(`success_by_objects` computes its points). `keep_learning` makes a record of what a
+(`success_by_objects` computes its points). A block named TABLE-failures renders table
+TABLE's failures by how they ended instead (`render_failures`). `keep_learning` makes a record of what a
 trained run learned instead (its effect error, its operators on held-out data): its
 table has a row per measure.
 """
@@ -20,12 +22,17 @@ import os
 import re
 import statistics
 import subprocess
-from collections import defaultdict
+from collections import Counter, defaultdict
 from datetime import date
 from pathlib import Path
 
 from drake_symplan.json_files import read_json
 
+# a report block's name with this ending renders the failures of the table it ends
+FAILURES = "-failures"
+# how a failed solve ended (agent/verdict.py's causes), as the failures' table names it
+ENDINGS = {"infeasible": "refused", "execution": "unmet", "timeout": "timed out",
+           "perception": "lost from view", "no_plan": "no plan", "error": "error"}
 BLOCK = re.compile(r"(<!-- report:(?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- /report -->)",
                    flags=re.S)
 
@@ -82,9 +89,18 @@ def keep(records: list[dict], settings: dict, name: str, table: str, column: str
                        "objects": sorted({r["n_objects"] for r in rs}),
                        "actions": [min(r["k"] for r in rs), max(r["k"] for r in rs)],
                        "plan_seconds_median": round(statistics.median(
-                           r["seconds"]["plan"] for r in rs), 2)}
+                           r["seconds"]["plan"] for r in rs), 2),
+                       "failures": failures(rs)}
                  for key, rs in sorted(sets.items())},
     }
+
+
+def failures(records: list[dict]) -> dict[str, int]:
+    """The per-solve `records` that failed on the perceived verdict, counted by how their
+    solve ended (its failure cause, else its status), causes in alphabetical order."""
+    ended = Counter(r.get("failure_cause") or r["status"] for r in records
+                    if r["status"] != "success")
+    return dict(sorted(ended.items()))
 
 
 def keep_learning(effects: dict, operators: dict, name: str, table: str, column: str,
@@ -136,6 +152,8 @@ def render(records: list[dict], table: str) -> str:
     """The markdown table `table` of `records`: a row per problem set, a column per record
     (successes on the perceived verdict, the simulator's in brackets, the median plan
     seconds), and a line saying when, where and by what it was measured."""
+    if table.endswith(FAILURES) and not any(r["table"] == table for r in records):
+        return render_failures(records, table[:-len(FAILURES)])
     chosen = _chosen(records, table)
     if all("measures" in r for r in chosen):
         return _finish(_render_measures(chosen), chosen, "")
@@ -151,6 +169,30 @@ def render(records: list[dict], table: str) -> str:
                      + " | ".join(_cell(r["sets"].get(key)) for r in chosen) + " |")
     return _finish(lines, chosen, "; each cell: solved on the perceived verdict (on the "
                    "simulator's), median plan seconds")
+
+
+def render_failures(records: list[dict], table: str) -> str:
+    """The markdown table of table `table`'s failures: a row per problem set, a column
+    per record that keeps them (records made before `keep` counted them are left out),
+    each cell the failed solves by how they ended (ENDINGS)."""
+    chosen = [r for r in _chosen(records, table)
+              if "sets" in r and all("failures" in s for s in r["sets"].values())]
+    if not chosen:
+        raise ValueError(f"no record of the table {table!r} keeps its failures")
+    keys = sorted({k for r in chosen for k in r["sets"]}, key=_natural)
+    lines = ["| set | " + " | ".join(r["column"] for r in chosen) + " |",
+             "|---|" + "---|" * len(chosen)]
+    for key in keys:
+        lines.append(f"| {key} | " + " | ".join(
+            _failures_cell(r["sets"].get(key)) for r in chosen) + " |")
+    return _finish(lines, chosen, "; each cell: the solves failed on the perceived "
+                   "verdict, by how they ended")
+
+
+def _failures_cell(s: dict | None) -> str:
+    if s is None:
+        return "-"
+    return ", ".join(f"{ENDINGS.get(c, c)} {n}" for c, n in s["failures"].items()) or "none"
 
 
 def _finish(lines: list[str], chosen: list[dict], cells: str) -> str:
