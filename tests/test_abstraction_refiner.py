@@ -13,6 +13,7 @@ from drake_symplan.abstraction.refusals import allows
 from drake_symplan.actions import Action
 from drake_symplan.features import object_features
 from drake_symplan.planning.budget import Budget
+from drake_symplan.planning.nodes import EXPANDED
 from drake_symplan.symbolic.structs import Reposition, Step
 
 
@@ -34,7 +35,9 @@ def test_the_search_predicts_the_moves_the_goals_order_asks_for_first():
     tower = boxes(a=(0.7, 0.0, 0.125), b=(0.7, 0.0, 0.075), c=(0.7, 0.0, 0.025))
     goal = tower.where()
     asked = Refiner(list(STACK.values()), Stacking())
+    before = EXPANDED.total
     found, _ = asked.search(START, goal, Budget.of_cpu(10))
+    assert EXPANDED.total - before == 2  # search nodes: the start, b on c
     # b onto c (c is in place), then a onto b: three releases each, the cubes' one grasp
     assert [s.action for s in found.steps] == [Action("b", "center", "c", "center"),
                                                Action("a", "center", "b", "center")]

@@ -199,7 +199,8 @@ def test_solves_a_one_action_goal_and_reports_the_documented_json():
     assert backend.executed == [Action("a", "center", "b", "center")]
     out = result.to_json()
     assert set(out) == {"status", "plan", "executed", "replans", "objects", "level",
-                        "seconds"}
+                        "seconds", "nodes"}
+    assert out["nodes"] == 2  # Fast Downward's A* on the one-action task: start and goal
     assert out["level"] == "symbolic"  # the level that found the first plan
     assert set(out["seconds"]) == {"perceive", "symbols", "plan", "execute", "total"}
     assert set(out["objects"]["a"]) == {"goal", "final", "final_true", "error_cm"}

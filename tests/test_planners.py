@@ -149,6 +149,20 @@ def test_fast_downward_falls_back_to_a_weighted_search_when_a_star_runs_out(tmp_
     assert check_plan(GRIPPER, gripper_problem(20), found.plan) is None
 
 
+def test_fast_downwards_expanded_states_are_tallied(hanoi_files):
+    from drake_symplan.planning.nodes import EXPANDED, fd_expanded
+
+    assert fd_expanded("[t=0.1s] g=15, 52 evaluated, 45 expanded\n"
+                       "[t=0.1s] Expanded 46 state(s).\n") == 46
+    # stopped at its limits: no closing count, the last progress line's
+    assert fd_expanded("f = 501, 16748 evaluated, 16689 expanded, 51 reopened\n"
+                       "Time limit reached. Abort search.\n") == 16689
+    assert fd_expanded("") == fd_expanded(None) == 0
+    before = EXPANDED.total
+    found = fast_downward(hanoi_files / "domain.pddl", hanoi_files / "p3.pddl")
+    assert found.solved and EXPANDED.total - before == 14  # A* with LM-cut, three discs
+
+
 def test_fast_downward_through_its_driver_finds_the_same_plan(hanoi_files, monkeypatch):
     from drake_symplan.planning import planners
 

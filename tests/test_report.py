@@ -73,6 +73,18 @@ def test_a_table_of_failures_counts_how_each_sets_failed_solves_ended():
         render([old], "w-failures")
 
 
+def test_a_table_of_search_nodes_gives_each_sets_median():
+    records = [{**r, "nodes": n} for r, n in zip(RECORDS, (40, 100, 7), strict=True)]
+    record = keep(records, SETTINGS, "w-symbolic", "w", "symbols alone", "symplan ...",
+                  rows="kind")
+    assert [s["nodes_median"] for s in record["sets"].values()] == [70.0, 7.0]
+    assert "nodes_median" not in keep(RECORDS, SETTINGS, "w-old", "w", "before", "...",
+                                      rows="kind")["sets"]["row4"]  # records without counts
+    record.update(measured="2026-12-06", commit="abc1234", host={"cpus": 2})
+    assert render([record], "w-nodes").startswith(
+        "| set | symbols alone |\n|---|---|\n| row4 | 70 |\n| tower4 | 7 |\n\n")
+
+
 def test_structure_rows_split_each_set_by_whether_its_goal_names_a_bridge(tmp_path):
     import json
 

@@ -28,6 +28,7 @@ from drake_symplan.abstraction.stability import unstable
 from drake_symplan.actions import OFFSETS, Action, grasp_on_box
 from drake_symplan.boxes import GOAL_TOLERANCE, goal_reached
 from drake_symplan.planning.budget import Budget
+from drake_symplan.planning.nodes import EXPANDED
 from drake_symplan.relations import unmet
 from drake_symplan.symbolic.structs import PlanningOperators, PlanStep, Reposition, Step
 
@@ -207,6 +208,7 @@ class Refiner:
             options = [o for o in ranked(self.operators, skeleton[i], skeleton[i + 1:],
                                          state, goal_atoms, scorer)
                        if allows(o.step.action, barred) and o.step.action.target not in covered]
+            EXPANDED.add(1)
             for option in central(options, boxes.riding, lambda o: o.step.action):
                 after, step = option.predicted, option.step
                 if self.unsafe(boxes, after, step.action):
@@ -354,6 +356,7 @@ class Refiner:
                 options = self._allowed(boxes, deferred)
             # a step's safety (`unsafe`) is checked when its node comes off the frontier:
             # most nodes never do, and the check costs more than the prediction
+            EXPANDED.add(1)
             for after, option in zip(self._predict(boxes, options), options, strict=True):
                 cost, distance = g + 1 + MISSED * self.missed[option.action], h(after)
                 heapq.heappush(frontier, (cost + self.weight * distance, next(tie), cost,

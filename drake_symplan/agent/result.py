@@ -46,6 +46,9 @@ class SolveResult:
     subgoals: int = 0
     # Steps the arm refused that were planned around (apart from the replans)
     refusals: int = 0
+    # Search nodes the solve's plans expanded, all of them (planning/nodes.py: Fast
+    # Downward's states, the continuous level's scenes)
+    nodes: int = 0
     # A goal of relations: those not held in the last perceived scene (the verdict), and
     # on the simulator's truth (evaluation only; no decision reads it)
     unmet: list[str] | None = None
@@ -72,6 +75,7 @@ class SolveResult:
             out["subgoals"] = self.subgoals
         if self.refusals:
             out["refusals"] = self.refusals
+        out["nodes"] = self.nodes
         if self.unmet is not None:
             out["relations"] = {"unmet": self.unmet, "unmet_true": self.unmet_true}
         if not self.success:

@@ -51,6 +51,7 @@ from drake_symplan.agent.reposition import (
 from drake_symplan.agent.result import PhaseClock, SolveResult
 from drake_symplan.agent.verdict import verdict
 from drake_symplan.boxes import GOAL_TOLERANCE
+from drake_symplan.planning.nodes import EXPANDED
 from drake_symplan.relations import riders
 from drake_symplan.robot.backends import Backend, Execution, PerceptionFailure, make_backend
 from drake_symplan.skills.geometry import set_down_unseen
@@ -183,9 +184,13 @@ class _Run(Completion):
     # --- plan -----------------------------------------------------------------------
 
     def _search(self) -> Plan:
-        """Plans from the scene perceived now."""
-        with self.clock("plan"):
-            return self.planner.plan(self.now, self.goal)
+        """Plans from the scene perceived now, its search nodes counted in the result's."""
+        before = EXPANDED.total
+        try:
+            with self.clock("plan"):
+                return self.planner.plan(self.now, self.goal)
+        finally:
+            self.result.nodes += EXPANDED.total - before
 
     def _steps(self, found: Plan) -> list[Planned]:
         """The steps of a plan found; _Stop when the planner found none."""

@@ -330,6 +330,9 @@ def cmd_eval_planning(args: argparse.Namespace) -> dict:
     if not args.json:
         for run, modes in result["runs"].items():
             for mode, s in modes.items():
-                print(f"{run} ({mode}): {s['success']:.0%} of {s['problems']} solved; "
-                      f"failures {s['failure_causes']}")
+                nodes = "" if s["nodes_median"] is None else \
+                    f", median {s['nodes_median']:g} search nodes"
+                print(f"{run} ({mode}): {s['success']:.0%} of {s['problems']} solved; median "
+                      f"plan {s['plan_seconds']['median']:.2f} s{nodes}; failures "
+                      f"{s['failure_causes']}")
     return out

@@ -84,7 +84,7 @@ def solve_job(agent: Agent, label: str, abstraction: Abstraction, problem: dict,
         "level": result.level,
         "executed": len(result.executed), "replans": result.replans,
         "dropped_riders": result.dropped_riders, "subgoals": result.subgoals,
-        "refusals": result.refusals,
+        "refusals": result.refusals, "nodes": result.nodes,
         "seconds": {k: round(v, 4) for k, v in result.seconds.items()},
         "error_cm": {n: o["error_cm"] for n, o in result.objects.items()},
     }
@@ -298,6 +298,13 @@ def _goal_error_summary(records: list[dict]) -> dict | None:
             "p90": round(float(np.percentile(errors, 90)), 3)}
 
 
+def _median_nodes(records: list[dict]) -> float | None:
+    """The median of the records' search nodes, or None where one has no count."""
+    if not records or any("nodes" not in r for r in records):
+        return None
+    return float(statistics.median(r["nodes"] for r in records))
+
+
 def summarise(records: list[dict]) -> dict:
     """{run: {"monitor"|"open_loop": summary}} over evaluation records."""
     out: dict[str, dict] = {}
@@ -322,6 +329,9 @@ def summarise(records: list[dict]) -> dict:
             "plan_seconds": {"median": round(statistics.median(plan_s), 4),
                              "mean": round(float(np.mean(plan_s)), 4)},
             "solve_seconds": _seconds(rs),
+            # Search nodes a solve's plans expanded (planning/nodes.py; records made
+            # before the count have none)
+            "nodes_median": _median_nodes(rs),
             "goal_error_cm": _goal_error_summary([r for r in rs if r["status"] == "success"]),
             "plan_length_minus_k": round(float(np.mean(
                 [r["plan_length"] - r["k"] for r in solved])), 3) if solved else None,

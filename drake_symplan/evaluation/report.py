@@ -11,7 +11,8 @@ between `<!-- report:NAME -->` and `<!-- /report -->` in a page, so that the REA
 numbers are the records' (tests/test_report.py fails on a changed digit). `plot` draws a
 table's success rate against the number of objects, a line per column
 (`success_by_objects` computes its points). A block named TABLE-failures renders table
-TABLE's failures by how they ended instead (`render_failures`). `keep_learning` makes a record of what a
+TABLE's failures by how they ended instead (`render_failures`), TABLE-nodes its median
+search nodes (`render_nodes`). `keep_learning` makes a record of what a
 trained run learned instead (its effect error, its operators on held-out data): its
 table has a row per measure.
 """
@@ -28,8 +29,9 @@ from pathlib import Path
 
 from drake_symplan.json_files import read_json
 
-# a report block's name with this ending renders the failures of the table it ends
-FAILURES = "-failures"
+# a report block's name with one of these endings renders another view of the table it
+# ends: its failures by how they ended, its median search nodes
+FAILURES, NODES = "-failures", "-nodes"
 # how a failed solve ended (agent/verdict.py's causes), as the failures' table names it
 ENDINGS = {"infeasible": "refused", "execution": "unmet", "timeout": "timed out",
            "perception": "lost from view", "no_plan": "no plan", "error": "error"}
@@ -90,7 +92,9 @@ def keep(records: list[dict], settings: dict, name: str, table: str, column: str
                        "actions": [min(r["k"] for r in rs), max(r["k"] for r in rs)],
                        "plan_seconds_median": round(statistics.median(
                            r["seconds"]["plan"] for r in rs), 2),
-                       "failures": failures(rs)}
+                       "failures": failures(rs),
+                       **({"nodes_median": float(statistics.median(r["nodes"] for r in rs))}
+                          if all("nodes" in r for r in rs) else {})}
                  for key, rs in sorted(sets.items())},
     }
 
@@ -152,8 +156,9 @@ def render(records: list[dict], table: str) -> str:
     """The markdown table `table` of `records`: a row per problem set, a column per record
     (successes on the perceived verdict, the simulator's in brackets, the median plan
     seconds), and a line saying when, where and by what it was measured."""
-    if table.endswith(FAILURES) and not any(r["table"] == table for r in records):
-        return render_failures(records, table[:-len(FAILURES)])
+    for ending, view in ((FAILURES, render_failures), (NODES, render_nodes)):
+        if table.endswith(ending) and not any(r["table"] == table for r in records):
+            return view(records, table[:-len(ending)])
     chosen = _chosen(records, table)
     if all("measures" in r for r in chosen):
         return _finish(_render_measures(chosen), chosen, "")
@@ -175,24 +180,33 @@ def render_failures(records: list[dict], table: str) -> str:
     """The markdown table of table `table`'s failures: a row per problem set, a column
     per record that keeps them (records made before `keep` counted them are left out),
     each cell the failed solves by how they ended (ENDINGS)."""
+    return _render_view(records, table, "failures", lambda s: ", ".join(
+        f"{ENDINGS.get(c, c)} {n}" for c, n in s["failures"].items()) or "none",
+        "the solves failed on the perceived verdict, by how they ended")
+
+
+def render_nodes(records: list[dict], table: str) -> str:
+    """The markdown table of table `table`'s search nodes: a row per problem set, a
+    column per record that keeps them, each cell the median over the set's solves of the
+    nodes their plans expanded (planning/nodes.py)."""
+    return _render_view(records, table, "nodes_median", lambda s: f"{s['nodes_median']:g}",
+                        "the median search nodes a solve's plans expanded")
+
+
+def _render_view(records: list[dict], table: str, key: str, cell, meaning: str) -> str:
+    """A view of table `table`: a row per problem set, a column per record whose every
+    set keeps `key`, each cell `cell(set)` ("-" where the record lacks the set)."""
     chosen = [r for r in _chosen(records, table)
-              if "sets" in r and all("failures" in s for s in r["sets"].values())]
+              if "sets" in r and all(key in s for s in r["sets"].values())]
     if not chosen:
-        raise ValueError(f"no record of the table {table!r} keeps its failures")
-    keys = sorted({k for r in chosen for k in r["sets"]}, key=_natural)
+        raise ValueError(f"no record of the table {table!r} keeps its {key}")
+    rows = sorted({k for r in chosen for k in r["sets"]}, key=_natural)
     lines = ["| set | " + " | ".join(r["column"] for r in chosen) + " |",
              "|---|" + "---|" * len(chosen)]
-    for key in keys:
-        lines.append(f"| {key} | " + " | ".join(
-            _failures_cell(r["sets"].get(key)) for r in chosen) + " |")
-    return _finish(lines, chosen, "; each cell: the solves failed on the perceived "
-                   "verdict, by how they ended")
-
-
-def _failures_cell(s: dict | None) -> str:
-    if s is None:
-        return "-"
-    return ", ".join(f"{ENDINGS.get(c, c)} {n}" for c, n in s["failures"].items()) or "none"
+    for row in rows:
+        lines.append(f"| {row} | " + " | ".join(
+            cell(r["sets"][row]) if row in r["sets"] else "-" for r in chosen) + " |")
+    return _finish(lines, chosen, f"; each cell: {meaning}")
 
 
 def _finish(lines: list[str], chosen: list[dict], cells: str) -> str:

@@ -43,6 +43,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from drake_symplan.planning.nodes import EXPANDED, fd_expanded
 from drake_symplan.planning.processes import children_cpu, limit_cpu, run_group
 
 STATUSES = ("solved", "unsolvable", "timeout", "error")
@@ -220,10 +221,12 @@ def _fd_runs(runs, tmp: str, start: float, wall_seconds: float, cpu_seconds: flo
                                         now + OPTIMAL_SHARE * (deadline - now),
                                         None if cpu is None else OPTIMAL_SHARE * cpu)
             if _out_of_time(code):
+                EXPANDED.add(fd_expanded(out))
                 code, out, err = run_group(fallback[0], tmp, fallback[1], fallback[2],
                                             deadline, left())
         else:
             code, out, err = run_group(cmd, tmp, env, stdin, deadline, left())
+        EXPANDED.add(fd_expanded(out))
         if code is None:
             return result("timeout", message=f"Fast Downward killed after {wall_seconds:g} s")
         if code != 0:
