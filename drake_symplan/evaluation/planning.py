@@ -32,6 +32,7 @@ from drake_symplan.boxes import goal_reached
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
 from drake_symplan.goals.problems import load_problems, recorded_actions
 from drake_symplan.json_files import parse_json, type_name
+from drake_symplan.planning.nodes import median_nodes
 from drake_symplan.relations import parse
 from drake_symplan.symbolic.bundle import ModelBundle
 from drake_symplan.world.scenes import load_scene
@@ -298,13 +299,6 @@ def _goal_error_summary(records: list[dict]) -> dict | None:
             "p90": round(float(np.percentile(errors, 90)), 3)}
 
 
-def _median_nodes(records: list[dict]) -> float | None:
-    """The median of the records' search nodes, or None where one has no count."""
-    if not records or any("nodes" not in r for r in records):
-        return None
-    return float(statistics.median(r["nodes"] for r in records))
-
-
 def summarise(records: list[dict]) -> dict:
     """{run: {"monitor"|"open_loop": summary}} over evaluation records."""
     out: dict[str, dict] = {}
@@ -331,7 +325,7 @@ def summarise(records: list[dict]) -> dict:
             "solve_seconds": _seconds(rs),
             # Search nodes a solve's plans expanded (planning/nodes.py; records made
             # before the count have none)
-            "nodes_median": _median_nodes(rs),
+            "nodes_median": median_nodes(rs),
             "goal_error_cm": _goal_error_summary([r for r in rs if r["status"] == "success"]),
             "plan_length_minus_k": round(float(np.mean(
                 [r["plan_length"] - r["k"] for r in solved])), 3) if solved else None,

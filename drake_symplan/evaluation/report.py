@@ -28,6 +28,7 @@ from datetime import date
 from pathlib import Path
 
 from drake_symplan.json_files import read_json
+from drake_symplan.planning.nodes import median_nodes
 
 # a report block's name with one of these endings renders another view of the table it
 # ends: its failures by how they ended, its median search nodes
@@ -93,8 +94,8 @@ def keep(records: list[dict], settings: dict, name: str, table: str, column: str
                        "plan_seconds_median": round(statistics.median(
                            r["seconds"]["plan"] for r in rs), 2),
                        "failures": failures(rs),
-                       **({"nodes_median": float(statistics.median(r["nodes"] for r in rs))}
-                          if all("nodes" in r for r in rs) else {})}
+                       **({} if (nodes := median_nodes(rs)) is None
+                          else {"nodes_median": nodes})}
                  for key, rs in sorted(sets.items())},
     }
 
