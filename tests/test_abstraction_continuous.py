@@ -76,12 +76,12 @@ def test_a_box_over_no_box_rests_on_the_table_and_what_the_hand_carried_settles_
 
     scene = boxes(a=(0.7, 0.0, 0.025), b=(0.7, 0.0, 0.09), c=(0.7, 0.2, 0.09))
     # c, released beside the stack and predicted 9 cm up, is over nothing: on the table
-    out = rest(scene.positions.astype(float), scene.features, moved=[1, 2])
+    out = rest(scene.positions.astype(float), scene, moved=[1, 2])
     assert np.allclose(out[:, 2], [0.025, 0.075, 0.025])
     # b carried onto a, a nudged by the model and predicted higher than b: a settles
     # first, b comes down on it
     nudged = boxes(a=(0.705, 0.0, 0.1), b=(0.7, 0.0, 0.06))
-    out = rest(nudged.positions.astype(float), nudged.features, moved=[0, 1], carried={1})
+    out = rest(nudged.positions.astype(float), nudged, moved=[0, 1], carried={1})
     assert np.allclose(out[:, 2], [0.025, 0.075])
 
 
@@ -90,14 +90,14 @@ def test_a_box_predicted_over_another_rests_on_it_and_one_over_it_in_part_keeps_
 
     scene = boxes(a=(0.7, 0.0, 0.025), b=(0.7, 0.0, 0.075), c=(0.7, 0.01, 0.089),
                   d=(0.5, 0.2, 0.04), e=(0.7, 0.04, 0.06))
-    out = rest(scene.positions.astype(float), scene.features, moved=[2, 3, 4])
+    out = rest(scene.positions.astype(float), scene, moved=[2, 3, 4])
     # c, released over the tower a-b, predicted at a mean height no box rests at: on b.
     assert np.allclose(out[2], [0.7, 0.01, 0.125]) and np.allclose(out[:2], scene.positions[:2])
     assert np.allclose(out[3], [0.5, 0.2, 0.025])  # over nothing: on the table
     assert np.allclose(out[4], [0.7, 0.04, 0.06])  # its edge over a: it may lean, as predicted
     # The lowest moved box settles first: a tower predicted low all the way up stacks.
     low = boxes(a=(0.7, 0.0, 0.025), b=(0.7, 0.0, 0.06), c=(0.7, 0.0, 0.07))
-    assert np.allclose(rest(low.positions.astype(float), low.features, [1, 2])[:, 2],
+    assert np.allclose(rest(low.positions.astype(float), low, [1, 2])[:, 2],
                        [0.025, 0.075, 0.125])
 
 

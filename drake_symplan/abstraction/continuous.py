@@ -35,7 +35,7 @@ from drake_symplan.abstraction.stability import (
     under_of,
 )
 from drake_symplan.actions import LIFT_TOL, Action, encode_action, release_centre, relevant_objects
-from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph, goal_distances
+from drake_symplan.boxes import CONTACT_TOLERANCE, HALF_EXTENTS, contact_graph
 from drake_symplan.datasets import ObjectState
 from drake_symplan.features import box_of, shape_state
 from drake_symplan.relations import riders
@@ -86,7 +86,7 @@ class Boxes:
         return self.features[:, :3]
 
     def where(self) -> dict[str, np.ndarray]:
-        return {n: self.features[i, :3].astype(float) for i, n in enumerate(self.names)}
+        return dict(zip(self.names, self.features[:, :3].astype(float), strict=True))
 
     def moved(self, positions: np.ndarray, spread: np.ndarray | None = None) -> Boxes:
         """The same boxes at `positions` [n, 3], their contacts from the geometry; `spread`
@@ -95,7 +95,13 @@ class Boxes:
         features[:, :3] = positions
         if spread is not None:
             spread = np.sqrt(self.uncertainty() ** 2 + np.asarray(spread) ** 2)
-        return Boxes(self.names, features, None, spread if spread is not None else self.spread)
+        out = Boxes(self.names, features, None, spread if spread is not None else self.spread)
+        # only the centres move: the types and axes, and what is computed of them alone,
+        # are this scene's (a search predicts thousands of scenes from a few)
+        for known in ("_frames", "index", "_flat"):
+            if known in self.__dict__:
+                out.__dict__[known] = self.__dict__[known]
+        return out
 
     def kinds(self) -> dict[str, str]:
         """Each box's type by name."""
@@ -116,7 +122,28 @@ class Boxes:
         """Each box's (type, centre, axes R) as features.box_of reads its row, read once:
         the skills' rules, the contacts and the stability rules ask them of a scene over
         and over."""
-        return [box_of(row) for row in self.features]
+        centres = self.features[:, :3].astype(float)
+        return [(kind, centre, R) for (kind, R), centre in zip(self._frames, centres,
+                                                               strict=True)]
+
+    @cached_property
+    def _frames(self) -> list[tuple[str, np.ndarray]]:
+        # each box's type and axes (features.box_of), which a moved scene keeps
+        return [(kind, R) for kind, _, R in map(box_of, self.features)]
+
+    @cached_property
+    def index(self) -> dict[str, int]:
+        """Each box's row by name."""
+        return {n: i for i, n in enumerate(self.names)}
+
+    @cached_property
+    def _flat(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What `rest` reads of each box: its yaw's 2x2 rotation [n, 2, 2], its top's
+        half extents [n, 2], its half height [n], whether it lies level [n]."""
+        turns = np.array([R[:2, :2] for _, R in self._frames])
+        tops = np.array([HALF_EXTENTS[kind][:2] for kind, _ in self._frames])
+        heights = np.array([HALF_EXTENTS[kind][2] for kind, _ in self._frames])
+        return turns, tops, heights, self.features[:, 3] >= LEVEL
 
     def half_length(self, name: str) -> float:
         """Half the length of box `name` along its long axis (local y), by its type."""
@@ -249,10 +276,9 @@ class ContinuousModel:
         where the hand releases it unless the model has it land `snap` or more from there
         (it falls off): the arm sets a box down 2 mm from its release (median, 256 six-box
         steps), where the model's own guess is 6 mm off, and up to 8 cm for a long block."""
-        where = boxes.where()
-        land = release_centre(where[action.target][:2], action)
-        carry = np.array([*(land - where[action.source][:2]), 0.0])
-        out = boxes.positions.astype(float).copy()
+        out = boxes.positions.astype(float)
+        land = release_centre(out[boxes.index[action.target], :2], action)
+        carry = np.array([*(land - out[boxes.index[action.source], :2]), 0.0])
         for i, e in zip(row, effect, strict=True):
             shift = e[:3] + e[3:]
             if e[2] > LIFT_TOL and i in carried:
@@ -262,8 +288,10 @@ class ContinuousModel:
             elif snap > 0 and np.linalg.norm(shift) <= SETTLE_MOVED:
                 continue  # not moved: a shift this small is the regression's jitter
             out[i] = out[i] + shift
-        moved = [i for i in row if np.linalg.norm(out[i] - boxes.positions[i]) > SETTLE_MOVED]
-        return rest(out, boxes.features, moved, carried)
+        gone = out[row] - boxes.positions[row]
+        moved = [i for i, far in zip(row, np.sqrt(np.einsum("ij,ij->i", gone, gone)),
+                                     strict=True) if far > SETTLE_MOVED]
+        return rest(out, boxes, moved, carried)
 
 
 SNAP = 0.10  # m: a carried box predicted to land nearer its release lands at it (_positions)
@@ -271,7 +299,7 @@ SETTLE_MOVED = 0.01  # m: a box predicted to move this far comes to rest (`rest`
 MOVED = 0.02  # m: a box predicted to go this far has moved (a rider too)
 
 
-def rest(positions: np.ndarray, features: np.ndarray, moved: list[int],
+def rest(positions: np.ndarray, boxes: Boxes, moved: list[int],
          carried=frozenset()) -> np.ndarray:
     """`positions` with each `moved` box (lowest first, those the hand `carried` last: they
     come down on what the others came to) whose centre is over another box resting flat on
@@ -284,21 +312,18 @@ def rest(positions: np.ndarray, features: np.ndarray, moved: list[int],
     eight-box steps); one over another only in part keeps the predicted height (it may lean or lie
     across two)."""
     out = positions.copy()
-    shapes = [box_of(row) for row in features]
-    turns = np.array([R[:2, :2] for _, _, R in shapes])
-    tops = np.array([HALF_EXTENTS[kind][:2] for kind, _, _ in shapes])
+    turns, tops, heights, level = boxes._flat
     settled = [i for i in range(len(out)) if i not in moved]
     for i in sorted(moved, key=lambda k: (k in carried, out[k][2])):
-        kind, _, R = shapes[i]
+        kind, R = boxes._frames[i]
         at = np.array(settled, int)
         under = at[over_tops(out[i][None, :2], out[at, :2], turns[at], tops[at])]
         if len(under):
-            top = max(out[j][2] + HALF_EXTENTS[shapes[j][0]][2] for j in under)
-            out[i][2] = top + HALF_EXTENTS[kind][2]
-        elif features[i][3] >= LEVEL and not over_tops(
+            out[i][2] = max(out[j][2] + heights[j] for j in under) + heights[i]
+        elif level[i] and not over_tops(
                 out[i][:2] + FOOTPRINTS[kind] @ R[:2, :2].T, out[at, :2], turns[at],
                 tops[at]).any():
-            out[i][2] = HALF_EXTENTS[kind][2]
+            out[i][2] = heights[i]
         settled.append(i)
     return out
 
@@ -316,6 +341,11 @@ def rollout(predict, boxes: Boxes, actions: list) -> list[Boxes]:
 
 def goal_errors(boxes: Boxes, goal: dict[str, np.ndarray]) -> dict[str, float]:
     """Each box's distance (m) to its goal position, as far as it may be: the predicted
-    distance plus the prediction's spread (zero for a perceived scene)."""
-    return goal_distances(boxes.where(), goal,
-                          dict(zip(boxes.names, boxes.uncertainty(), strict=True)))
+    distance plus the prediction's spread (zero for a perceived scene): boxes.goal_distances
+    at once for all of them (the search's heuristic asks it of every scene it predicts)."""
+    if not goal:
+        return {}
+    rows = [boxes.index[n] for n in goal]
+    gap = boxes.features[rows, :3].astype(float) - np.array(list(goal.values()), float)
+    far = np.sqrt(np.einsum("ij,ij->i", gap, gap)) + boxes.uncertainty()[rows]
+    return dict(zip(goal, far.tolist(), strict=True))
