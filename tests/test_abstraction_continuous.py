@@ -120,3 +120,25 @@ def test_an_ensemble_predicts_its_members_mean_and_their_disagreement():
     assert again.uncertainty()[0] > half
     assert ContinuousModel(Lifting()).predict(START, [Action("a", "center", "c", "left")]
                                               )[0].spread is None
+
+
+def test_a_predicted_scene_keeps_each_box_type_and_yaw_and_takes_its_new_centre():
+    from drake_symplan.abstraction.continuous import Boxes
+    from drake_symplan.features import box_of, object_features
+
+    yaw = np.pi / 6
+    turn = np.array([[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0],
+                     [0.0, 0.0, 1.0]])
+    scene = Boxes(("a", "b"), np.stack([
+        object_features("long", np.array([0.7, 0.0, 0.025]), turn),
+        object_features("cube", np.array([0.5, 0.1, 0.025]), np.eye(3))]), frozenset())
+    assert scene.shapes[0][0] == "long"  # read before predicting from it, as the search does
+    after = scene.moved(np.array([[0.6, 0.1, 0.075], [0.5, 0.1, 0.025]]))
+    for (kind, centre, axes), (read_kind, read_centre, read_axes) in zip(
+            after.shapes, map(box_of, after.features), strict=True):
+        assert kind == read_kind and np.allclose(centre, read_centre)
+        assert np.allclose(axes, read_axes)
+    kind, centre, axes = after.shapes[0]
+    assert kind == "long" and np.allclose(centre, [0.6, 0.1, 0.075])
+    assert np.isclose(np.arctan2(axes[1, 0], axes[0, 0]), yaw)
+    assert after.index == {"a": 0, "b": 1}

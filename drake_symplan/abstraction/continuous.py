@@ -301,9 +301,10 @@ MOVED = 0.02  # m: a box predicted to go this far has moved (a rider too)
 
 def rest(positions: np.ndarray, boxes: Boxes, moved: list[int],
          carried=frozenset()) -> np.ndarray:
-    """`positions` with each `moved` box (lowest first, those the hand `carried` last: they
-    come down on what the others came to) whose centre is over another box resting flat on
-    the highest such box. The effect model regresses the mean of what its
+    """`positions` of the boxes of `boxes` (their types, yaws and tilts as there) with
+    each `moved` box (lowest first, those the hand `carried` last: they come down on what
+    the others came to) whose centre is over another box resting flat on the highest
+    such box. The effect model regresses the mean of what its
     data did after an action, and where a release sometimes ends on top and sometimes
     beside, that mean is a height no box rests at (a cube put on a tower of three
     predicted 9 cm low); the centre's place is predicted well, and what is under it says
