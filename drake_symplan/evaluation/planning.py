@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import statistics
 import sys
-from collections import Counter, defaultdict
+from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +30,7 @@ from drake_symplan.agent.solve import Agent
 from drake_symplan.atomic import save_figure
 from drake_symplan.boxes import goal_reached
 from drake_symplan.cluster import cluster_cpus, ray_session, run_jobs, run_jobs_local
+from drake_symplan.evaluation.report import failures
 from drake_symplan.goals.problems import load_problems, recorded_actions
 from drake_symplan.json_files import parse_json, type_name
 from drake_symplan.planning.nodes import median_nodes
@@ -332,8 +333,7 @@ def summarise(records: list[dict]) -> dict:
             "replans_mean": round(float(np.mean([r["replans"] for r in rs])), 3),
             # Steps the arm refused, planned round (records made before the count have none)
             "refusals": sum(r.get("refusals", 0) for r in rs),
-            "failure_causes": dict(Counter(r["failure_cause"] for r in rs
-                                           if r["status"] != "success").most_common()),
+            "failure_causes": failures(rs),
             # Failures after which a rider the arm carried was seen off its base (records
             # made before the count have none).
             "failures_with_dropped_riders": sum(r["status"] != "success"
