@@ -49,6 +49,12 @@ SET_DOWN_REACH = 0.33
 # m: a source's centre is set down no nearer the edge of what the cameras keep (perception's
 # crop): a cube centred 1 cm inside it is seen 0.8 cm off, one past it is lost
 VIEW_MARGIN = 0.015
+# A long block released over its target lines up with the one box beside it as high
+# (span_turn): tops this near, its centre this near the block's axis, this much of it under
+# the block.
+SPAN_LEVEL = 0.01  # m
+SPAN_OFFSET = 0.02  # m
+SPAN_OVERLAP = 0.02  # m
 LOWER_STEP = 0.005  # m: the heights tried, from the landing up, for a release beside the target
 
 
@@ -230,8 +236,50 @@ def nominal_points(action: Action, objects: dict[str, ObjectState]
     src, tgt = objects[action.source], objects[action.target]
     release = release_point(tgt.position, action)
     release[2] = top(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
-    return (grasp_point(src.position, action), release,
-            fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"]))
+    grasp = grasp_point(src.position, action)
+    turn = fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"])
+    span = span_turn(action, objects, grasp, release, turn)
+    return grasp, release, turn if span is None else span
+
+
+def span_turn(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
+              release: np.ndarray, turn: float) -> float | None:
+    """The gripper's turn that lays a long block, with nothing on it, across its target
+    and the one box beside the target whose top is as high (within SPAN_LEVEL), where the
+    block turned to its target's faces (`turn`) would come down partly over that box
+    without bearing on it, and lined up with the two it bears on both (`over`); else
+    None. A person laying a plank across two posts lines it up with them: turned to its
+    target's faces, a block set on a cube knocked askew lay 36 degrees across its
+    supports and missed one."""
+    src, tgt = objects[action.source], objects[action.target]
+    if src.type != "long" or riders(action.source, objects):
+        return None
+    beside = [o for n, o in objects.items() if n not in (action.source, action.target)
+              and abs(top(o) - top(tgt)) <= SPAN_LEVEL
+              and np.linalg.norm(o.position[:2] - tgt.position[:2]) <= HALF_EXTENTS["long"][1]]
+    if len(beside) != 1:
+        return None
+    support = beside[0]
+    grazes = HALF_EXTENTS["long"][0] + HALF_EXTENTS[support.type][0]
+    if over(src, grasp, release, turn, support) \
+            or not over(src, grasp, release, turn, support, grazes):
+        return None
+    d = support.position[:2] - tgt.position[:2]
+    lined_up = fold_yaw(np.arctan2(-d[0], d[1]) - src.yaw, YAW_PERIOD["long"])
+    return lined_up if over(src, grasp, release, lined_up, support) else None
+
+
+def over(src: ObjectState, grasp: np.ndarray, release: np.ndarray, turn: float,
+         support: ObjectState, offset: float = SPAN_OFFSET) -> bool:
+    """Does the block `src`, held at `grasp` and released at `release` turned by `turn`,
+    come down over `support`: its centre within `offset` of the block's axis, and
+    SPAN_OVERLAP of it or more under the block's end?"""
+    yaw = src.yaw + turn
+    axis = np.array([-np.sin(yaw), np.cos(yaw)])  # a block's length lies along its local y
+    d = support.position[:2] - landing(src, grasp, release, turn)
+    along, across = abs(d @ axis), abs(d[0] * axis[1] - d[1] * axis[0])
+    reach = HALF_EXTENTS["long"][1] + HALF_EXTENTS[support.type][1] - SPAN_OVERLAP
+    return along <= reach and across <= offset
 
 
 def grasp_refused(action: Action, objects: dict[str, ObjectState]) -> bool:
