@@ -228,18 +228,20 @@ def _palm_strikes(objects: dict[str, ObjectState], g: ActionGeometry,
     return palm_strikes(*_boxes(objects), g.grasp, g.yaw_grasp, load, margin=-PALM_BRUSH)
 
 
-def nominal_points(action: Action, objects: dict[str, ObjectState]
+def nominal_points(action: Action, objects: dict[str, ObjectState], span: bool = True
                    ) -> tuple[np.ndarray, np.ndarray, float]:
     """`action`'s TCP points by the believed `objects` (grasp, release over the target's
     top) and the gripper's turn between them, before the quarter turn clear of neighbours
-    and a careful carry's shifts (action_geometry, arm_geometry)."""
+    and a careful carry's shifts (action_geometry, arm_geometry); without `span`, the
+    turn to the target's faces even where a block would be lined up (span_turn: the
+    search's hot path asks this where the turn changes nothing it reads)."""
     src, tgt = objects[action.source], objects[action.target]
     release = release_point(tgt.position, action)
     release[2] = top(tgt) + HALF_EXTENTS[src.type][2] + RELEASE_CLEARANCE
     grasp = grasp_point(src.position, action)
     turn = fold_yaw(tgt.yaw - src.yaw, YAW_PERIOD["cube"])
-    span = span_turn(action, objects, grasp, release, turn)
-    return grasp, release, turn if span is None else span
+    lined_up = span_turn(action, objects, grasp, release, turn) if span else None
+    return grasp, release, turn if lined_up is None else lined_up
 
 
 def span_turn(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray,
@@ -252,17 +254,23 @@ def span_turn(action: Action, objects: dict[str, ObjectState], grasp: np.ndarray
     target's faces, a block set on a cube knocked askew lay 36 degrees across its
     supports and missed one."""
     src, tgt = objects[action.source], objects[action.target]
-    if src.type != "long" or riders(action.source, objects):
+    if src.type != "long":
         return None
-    beside = [o for n, o in objects.items() if n not in (action.source, action.target)
-              and abs(top(o) - top(tgt)) <= SPAN_LEVEL
-              and np.linalg.norm(o.position[:2] - tgt.position[:2]) <= HALF_EXTENTS["long"][1]]
+    # the cheap tests first: the search asks this of every move of a block
+    reach, xy = HALF_EXTENTS["long"][1], tgt.position[:2]
+    boxes = list(objects.values())
+    far = np.hypot(*(np.array([o.position[:2] for o in boxes]) - xy).T) > reach
+    height = top(tgt)
+    beside = [o for o, f in zip(boxes, far, strict=True) if not f
+              and o.name not in (action.source, action.target)
+              and abs(top(o) - height) <= SPAN_LEVEL]
     if len(beside) != 1:
         return None
     support = beside[0]
     grazes = HALF_EXTENTS["long"][0] + HALF_EXTENTS[support.type][0]
     if over(src, grasp, release, turn, support) \
-            or not over(src, grasp, release, turn, support, grazes):
+            or not over(src, grasp, release, turn, support, grazes) \
+            or riders(action.source, objects):
         return None
     d = support.position[:2] - tgt.position[:2]
     lined_up = fold_yaw(np.arctan2(-d[0], d[1]) - src.yaw, YAW_PERIOD["long"])
@@ -291,8 +299,9 @@ def grasp_refused(action: Action, objects: dict[str, ObjectState]) -> bool:
 
 def set_down_at(action: Action, objects: dict[str, ObjectState]) -> np.ndarray:
     """Where `action` sets its source down by its nominal points: its centre, released
-    over the target's top (the planner asks whether it would rest there)."""
-    grasp, release, turn = nominal_points(action, objects)
+    over the target's top (the planner asks whether it would rest there). Held at its
+    centre, a box lands centred under the release point however it turns."""
+    grasp, release, turn = nominal_points(action, objects, span=action.grasp != "center")
     src = objects[action.source]
     return np.array([*landing(src, grasp, release, turn),
                      release[2] - (grasp[2] - src.position[2])])
@@ -326,14 +335,14 @@ def set_down_struck(action: Action, objects: dict[str, ObjectState]) -> list[str
             return []  # the arm refuses its grasp (grasp_refused)
         return release_strikes(action, objects, g.grasp, g.release,
                                g.yaw_release - g.yaw_grasp)
-    grasp, release, turn = nominal_points(action, objects)
+    grasp, release, _ = nominal_points(action, objects, span=False)
     bottom = release[2] - HALF_EXTENTS[objects[action.source].type][2]
     if not any(n not in (action.source, action.target)
                and o.position[2] + HALF_EXTENTS[o.type][2] > bottom + STRIKE_DEPTH
                and np.linalg.norm(o.position[:2] - release[:2]) < SET_DOWN_REACH
                for n, o in objects.items()):
         return []
-    return release_strikes(action, objects, grasp, release, turn)
+    return release_strikes(action, objects, *nominal_points(action, objects))
 
 
 def refuse_strikes(action: Action, objects: dict[str, ObjectState], g: ActionGeometry,
