@@ -16,6 +16,7 @@ from drake_symplan.boxes import HALF_EXTENTS, YAW_PERIOD, fold_yaw
 from drake_symplan.datasets import ObjectState
 from drake_symplan.perception.segmentation import CROP_X, CROP_Y
 from drake_symplan.relations import riders, top
+from drake_symplan.relations import turn as rotate
 from drake_symplan.skills.carry import (
     STRIKE_DEPTH,
     careful_points,
@@ -282,10 +283,9 @@ def over(src: ObjectState, grasp: np.ndarray, release: np.ndarray, turn: float,
     """Does the block `src`, held at `grasp` and released at `release` turned by `turn`,
     come down over `support`: its centre within `offset` of the block's axis, and
     SPAN_OVERLAP of it or more under the block's end?"""
-    yaw = src.yaw + turn
-    axis = np.array([-np.sin(yaw), np.cos(yaw)])  # a block's length lies along its local y
-    d = support.position[:2] - landing(src, grasp, release, turn)
-    along, across = abs(d @ axis), abs(d[0] * axis[1] - d[1] * axis[0])
+    # the support's centre in the block's frame, whose length lies along its local y
+    across, along = np.abs(rotate(support.position[:2] - landing(src, grasp, release, turn),
+                                  -(src.yaw + turn)))
     reach = HALF_EXTENTS["long"][1] + HALF_EXTENTS[support.type][1] - SPAN_OVERLAP
     return along <= reach and across <= offset
 
